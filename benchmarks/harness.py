@@ -1,0 +1,153 @@
+"""Shared benchmark runner: ours versus the peer, side by side, in one process.
+
+A benchmark file ``benchmarks/bench_<area>.py`` defines ``cases(quick: bool)``
+returning a list of :class:`Case`. Inputs are built *before* the case is
+returned, so the timed closures only run the operation. Each case is timed with
+:class:`torch.utils.benchmark.Timer` (``blocked_autorange``, median and IQR) at
+each thread count, ours and the peer interleaved, and the ratio ours / peer is
+reported. NumPy/BLAS threads are limited with threadpoolctl when it is present.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import platform
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import torch
+import torch.utils.benchmark as tbench
+
+__all__ = ["Case", "Measurement", "time_fn", "run_case", "metadata"]
+
+
+@dataclass
+class Case:
+    """One comparison.
+
+    Attributes:
+        name: what is measured, e.g. ``"transform_points (64,16384,2) f32 fwd"``.
+        ours: zero-argument callable running our op (inputs prebuilt).
+        peer: zero-argument callable running the peer, or ``None`` (report only).
+        peer_name: e.g. ``"kornia 0.9.0"``.
+        target: the ratio ours/peer we must stay at or under (``None``: reported only).
+        peer_scale: multiply the peer time by this (extrapolating a loop run on a subset).
+        threads: thread counts to time at.
+        extra: free-form numbers to report (errors, peak memory, points/s, ...).
+        sync: synchronize CUDA inside the timed region.
+    """
+
+    name: str
+    ours: Callable[[], object]
+    peer: Callable[[], object] | None = None
+    peer_name: str = ""
+    target: float | None = None
+    peer_scale: float = 1.0
+    threads: tuple[int, ...] = (1, 2)
+    extra: dict = field(default_factory=dict)
+    sync: bool = False
+
+
+@dataclass
+class Measurement:
+    case: str
+    threads: int
+    ours_ms: float
+    ours_iqr_ms: float
+    peer_ms: float | None
+    peer_iqr_ms: float | None
+    peer_name: str
+    ratio: float | None
+    target: float | None
+    passed: bool | None
+    extra: dict
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@contextlib.contextmanager
+def _limit_threads(n: int):
+    previous = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - optional
+        threadpool_limits = None
+    try:
+        if threadpool_limits is None:
+            yield
+        else:
+            with threadpool_limits(limits=n):
+                yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def time_fn(fn: Callable[[], object], threads: int, min_run_time: float, sync: bool = False):
+    """Median and IQR of ``fn()`` in seconds, at ``threads`` threads."""
+    if sync and torch.cuda.is_available():
+        def stmt():
+            fn()
+            torch.cuda.synchronize()
+    else:
+        stmt = fn
+    with _limit_threads(threads):
+        timer = tbench.Timer(stmt="stmt()", globals={"stmt": stmt}, num_threads=threads)
+        m = timer.blocked_autorange(min_run_time=min_run_time)
+    return m.median, m.iqr
+
+
+def run_case(case: Case, min_run_time: float = 0.5) -> list[Measurement]:
+    """Time ``case`` at each of its thread counts; returns one Measurement per count."""
+    out = []
+    for n in case.threads:
+        case.ours()  # warm-up (allocators, lazy init)
+        ours, ours_iqr = time_fn(case.ours, n, min_run_time, case.sync)
+        peer = peer_iqr = ratio = None
+        if case.peer is not None:
+            case.peer()
+            peer, peer_iqr = time_fn(case.peer, n, min_run_time, case.sync)
+            peer, peer_iqr = peer * case.peer_scale, peer_iqr * case.peer_scale
+            ratio = ours / peer
+        passed = None if (ratio is None or case.target is None) else ratio <= case.target
+        out.append(
+            Measurement(
+                case=case.name,
+                threads=n,
+                ours_ms=ours * 1e3,
+                ours_iqr_ms=ours_iqr * 1e3,
+                peer_ms=None if peer is None else peer * 1e3,
+                peer_iqr_ms=None if peer_iqr is None else peer_iqr * 1e3,
+                peer_name=case.peer_name,
+                ratio=ratio,
+                target=case.target,
+                passed=passed,
+                extra=dict(case.extra),
+            )
+        )
+    return out
+
+
+def metadata() -> dict:
+    """Versions, machine and time, stored with every result file."""
+    import numpy
+
+    meta = {
+        "time": time.strftime("%Y-%m-%d %H:%M:%S"),
+        "python": platform.python_version(),
+        "torch": torch.__version__,
+        "numpy": numpy.__version__,
+        "machine": platform.machine(),
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": __import__("os").cpu_count(),
+        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+    }
+    for mod in ("kornia", "scipy", "skimage", "trimesh", "bezier", "cv2", "pymeshlab", "mcubes"):
+        try:
+            meta[mod] = __import__(mod).__version__
+        except Exception:  # noqa: BLE001 - a missing peer is recorded as None
+            meta[mod] = None
+    return json.loads(json.dumps(meta, default=str))

@@ -1,0 +1,18 @@
+"""torchgeo_cg: batched, differentiable geometry for PyTorch learning pipelines.
+
+Subpackages, one per area:
+
+- :mod:`torchgeo_cg.core`: the validation helper and NaN-free numerics;
+- :mod:`torchgeo_cg.transforms`: homogeneous 2D transforms, scene graphs, estimation;
+- :mod:`torchgeo_cg.curves`: Bezier, Hermite/PCHIP, parametric and implicit 2D curves;
+- :mod:`torchgeo_cg.sdf`: signed distance fields, grids and samplers;
+- :mod:`torchgeo_cg.mesh`: marching cubes, Catmull-Clark subdivision, mesh I/O;
+- :mod:`torchgeo_cg.viz` and :mod:`torchgeo_cg.cli`: the gallery and ``torchgeo-cg``.
+"""
+
+from torchgeo_cg import core, curves, mesh, sdf, transforms
+from torchgeo_cg.core import ShapeError
+
+__version__ = "0.1.0"
+
+__all__ = ["ShapeError", "core", "curves", "mesh", "sdf", "transforms", "__version__"]

@@ -1,0 +1,3 @@
+"""torchgeo_cg.curves (being built)."""
+
+__all__: list[str] = []

@@ -1,0 +1,3 @@
+"""torchgeo_cg.mesh (being built)."""
+
+__all__: list[str] = []

@@ -1,0 +1,3 @@
+"""torchgeo_cg.sdf (being built)."""
+
+__all__: list[str] = []

@@ -1,0 +1,368 @@
+"""Homogeneous 2D transforms as batched 3x3 matrices (report section 2.1-2.2, Tables 1-2).
+
+Convention:
+    - Column vectors: a point ``p = (x, y)`` maps to ``p' = M @ [x, y, 1]^T``
+      followed by the perspective divide, as in kornia. Row-vector users multiply
+      ``[x, y, 1] @ M^T`` (report eq. 4); :func:`compose_trs` builds either form.
+    - Coordinates are ``(x, y)`` in that order, y pointing up; positive angles
+      rotate counter-clockwise. Angles are in degrees unless ``degrees=False``.
+    - ``compose(A, B, C) = A @ B @ C``: the right-most matrix acts first.
+    - Every function is batched over leading dimensions ``(*)`` (broadcast between
+      arguments), takes dtype and device from its tensor inputs, and is
+      differentiable. Python numbers are accepted where a ``(*)`` tensor is, and
+      become tensors of the default dtype.
+    - The perspective divide clamps ``|w| < eps`` to ``±eps`` (sign kept, ``+eps``
+      at exactly 0), so points at infinity come out huge but finite, with finite
+      gradients. kornia instead leaves such points undivided.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.numerics import safe_div
+
+__all__ = [
+    "translation",
+    "rotation",
+    "scaling",
+    "scale_x",
+    "scale_y",
+    "shear",
+    "homography",
+    "compose",
+    "compose_trs",
+    "transform_points",
+    "inverse",
+]
+
+
+def _as_float(x: torch.Tensor | float, name: str, like: torch.Tensor | None = None):
+    """Tensor-ify Python numbers (dtype/device of ``like`` if given) and check for floats."""
+    if not isinstance(x, torch.Tensor):
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise TypeError(f"{name}: expected a float tensor or a number, got {type(x).__name__}")
+        kw = {} if like is None else {"dtype": like.dtype, "device": like.device}
+        x = torch.tensor(float(x), **kw)
+    return check_float(x, name)
+
+
+def _from_rows(m00, m01, m02, m10, m11, m12, m20, m21, m22) -> torch.Tensor:
+    """Stack nine broadcastable (*) tensors into (*, 3, 3)."""
+    entries = torch.broadcast_tensors(m00, m01, m02, m10, m11, m12, m20, m21, m22)
+    return torch.stack(entries, dim=-1).unflatten(-1, (3, 3))
+
+
+def translation(offset: torch.Tensor) -> torch.Tensor:
+    """Translation matrix ``T(a, b) = [[1, 0, a], [0, 1, b], [0, 0, 1]]`` (report Table 1).
+
+    Convention:
+        Column vectors; ``offset = (a, b)`` in (x, y) order.
+
+    Args:
+        offset: ``(*, 2)`` float tensor.
+
+    Returns:
+        ``(*, 3, 3)`` matrices.
+
+    Example:
+        >>> translation(torch.tensor([5.0, 1.0]))
+        tensor([[1., 0., 5.],
+                [0., 1., 1.],
+                [0., 0., 1.]])
+    """
+    check_shape(offset, ["*", "2"], "offset")
+    check_float(offset, "offset")
+    one, zero = torch.ones_like(offset[..., 0]), torch.zeros_like(offset[..., 0])
+    return _from_rows(one, zero, offset[..., 0], zero, one, offset[..., 1], zero, zero, one)
+
+
+def rotation(angle: torch.Tensor | float, degrees: bool = True) -> torch.Tensor:
+    """Rotation about the origin, counter-clockwise for positive ``angle`` (report Table 1).
+
+    ``R = [[cos a, -sin a, 0], [sin a, cos a, 0], [0, 0, 1]]``.
+
+    Convention:
+        Column vectors, y up, counter-clockwise positive, about the origin.
+        ``degrees=True`` (the report's interface) by default. kornia's
+        ``get_rotation_matrix2d(center, angle, scale)`` uses the same sign and
+        rotates about ``center``: it equals ``T(c) @ R(angle) @ T(-c)`` (tested).
+
+    Args:
+        angle: ``(*)`` angles, or a Python number.
+        degrees: interpret ``angle`` in degrees (else radians).
+
+    Returns:
+        ``(*, 3, 3)`` matrices.
+
+    Example:
+        >>> rotation(torch.tensor(90.0)).round(decimals=6)
+        tensor([[ 0., -1.,  0.],
+                [ 1.,  0.,  0.],
+                [ 0.,  0.,  1.]])
+    """
+    angle = _as_float(angle, "angle")
+    rad = torch.deg2rad(angle) if degrees else angle
+    c, s = torch.cos(rad), torch.sin(rad)
+    one, zero = torch.ones_like(c), torch.zeros_like(c)
+    return _from_rows(c, -s, zero, s, c, zero, zero, zero, one)
+
+
+def scaling(factor: torch.Tensor | float, per_axis: bool | None = None) -> torch.Tensor:
+    """Scaling about the origin: uniform ``S(n)`` or per-axis ``diag(sx, sy, 1)``.
+
+    Convention:
+        Column vectors; per-axis factors in (x, y) order. ``per_axis=None`` infers
+        the form: a tensor whose last dimension is 2 is read as ``(*, 2)``
+        per-axis factors, anything else as ``(*)`` uniform factors. Pass
+        ``per_axis=False`` for a batch of exactly two uniform factors.
+
+    Args:
+        factor: ``(*)`` uniform or ``(*, 2)`` per-axis factors, or a number.
+        per_axis: force the reading of ``factor`` (see above).
+
+    Returns:
+        ``(*, 3, 3)`` matrices.
+
+    Example:
+        >>> scaling(2.0)
+        tensor([[2., 0., 0.],
+                [0., 2., 0.],
+                [0., 0., 1.]])
+        >>> scaling(torch.tensor([1.2, 0.4]))[:2, :2]
+        tensor([[1.2000, 0.0000],
+                [0.0000, 0.4000]])
+    """
+    factor = _as_float(factor, "factor")
+    if per_axis is None:
+        per_axis = factor.ndim >= 1 and factor.shape[-1] == 2
+    if per_axis:
+        check_shape(factor, ["*", "2"], "factor")
+        sx, sy = factor[..., 0], factor[..., 1]
+    else:
+        sx = sy = factor
+    one, zero = torch.ones_like(sx), torch.zeros_like(sx)
+    return _from_rows(sx, zero, zero, zero, sy, zero, zero, zero, one)
+
+
+def scale_x(factor: torch.Tensor | float) -> torch.Tensor:
+    """X-wise scale ``Xs(f) = diag(f, 1, 1)`` (report Table 2, ``scaleX``).
+
+    Example:
+        >>> scale_x(torch.tensor([2.0, 3.0]))[:, 0, 0]
+        tensor([2., 3.])
+    """
+    factor = _as_float(factor, "factor")
+    return scaling(torch.stack([factor, torch.ones_like(factor)], dim=-1), per_axis=True)
+
+
+def scale_y(factor: torch.Tensor | float) -> torch.Tensor:
+    """Y-wise scale ``Ys(f) = diag(1, f, 1)`` (report Table 2, ``scaleY``).
+
+    Example:
+        >>> scale_y(0.5)[1, 1]
+        tensor(0.5000)
+    """
+    factor = _as_float(factor, "factor")
+    return scaling(torch.stack([torch.ones_like(factor), factor], dim=-1), per_axis=True)
+
+
+def shear(a: torch.Tensor | float, b: torch.Tensor | float) -> torch.Tensor:
+    """Shear ``SH(a, b) = [[1, a, 0], [b, 1, 0], [0, 0, 1]]`` (report Table 2, ``shearAB``).
+
+    Convention:
+        Column vectors: ``x' = x + a*y``, ``y' = b*x + y``. kornia's
+        ``get_shear_matrix2d(center, sx, sy)`` writes the same matrix about
+        ``center`` with ``sx = a``, ``sy = b`` (tested).
+
+    Args:
+        a: ``(*)`` x-shear (``x += a*y``).
+        b: ``(*)`` y-shear (``y += b*x``); broadcast against ``a``.
+
+    Returns:
+        ``(*, 3, 3)`` matrices.
+
+    Example:
+        >>> shear(0.5, 0.0)
+        tensor([[1.0000, 0.5000, 0.0000],
+                [0.0000, 1.0000, 0.0000],
+                [0.0000, 0.0000, 1.0000]])
+    """
+    a = _as_float(a, "a")
+    b = _as_float(b, "b", like=a)
+    a, b = torch.broadcast_tensors(a, b)
+    one, zero = torch.ones_like(a), torch.zeros_like(a)
+    return _from_rows(one, a, zero, b, one, zero, zero, zero, one)
+
+
+def homography(h: torch.Tensor) -> torch.Tensor:
+    """Homography from its 8 free entries, ``h33 = 1`` (report Table 2).
+
+    Convention:
+        ``h = (h11, h12, h13, h21, h22, h23, h31, h32)`` in row-major order;
+        column vectors with the perspective divide (see :func:`transform_points`).
+
+    Args:
+        h: ``(*, 8)`` float tensor.
+
+    Returns:
+        ``(*, 3, 3)`` matrices.
+
+    Example:
+        >>> homography(torch.tensor([0.27, 0, -0.85, -0.25, -0.2, 5.65, -0.02, -0.09]))
+        tensor([[ 0.2700,  0.0000, -0.8500],
+                [-0.2500, -0.2000,  5.6500],
+                [-0.0200, -0.0900,  1.0000]])
+    """
+    check_shape(h, ["*", "8"], "h")
+    check_float(h, "h")
+    return torch.cat([h, torch.ones_like(h[..., :1])], dim=-1).unflatten(-1, (3, 3))
+
+
+def _check_matrix(m: torch.Tensor, name: str) -> torch.Tensor:
+    check_shape(m, ["*", "3", "3"], name)
+    return check_float(m, name)
+
+
+def compose(*matrices: torch.Tensor) -> torch.Tensor:
+    """Multiply homogeneous matrices left to right: ``compose(A, B, C) = A @ B @ C``.
+
+    Convention:
+        Column vectors, so the right-most matrix acts first: the report's
+        ``T·S·R`` (eq. 3) is ``compose(T, S, R)``. Batch dims broadcast.
+
+    Args:
+        *matrices: one or more ``(*, 3, 3)`` tensors.
+
+    Returns:
+        ``(*, 3, 3)``, the broadcast product.
+
+    Example:
+        >>> m = compose(translation(torch.tensor([1.0, 0.0])), scaling(2.0))
+        >>> transform_points(m, torch.tensor([[1.0, 1.0]]))
+        tensor([[3., 2.]])
+    """
+    if len(matrices) == 0:
+        raise ValueError("compose: expected at least one matrix, got none")
+    out = _check_matrix(matrices[0], "matrices[0]")
+    for i, m in enumerate(matrices[1:], start=1):
+        out = out @ _check_matrix(m, f"matrices[{i}]")
+    return out
+
+
+def compose_trs(
+    offset: torch.Tensor,
+    angle: torch.Tensor | float,
+    scale: torch.Tensor | float,
+    row_vectors: bool = False,
+    degrees: bool = True,
+) -> torch.Tensor:
+    """The report's compound transform: ``T·S·R`` (eq. 3) or ``Rᵀ·Sᵀ·Tᵀ`` (eq. 4).
+
+    Convention:
+        With ``row_vectors=False`` the result acts on column vectors,
+        ``p' = (T·S·R) p``: rotate first, then scale, then translate. With
+        ``row_vectors=True`` it is the transpose, acting on row vectors,
+        ``p'ᵀ = pᵀ (Rᵀ·Sᵀ·Tᵀ)``; both give the same points.
+
+    Args:
+        offset: ``(*, 2)`` translation.
+        angle: ``(*)`` rotation (degrees unless ``degrees=False``).
+        scale: ``(*)`` uniform or ``(*, 2)`` per-axis scale, as in :func:`scaling`.
+        row_vectors: return the post-multiplied (row-vector) form.
+        degrees: unit of ``angle``.
+
+    Returns:
+        ``(*, 3, 3)`` matrices.
+
+    Example:
+        >>> m = compose_trs(torch.tensor([2.0, 10.0]), 45.0, 0.5)
+        >>> torch.allclose(compose_trs(torch.tensor([2.0, 10.0]), 45.0, 0.5, row_vectors=True),
+        ...                m.mT)
+        True
+    """
+    check_shape(offset, ["*", "2"], "offset")
+    check_float(offset, "offset")
+    angle = _as_float(angle, "angle", like=offset)
+    scale = _as_float(scale, "scale", like=offset)
+    t, r, s = translation(offset), rotation(angle, degrees=degrees), scaling(scale)
+    if row_vectors:
+        return compose(r.mT, s.mT, t.mT)
+    return compose(t, s, r)
+
+
+def transform_points(matrix: torch.Tensor, points: torch.Tensor, eps: float = 1e-8) -> torch.Tensor:
+    """Apply homogeneous ``matrix`` to 2D ``points``, with the perspective divide.
+
+    ``[x', y', w]ᵀ = M [x, y, 1]ᵀ`` and the result is ``(x'/w, y'/w)``.
+
+    Convention:
+        Column vectors as in kornia's ``transform_points(trans_01, points_1)``;
+        equal to it whenever ``|w| > eps``. Where ``|w| <= eps`` we divide by
+        ``±eps`` (sign of ``w`` kept, ``+eps`` at exactly 0) instead of leaving
+        the point undivided as kornia does: the output is finite, forward and
+        backward. Batch dims of ``matrix`` and ``points`` broadcast. NaN in
+        gives NaN out.
+
+    Args:
+        matrix: ``(*, 3, 3)`` float transforms.
+        points: ``(*, N, 2)`` float points.
+        eps: smallest ``|w|`` divided by.
+
+    Returns:
+        ``(*, N, 2)`` transformed points.
+
+    Example:
+        >>> h = homography(torch.tensor([1.0, 0, 0, 0, 1, 0, 0.5, 0]))
+        >>> transform_points(h, torch.tensor([[2.0, 4.0], [-2.0, 1.0]]))
+        tensor([[1.0000e+00, 2.0000e+00],
+                [-2.0000e+08, 1.0000e+08]])
+    """
+    _check_matrix(matrix, "matrix")
+    check_shape(points, ["*", "N", "2"], "points")
+    check_float(points, "points")
+    if matrix.dtype != points.dtype or matrix.device != points.device:
+        raise TypeError(
+            f"transform_points: matrix is {matrix.dtype} on {matrix.device} but points is "
+            f"{points.dtype} on {points.device}"
+        )
+    # (*, N, 3) = points (*, N, 2) @ M[:, :2]ᵀ (*, 2, 3) + M[:, 2]ᵀ (*, 1, 3)
+    linear_t = matrix[..., :, :2].mT  # (*, 2, 3)
+    bias = matrix[..., :, 2].unsqueeze(-2)  # (*, 1, 3)
+    xyw = torch.matmul(points, linear_t) + bias  # (*, N, 3)
+    return safe_div(xyw[..., :2], xyw[..., 2:], eps=eps)
+
+
+def inverse(matrix: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:
+    """Inverse of homogeneous 3x3 matrices by the adjugate, ``M⁻¹ = adj(M) / det(M)``.
+
+    Convention:
+        Closed form, batched and differentiable. A singular matrix
+        (``|det| < eps``) does not raise or give NaN: the determinant is clamped
+        to ``±eps`` (sign kept), so the result is huge but finite; check
+        ``torch.linalg.det`` yourself when singular input is possible.
+
+    Args:
+        matrix: ``(*, 3, 3)`` float tensor.
+        eps: smallest ``|det|`` divided by.
+
+    Returns:
+        ``(*, 3, 3)`` inverses.
+
+    Example:
+        >>> m = compose_trs(torch.tensor([2.0, 1.0]), 30.0, 2.0)
+        >>> torch.allclose(compose(m, inverse(m)), torch.eye(3), atol=1e-6)
+        True
+    """
+    _check_matrix(matrix, "matrix")
+    a, b, c = matrix[..., 0, 0], matrix[..., 0, 1], matrix[..., 0, 2]
+    d, e, f = matrix[..., 1, 0], matrix[..., 1, 1], matrix[..., 1, 2]
+    g, h, i = matrix[..., 2, 0], matrix[..., 2, 1], matrix[..., 2, 2]
+    # cofactors: adj(M)[r, c] = cofactor(M)[c, r]
+    A, B, C = e * i - f * h, -(d * i - f * g), d * h - e * g
+    D, E, F = -(b * i - c * h), a * i - c * g, -(a * h - b * g)
+    G, H, I = b * f - c * e, -(a * f - c * d), a * e - b * d
+    det = a * A + b * B + c * C
+    adj = _from_rows(A, D, G, B, E, H, C, F, I)
+    return safe_div(adj, det[..., None, None], eps=eps)
