@@ -96,7 +96,7 @@ def check_shape(
     Example:
         >>> pts = torch.zeros(4, 10, 2)
         >>> check_shape(pts, ["*", "N", "2"], "points")
-        {'*': (4,), 'N': 10}
+        {'N': 10, '*': (4,)}
         >>> check_shape(pts, ["*", "N", "3"], "points")
         Traceback (most recent call last):
         ...

@@ -97,7 +97,7 @@ def rotation(angle: torch.Tensor | float, degrees: bool = True) -> torch.Tensor:
         ``(*, 3, 3)`` matrices.
 
     Example:
-        >>> rotation(torch.tensor(90.0)).round(decimals=6)
+        >>> rotation(torch.tensor(90.0)).round(decimals=6) + 0.0  # + 0.0 turns -0. into 0.
         tensor([[ 0., -1.,  0.],
                 [ 1.,  0.,  0.],
                 [ 0.,  0.,  1.]])
@@ -316,8 +316,8 @@ def transform_points(matrix: torch.Tensor, points: torch.Tensor, eps: float = 1e
     Example:
         >>> h = homography(torch.tensor([1.0, 0, 0, 0, 1, 0, 0.5, 0]))
         >>> transform_points(h, torch.tensor([[2.0, 4.0], [-2.0, 1.0]]))
-        tensor([[1.0000e+00, 2.0000e+00],
-                [-2.0000e+08, 1.0000e+08]])
+        tensor([[ 1.0000e+00,  2.0000e+00],
+                [-2.0000e+08,  1.0000e+08]])
     """
     _check_matrix(matrix, "matrix")
     check_shape(points, ["*", "N", "2"], "points")
