@@ -9,7 +9,20 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["safe_div", "safe_sqrt", "safe_norm"]
+__all__ = ["clamp_away_from_zero", "safe_div", "safe_sqrt", "safe_norm"]
+
+
+def clamp_away_from_zero(x: torch.Tensor, eps: float = 1e-8) -> torch.Tensor:
+    """Replace entries with ``|x| < eps`` by ``eps`` carrying the sign of ``x``.
+
+    ``+0.0`` becomes ``+eps`` and ``-0.0`` becomes ``-eps``. Where an entry was
+    replaced, its gradient is zero. NaN stays NaN.
+
+    Example:
+        >>> clamp_away_from_zero(torch.tensor([2.0, 0.0, -1e-12, float("nan")]))
+        tensor([ 2.0000e+00,  1.0000e-08, -1.0000e-08,         nan])
+    """
+    return torch.where(x.abs() < eps, torch.full_like(x, eps).copysign(x), x)
 
 
 def safe_div(num: torch.Tensor, den: torch.Tensor, eps: float = 1e-8) -> torch.Tensor:
@@ -28,9 +41,7 @@ def safe_div(num: torch.Tensor, den: torch.Tensor, eps: float = 1e-8) -> torch.T
         >>> safe_div(torch.tensor([1.0, 1.0, 1.0]), torch.tensor([2.0, 0.0, -1e-12]))
         tensor([ 5.0000e-01,  1.0000e+08, -1.0000e+08])
     """
-    small = den.abs() < eps
-    den_safe = torch.where(small, torch.where(den < 0, -eps, eps).to(den.dtype), den)
-    return num / den_safe
+    return num / clamp_away_from_zero(den, eps)
 
 
 def safe_sqrt(x: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.core.numerics import safe_div
+from torchgeo_cg.core.numerics import clamp_away_from_zero, safe_div
 
 __all__ = [
     "translation",
@@ -327,11 +327,15 @@ def transform_points(matrix: torch.Tensor, points: torch.Tensor, eps: float = 1e
             f"transform_points: matrix is {matrix.dtype} on {matrix.device} but points is "
             f"{points.dtype} on {points.device}"
         )
-    # (*, N, 3) = points (*, N, 2) @ M[:, :2]ᵀ (*, 2, 3) + M[:, 2]ᵀ (*, 1, 3)
-    linear_t = matrix[..., :, :2].mT  # (*, 2, 3)
-    bias = matrix[..., :, 2].unsqueeze(-2)  # (*, 1, 3)
-    xyw = torch.matmul(points, linear_t) + bias  # (*, N, 3)
-    return safe_div(xyw[..., :2], xyw[..., 2:], eps=eps)
+    # Written out entry by entry: a (N,2)@(2,3) matmul is memory-bound and slower,
+    # and the elementwise form keeps backward cheap. m_rc is (*, 1), x and y are (*, N).
+    x, y = points[..., 0], points[..., 1]
+    m = matrix[..., None]  # (*, 3, 3, 1)
+    w = torch.addcmul(torch.addcmul(m[..., 2, 2, :], m[..., 2, 0, :], x), m[..., 2, 1, :], y)
+    w = clamp_away_from_zero(w, eps)  # (*, N)
+    x_out = torch.addcmul(torch.addcmul(m[..., 0, 2, :], m[..., 0, 0, :], x), m[..., 0, 1, :], y)
+    y_out = torch.addcmul(torch.addcmul(m[..., 1, 2, :], m[..., 1, 0, :], x), m[..., 1, 1, :], y)
+    return torch.stack([x_out / w, y_out / w], dim=-1)
 
 
 def inverse(matrix: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:

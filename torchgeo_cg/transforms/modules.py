@@ -1,0 +1,89 @@
+"""Thin ``nn.Module`` wrappers around :mod:`torchgeo_cg.transforms.homogeneous`.
+
+Each module's ``forward`` is one call to the pure function with the same
+defaults; its tensors are parameters (learnable) or buffers, so ``.to()`` moves
+them.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.transforms.homogeneous import compose_trs, transform_points
+
+__all__ = ["TRSTransform", "HomogeneousTransform"]
+
+
+def _register(module: nn.Module, name: str, value: torch.Tensor, learnable: bool) -> None:
+    if learnable:
+        setattr(module, name, nn.Parameter(value))
+    else:
+        module.register_buffer(name, value, persistent=True)
+
+
+class TRSTransform(nn.Module):
+    """A (learnable) compound transform ``T·S·R`` (report eq. 3) applied to points.
+
+    Convention:
+        Column vectors, ``p' = T(offset)·S(scale)·R(angle)·p``; angle in degrees
+        unless ``degrees=False``, counter-clockwise. Same as
+        :func:`~torchgeo_cg.transforms.compose_trs` with ``row_vectors=False``.
+
+    Args:
+        offset: ``(*, 2)`` translation.
+        angle: ``(*)`` rotation.
+        scale: ``(*)`` uniform or ``(*, 2)`` per-axis scale.
+        degrees: unit of ``angle``.
+        learnable: make offset, angle and scale ``nn.Parameter`` (else buffers).
+
+    Example:
+        >>> m = TRSTransform(torch.tensor([2.0, 10.0]), torch.tensor(90.0), torch.tensor(0.5))
+        >>> m(torch.tensor([[2.0, 0.0]])).detach()
+        tensor([[ 2., 11.]])
+    """
+
+    def __init__(
+        self,
+        offset: torch.Tensor,
+        angle: torch.Tensor,
+        scale: torch.Tensor,
+        degrees: bool = True,
+        learnable: bool = True,
+    ) -> None:
+        super().__init__()
+        check_shape(offset, ["*", "2"], "offset")
+        for name, value in (("offset", offset), ("angle", angle), ("scale", scale)):
+            check_float(value, name)
+            _register(self, name, value.detach().clone(), learnable)
+        self.degrees = degrees
+
+    def matrix(self) -> torch.Tensor:
+        """``(*, 3, 3)`` the current ``T·S·R`` matrix."""
+        return compose_trs(self.offset, self.angle, self.scale, degrees=self.degrees)
+
+    def forward(self, points: torch.Tensor) -> torch.Tensor:
+        """``(*, N, 2)`` points -> ``(*, N, 2)`` transformed points."""
+        return transform_points(self.matrix(), points)
+
+
+class HomogeneousTransform(nn.Module):
+    """A fixed or learnable ``(*, 3, 3)`` matrix applied with :func:`transform_points`.
+
+    Example:
+        >>> m = HomogeneousTransform(torch.eye(3) * 2)
+        >>> m(torch.tensor([[1.0, 2.0]])).detach()
+        tensor([[1., 2.]])
+    """
+
+    def __init__(self, matrix: torch.Tensor, learnable: bool = False, eps: float = 1e-8) -> None:
+        super().__init__()
+        check_shape(matrix, ["*", "3", "3"], "matrix")
+        check_float(matrix, "matrix")
+        _register(self, "matrix", matrix.detach().clone(), learnable)
+        self.eps = eps
+
+    def forward(self, points: torch.Tensor) -> torch.Tensor:
+        """``(*, N, 2)`` points -> ``(*, N, 2)`` transformed points."""
+        return transform_points(self.matrix, points, eps=self.eps)

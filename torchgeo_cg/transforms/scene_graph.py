@@ -1,0 +1,279 @@
+"""Articulated motion: a kinematic tree of 2D homogeneous transforms (report section 2.3).
+
+Convention:
+    - Column vectors: a node's world matrix is ``world_from_node = world_from_parent @
+      parent_from_node``, so a point ``p`` in the node's frame is at
+      ``transform_points(world_from_node, p)`` in the world.
+    - Time ``theta`` is a batch of phases in **radians**, ``(T,)``; one animation
+      cycle is ``theta`` in ``[0, 2π)``. A body with ``speed = k`` completes ``k``
+      revolutions per cycle (period ``2π / k``).
+    - Positive speeds orbit counter-clockwise (y up).
+
+Each node's local transform is an ``nn.Module`` (or a fixed ``(3, 3)`` tensor, or
+a plain callable) mapping ``theta (T,)`` to ``parent_from_node (T, 3, 3)``.
+:meth:`SceneGraph.world_transforms` evaluates every node for all ``T`` times in
+one pass per tree level: each level's local matrices are stacked and multiplied
+by their parents' world matrices in a single batched matmul.
+"""
+
+from __future__ import annotations
+
+import math  # noqa: F401 - used by the doctests
+from collections.abc import Callable
+from typing import NamedTuple
+
+import torch
+from torch import nn
+
+from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.transforms.homogeneous import rotation, translation
+
+__all__ = ["Orbit", "FixedTransform", "SceneGraph", "WorldTransforms", "solar_system"]
+
+
+class WorldTransforms(NamedTuple):
+    """Every node's world matrix for every time.
+
+    Attributes:
+        names: the node names, in the order of ``matrices``.
+        matrices: ``(K, T, 3, 3)`` ``world_from_node`` for the K nodes and T times.
+    """
+
+    names: tuple[str, ...]
+    matrices: torch.Tensor
+
+    def get(self, name: str) -> torch.Tensor:
+        """``(T, 3, 3)`` world matrix of node ``name``."""
+        try:
+            return self.matrices[self.names.index(name)]
+        except ValueError:
+            raise KeyError(f"WorldTransforms: no node named {name!r}; have {self.names}") from None
+
+    def positions(self) -> torch.Tensor:
+        """``(K, T, 2)`` world position of every node's origin."""
+        return self.matrices[..., :2, 2]
+
+
+class Orbit(nn.Module):
+    """A circular orbit around the parent: ``parent_from_node(θ)``.
+
+    With angle ``a = speed·θ + phase`` (radians):
+
+    - ``spin=False``: ``T(r·cos a, r·sin a)``; the node's axes stay parallel to its
+      parent's, so a child of this node orbits relative to fixed axes.
+    - ``spin=True``: ``R(a)·T(r, 0)``, the report's rotating frame (its
+      ``T_moon3 = T_moon2(θ)·R(θ)·T([1, 0])``): the node's axes turn with the
+      orbit, so a child's angular speed adds to this node's.
+
+    Convention:
+        Column vectors, radians, counter-clockwise positive; ``speed`` is in
+        revolutions per cycle of ``θ ∈ [0, 2π)``.
+
+    Args:
+        radius: orbit radius (a float or a 0-d tensor; learnable if ``learnable``).
+        speed: revolutions per cycle.
+        phase: angle at ``θ = 0``, radians.
+        spin: rotate the node's frame with the orbit.
+        learnable: register radius, speed and phase as ``nn.Parameter``.
+
+    Example:
+        >>> orbit = Orbit(radius=3.0, speed=2.0)
+        >>> orbit(torch.tensor([0.0, math.pi / 4]))[:, :2, 2].round(decimals=4) + 0.0
+        tensor([[3., 0.],
+                [0., 3.]])
+    """
+
+    def __init__(
+        self,
+        radius: float | torch.Tensor,
+        speed: float | torch.Tensor = 1.0,
+        phase: float | torch.Tensor = 0.0,
+        spin: bool = False,
+        learnable: bool = False,
+    ) -> None:
+        super().__init__()
+        self.spin = spin
+        for name, value in (("radius", radius), ("speed", speed), ("phase", phase)):
+            value = torch.as_tensor(value, dtype=torch.get_default_dtype()).clone()
+            if value.ndim != 0:
+                raise ValueError(f"Orbit: {name} must be a scalar, got shape {tuple(value.shape)}")
+            if learnable:
+                setattr(self, name, nn.Parameter(value))
+            else:
+                self.register_buffer(name, value, persistent=True)
+
+    def forward(self, theta: torch.Tensor) -> torch.Tensor:
+        """``(T,)`` phases in radians -> ``(T, 3, 3)`` ``parent_from_node``."""
+        angle = self.speed * theta + self.phase  # (T,)
+        if self.spin:
+            offset = torch.stack([self.radius.expand_as(angle), torch.zeros_like(angle)], -1)
+            return rotation(angle, degrees=False) @ translation(offset)
+        offset = self.radius * torch.stack([torch.cos(angle), torch.sin(angle)], dim=-1)
+        return translation(offset)
+
+    def extra_repr(self) -> str:
+        return f"spin={self.spin}"
+
+
+class FixedTransform(nn.Module):
+    """A constant ``parent_from_node`` matrix, stored as a buffer so ``.to()`` moves it.
+
+    Example:
+        >>> FixedTransform(translation(torch.tensor([1.0, 2.0])))(torch.zeros(3)).shape
+        torch.Size([3, 3, 3])
+    """
+
+    def __init__(self, matrix: torch.Tensor) -> None:
+        super().__init__()
+        check_shape(matrix, ["3", "3"], "matrix")
+        check_float(matrix, "matrix")
+        self.register_buffer("matrix", matrix.clone(), persistent=True)
+
+    def forward(self, theta: torch.Tensor) -> torch.Tensor:
+        return self.matrix.to(theta.dtype).expand(*theta.shape, 3, 3)
+
+
+class _CallableTransform(nn.Module):
+    def __init__(self, fn: Callable[[torch.Tensor], torch.Tensor]) -> None:
+        super().__init__()
+        self.fn = fn
+
+    def forward(self, theta: torch.Tensor) -> torch.Tensor:
+        return self.fn(theta)
+
+
+class SceneGraph(nn.Module):
+    """A kinematic tree of named 2D frames; see the module docstring for conventions.
+
+    Example:
+        >>> scene = SceneGraph()
+        >>> scene.add("planet")
+        >>> scene.add("moon", "planet", Orbit(radius=2.0))
+        >>> world = scene.world_transforms(torch.tensor([0.0, math.pi / 2]))
+        >>> world.names, world.matrices.shape
+        (('planet', 'moon'), torch.Size([2, 2, 3, 3]))
+        >>> world.get("moon")[:, :2, 2].round(decimals=4) + 0.0
+        tensor([[2., 0.],
+                [0., 2.]])
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.locals = nn.ModuleDict()
+        self._parent: dict[str, str | None] = {}
+        self._depth: dict[str, int] = {}
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Node names in insertion order (parents before children)."""
+        return tuple(self._parent)
+
+    def parent(self, name: str) -> str | None:
+        """The parent of ``name`` (``None`` for a root)."""
+        return self._parent[name]
+
+    def add(
+        self,
+        name: str,
+        parent: str | None = None,
+        local_transform: nn.Module | torch.Tensor | Callable | None = None,
+    ) -> None:
+        """Add node ``name`` under ``parent`` (``None``: a root in the world frame).
+
+        Args:
+            name: a new, unique node name.
+            parent: an existing node, or ``None``.
+            local_transform: ``parent_from_node``: an ``nn.Module`` or callable
+                mapping ``theta (T,)`` to ``(T, 3, 3)``, a fixed ``(3, 3)`` tensor,
+                or ``None`` for the identity.
+
+        Raises:
+            ValueError: ``name`` exists already, or ``parent`` does not.
+        """
+        if name in self._parent:
+            raise ValueError(f"SceneGraph.add: name {name!r} already exists")
+        if parent is not None and parent not in self._parent:
+            raise ValueError(
+                f"SceneGraph.add: parent {parent!r} of {name!r} is not a node; have {self.names}"
+            )
+        if local_transform is None:
+            local_transform = FixedTransform(torch.eye(3))
+        elif isinstance(local_transform, torch.Tensor):
+            local_transform = FixedTransform(local_transform)
+        elif not isinstance(local_transform, nn.Module):
+            if not callable(local_transform):
+                raise TypeError(
+                    "SceneGraph.add: local_transform must be an nn.Module, a callable, a (3, 3) "
+                    f"tensor or None, got {type(local_transform).__name__}"
+                )
+            local_transform = _CallableTransform(local_transform)
+        self.locals[name] = local_transform
+        self._parent[name] = parent
+        self._depth[name] = 0 if parent is None else self._depth[parent] + 1
+
+    def world_transforms(self, theta: torch.Tensor) -> WorldTransforms:
+        """``world_from_node`` for every node at every time in ``theta``.
+
+        Args:
+            theta: ``(T,)`` float phases in radians.
+
+        Returns:
+            :class:`WorldTransforms` with ``matrices (K, T, 3, 3)``, nodes in
+            insertion order.
+        """
+        check_shape(theta, ["T"], "theta")
+        check_float(theta, "theta")
+        names = self.names
+        if not names:
+            raise ValueError("SceneGraph.world_transforms: the graph has no nodes")
+        index = {n: i for i, n in enumerate(names)}
+        world = theta.new_zeros(len(names), theta.shape[0], 3, 3)  # (K, T, 3, 3)
+        for depth in range(max(self._depth.values()) + 1):  # loop over tree levels
+            level = [n for n in names if self._depth[n] == depth]
+            rows = torch.tensor([index[n] for n in level], device=theta.device)
+            local = torch.stack([self.locals[n](theta).to(theta) for n in level])  # (L, T, 3, 3)
+            if depth == 0:
+                world = world.index_copy(0, rows, local)
+            else:
+                parents = torch.tensor([index[self._parent[n]] for n in level], device=theta.device)
+                world = world.index_copy(0, rows, world[parents] @ local)
+        return WorldTransforms(names, world)
+
+    def forward(self, theta: torch.Tensor) -> torch.Tensor:
+        """``(K, T, 3, 3)``: same as ``world_transforms(theta).matrices``."""
+        return self.world_transforms(theta).matrices
+
+
+def solar_system(spin: bool = False) -> SceneGraph:
+    """The report's system (section 2.3): a planet with three moons.
+
+    - ``planet``: at the origin.
+    - ``moon1``: orbits the planet at distance 2, once per cycle (the report does
+      not give this radius; 2 is our choice).
+    - ``moon2``: orbits the planet at distance 3, twice as fast as moon 1.
+    - ``moon3``: orbits moon 2 at distance 1, twice per cycle.
+
+    Convention:
+        ``theta`` in radians, one cycle is ``[0, 2π)``; all orbits counter-clockwise.
+        With ``spin=False`` every speed is relative to fixed axes, so moon 3 goes
+        round moon 2 exactly twice per cycle. With ``spin=True`` frames rotate
+        with their orbits as in the report's ``T_moon3 = T_moon2(θ)·R(θ)·T([1, 0])``;
+        moon 3's local speed is then 0 so that it still circles moon 2 twice per
+        cycle, tidally locked to moon 2's frame.
+
+    Example:
+        >>> world = solar_system().world_transforms(torch.tensor([0.0]))
+        >>> world.positions()[:, 0]
+        tensor([[0., 0.],
+                [2., 0.],
+                [3., 0.],
+                [4., 0.]])
+    """
+    scene = SceneGraph()
+    scene.add("planet")
+    scene.add("moon1", "planet", Orbit(radius=2.0, speed=1.0, spin=spin))
+    scene.add("moon2", "planet", Orbit(radius=3.0, speed=2.0, spin=spin))
+    scene.add("moon3", "moon2", Orbit(radius=1.0, speed=0.0 if spin else 2.0, spin=spin))
+    return scene
+
+
