@@ -45,7 +45,7 @@ def safe_div(num: torch.Tensor, den: torch.Tensor, eps: float = 1e-8) -> torch.T
 
 
 def safe_sqrt(x: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:
-    """``sqrt(max(x, 0))`` with a finite gradient (zero) where ``x <= eps``.
+    """``sqrt(max(x, 0))`` with a finite gradient (zero) where ``x <= eps``; NaN stays NaN.
 
     Example:
         >>> x = torch.tensor([4.0, 0.0, -1.0], requires_grad=True)
@@ -56,7 +56,8 @@ def safe_sqrt(x: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:
     """
     positive = x > eps
     x_safe = torch.where(positive, x, torch.ones_like(x))
-    return torch.where(positive, x_safe.sqrt(), torch.zeros_like(x))
+    # (x * 0).abs() is 0 for finite x and NaN for NaN, so NaN in gives NaN out
+    return torch.where(positive, x_safe.sqrt(), (x * 0).abs())
 
 
 def safe_norm(

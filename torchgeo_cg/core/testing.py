@@ -57,7 +57,10 @@ def assert_close(actual, expected, *, scale: float = 1.0, **kwargs) -> None:
         >>> assert_close(torch.tensor([1.0]), torch.tensor([1.0 + 1e-7]))
     """
     actual = torch.as_tensor(actual)
-    expected = torch.as_tensor(expected).to(device=actual.device, dtype=actual.dtype)
+    if isinstance(expected, torch.Tensor):
+        expected = expected.to(device=actual.device, dtype=actual.dtype)
+    else:  # lists/arrays convert straight to the target dtype, without a float32 detour
+        expected = torch.as_tensor(expected, dtype=actual.dtype, device=actual.device)
     tol = tolerance(actual.dtype) if actual.is_floating_point() else {"rtol": 0, "atol": 0}
     tol = {k: v * scale for k, v in tol.items()}
     tol.update(kwargs)
