@@ -85,9 +85,11 @@ def rotation(angle: torch.Tensor | float, degrees: bool = True) -> torch.Tensor:
 
     Convention:
         Column vectors, y up, counter-clockwise positive, about the origin.
-        ``degrees=True`` (the report's interface) by default. kornia's
-        ``get_rotation_matrix2d(center, angle, scale)`` uses the same sign and
-        rotates about ``center``: it equals ``T(c) @ R(angle) @ T(-c)`` (tested).
+        ``degrees=True`` (the report's interface) by default. kornia works in
+        pixel coordinates (y down): its ``get_rotation_matrix2d(center, angle,
+        scale)`` equals ``T(c) @ R(-angle) @ S(scale) @ T(-c)`` in ours, while
+        ``get_affine_matrix2d`` negates its angle again, so its rotation part is
+        ``R(+angle)`` (both tested live).
 
     Args:
         angle: ``(*)`` angles, or a Python number.
@@ -172,9 +174,11 @@ def shear(a: torch.Tensor | float, b: torch.Tensor | float) -> torch.Tensor:
     """Shear ``SH(a, b) = [[1, a, 0], [b, 1, 0], [0, 0, 1]]`` (report Table 2, ``shearAB``).
 
     Convention:
-        Column vectors: ``x' = x + a*y``, ``y' = b*x + y``. kornia's
-        ``get_shear_matrix2d(center, sx, sy)`` writes the same matrix about
-        ``center`` with ``sx = a``, ``sy = b`` (tested).
+        Column vectors: ``x' = x + a*y``, ``y' = b*x + y``, one matrix as in the
+        report. kornia's ``get_shear_matrix2d(center, sx, sy)`` differs: it takes
+        angles in radians, negates their tangents and shears x first, so it equals
+        ``T(c) @ SH(0, -tan sy) @ SH(-tan sx, 0) @ T(-c)`` (tested live); the two
+        agree only when one factor is zero.
 
     Args:
         a: ``(*)`` x-shear (``x += a*y``).
