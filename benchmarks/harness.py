@@ -4,8 +4,8 @@ A benchmark file ``benchmarks/bench_<area>.py`` defines ``cases(quick: bool)``
 returning a list of :class:`Case`. Inputs are built *before* the case is
 returned, so the timed closures only run the operation. Each case is timed with
 :class:`torch.utils.benchmark.Timer` (``blocked_autorange``, median and IQR) at
-each thread count, ours and the peer interleaved, and the ratio ours / peer is
-reported. NumPy/BLAS threads are limited with threadpoolctl when it is present.
+each thread count, ours and the peer in alternating blocks, and the median
+ratio ours / peer is reported. NumPy/BLAS threads are limited with threadpoolctl when it is present.
 """
 
 from __future__ import annotations
@@ -89,6 +89,7 @@ def _limit_threads(n: int):
 def time_fn(fn: Callable[[], object], threads: int, min_run_time: float, sync: bool = False):
     """Median and IQR of ``fn()`` in seconds, at ``threads`` threads."""
     if sync and torch.cuda.is_available():
+
         def stmt():
             fn()
             torch.cuda.synchronize()
@@ -100,18 +101,36 @@ def time_fn(fn: Callable[[], object], threads: int, min_run_time: float, sync: b
     return m.median, m.iqr
 
 
-def run_case(case: Case, min_run_time: float = 0.5) -> list[Measurement]:
-    """Time ``case`` at each of its thread counts; returns one Measurement per count."""
+def run_case(case: Case, min_run_time: float = 0.5, rounds: int = 5) -> list[Measurement]:
+    """Time ``case`` at each of its thread counts; one Measurement per count.
+
+    Ours and the peer are timed in alternating short blocks (``rounds`` of each),
+    so a change in machine load hits both; the reported times are the medians of
+    the per-block medians and the ratio is the median of the per-round ratios.
+    """
+    import statistics
+
     out = []
+    block = min_run_time / rounds
     for n in case.threads:
         case.ours()  # warm-up (allocators, lazy init)
-        ours, ours_iqr = time_fn(case.ours, n, min_run_time, case.sync)
-        peer = peer_iqr = ratio = None
         if case.peer is not None:
             case.peer()
-            peer, peer_iqr = time_fn(case.peer, n, min_run_time, case.sync)
-            peer, peer_iqr = peer * case.peer_scale, peer_iqr * case.peer_scale
-            ratio = ours / peer
+        ours_t, ours_q, peer_t, peer_q, ratios = [], [], [], [], []
+        for _ in range(rounds):
+            med, iqr = time_fn(case.ours, n, block, case.sync)
+            ours_t.append(med)
+            ours_q.append(iqr)
+            if case.peer is not None:
+                pmed, piqr = time_fn(case.peer, n, block, case.sync)
+                peer_t.append(pmed * case.peer_scale)
+                peer_q.append(piqr * case.peer_scale)
+                ratios.append(med / peer_t[-1])
+        ours, ours_iqr = statistics.median(ours_t), statistics.median(ours_q)
+        peer = peer_iqr = ratio = None
+        if ratios:
+            peer, peer_iqr = statistics.median(peer_t), statistics.median(peer_q)
+            ratio = statistics.median(ratios)
         passed = None if (ratio is None or case.target is None) else ratio <= case.target
         out.append(
             Measurement(

@@ -9,7 +9,9 @@ def test_check_shape_binds_named_sizes_and_batch():
     assert sizes == {"*": (2, 3), "N": 7}
     # the bound sizes carry over to the next check
     check_shape(torch.zeros(7), ["N"], "weights", sizes)
-    with pytest.raises(ShapeError, match=r"weights: expected shape \(N\), got \(6\) \(N=6 but N=7 elsewhere\)"):
+    with pytest.raises(
+        ShapeError, match=r"weights: expected shape \(N\), got \(6\) \(N=6 but N=7 elsewhere\)"
+    ):
         check_shape(torch.zeros(6), ["N"], "weights", sizes)
 
 
@@ -43,7 +45,9 @@ def test_check_tensor_and_float():
         import numpy as np
 
         check_tensor(np.zeros(3), "points")
-    with pytest.raises(TypeError, match="offset: expected a floating-point tensor, got dtype torch.int32"):
+    with pytest.raises(
+        TypeError, match="offset: expected a floating-point tensor, got dtype torch.int32"
+    ):
         check_float(torch.zeros(2, dtype=torch.int32), "offset")
     x = torch.zeros(2, dtype=torch.float64)
     assert check_float(x, "x") is x
@@ -60,5 +64,7 @@ def test_library_has_no_assert_statements():
     offenders = []
     for path in root.rglob("*.py"):
         tree = ast.parse(path.read_text(encoding="utf-8"))
-        offenders += [f"{path.name}:{n.lineno}" for n in ast.walk(tree) if isinstance(n, ast.Assert)]
+        offenders += [
+            f"{path.name}:{n.lineno}" for n in ast.walk(tree) if isinstance(n, ast.Assert)
+        ]
     assert offenders == []

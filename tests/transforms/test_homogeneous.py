@@ -151,17 +151,16 @@ def test_kornia_affine_convention():
     kshear = compose(
         translation(c), shear(zero, -torch.tan(sy)), shear(-torch.tan(sx), zero), translation(-c)
     )
-    ours = compose(
-        translation(t), translation(c), rotation(a), scaling(s), translation(-c), kshear
-    )
+    ours = compose(translation(t), translation(c), rotation(a), scaling(s), translation(-c), kshear)
     torch.testing.assert_close(ours, ref)
 
 
 def test_inverse_matches_torch_linalg(dtype, device, tol):
     g = torch.Generator().manual_seed(1)
     m = (torch.eye(3) + 0.3 * torch.randn(6, 3, 3, generator=g)).to(device, dtype)
-    torch.testing.assert_close(inverse(m), torch.linalg.inv(m), rtol=tol["rtol"] * 100,
-                               atol=tol["atol"] * 100)
+    torch.testing.assert_close(
+        inverse(m), torch.linalg.inv(m), rtol=tol["rtol"] * 100, atol=tol["atol"] * 100
+    )
 
 
 def test_row_vector_form_matches_numpy():
@@ -176,8 +175,9 @@ def test_row_vector_form_matches_numpy():
 def test_points_at_infinity_are_finite_forward_and_backward(dtype, device):
     m = homography(torch.tensor([1, 0, 0, 0, 1, 0, 1, 0], dtype=dtype, device=device))
     m.requires_grad_(True)
-    p = torch.tensor([[-1.0, 2.0], [-1.0, 0.0], [3.0, 1.0]], dtype=dtype, device=device,
-                     requires_grad=True)  # w = x + 1 = 0 for the first two
+    p = torch.tensor(
+        [[-1.0, 2.0], [-1.0, 0.0], [3.0, 1.0]], dtype=dtype, device=device, requires_grad=True
+    )  # w = x + 1 = 0 for the first two
     out = transform_points(m, p)
     out.sum().backward()
     assert torch.isfinite(out).all()
@@ -197,17 +197,27 @@ def test_gradcheck_all_builders():
     gc = torch.autograd.gradcheck
     assert gc(translation, (torch.randn(3, 2, dtype=F64, requires_grad=True),))
     assert gc(rotation, (torch.randn(3, dtype=F64, requires_grad=True),))
-    assert gc(lambda a: rotation(a, degrees=False), (torch.randn(3, dtype=F64, requires_grad=True),))
+    assert gc(
+        lambda a: rotation(a, degrees=False), (torch.randn(3, dtype=F64, requires_grad=True),)
+    )
     assert gc(scaling, (torch.rand(3, 2, dtype=F64, requires_grad=True),))
     assert gc(scale_x, (torch.rand(3, dtype=F64, requires_grad=True),))
     assert gc(scale_y, (torch.rand(3, dtype=F64, requires_grad=True),))
-    assert gc(shear, (torch.randn(3, dtype=F64, requires_grad=True),
-                      torch.randn(3, dtype=F64, requires_grad=True)))
+    assert gc(
+        shear,
+        (
+            torch.randn(3, dtype=F64, requires_grad=True),
+            torch.randn(3, dtype=F64, requires_grad=True),
+        ),
+    )
     assert gc(homography, (torch.randn(2, 8, dtype=F64, requires_grad=True),))
     assert gc(
         compose_trs,
-        (torch.randn(2, 2, dtype=F64, requires_grad=True), torch.randn(2, dtype=F64, requires_grad=True),
-         torch.rand(2, dtype=F64, requires_grad=True) + 0.5),
+        (
+            torch.randn(2, 2, dtype=F64, requires_grad=True),
+            torch.randn(2, dtype=F64, requires_grad=True),
+            torch.rand(2, dtype=F64, requires_grad=True) + 0.5,
+        ),
     )
 
 
@@ -234,22 +244,32 @@ def _affine(draw_t, draw_a, draw_s):
 @given(st.lists(st.tuples(st.tuples(finite, finite), angles, scales), min_size=3, max_size=3))
 def test_compose_is_associative(params):
     a, b, c = (_affine(*p) for p in params)
-    torch.testing.assert_close(compose(compose(a, b), c), compose(a, compose(b, c)),
-                               rtol=1e-9, atol=1e-9)
+    torch.testing.assert_close(
+        compose(compose(a, b), c), compose(a, compose(b, c)), rtol=1e-9, atol=1e-9
+    )
 
 
-@given(st.tuples(finite, finite), angles, st.tuples(scales, scales),
-       st.lists(st.tuples(finite, finite), min_size=1, max_size=6))
+@given(
+    st.tuples(finite, finite),
+    angles,
+    st.tuples(scales, scales),
+    st.lists(st.tuples(finite, finite), min_size=1, max_size=6),
+)
 def test_inverse_round_trip(offset, angle, scale, pts):
     m = compose_trs(t64(*offset), t64(angle), t64(*scale))
     p = torch.tensor(pts, dtype=F64)
-    torch.testing.assert_close(transform_points(inverse(m), transform_points(m, p)), p,
-                               rtol=1e-9, atol=1e-8)
+    torch.testing.assert_close(
+        transform_points(inverse(m), transform_points(m, p)), p, rtol=1e-9, atol=1e-8
+    )
     torch.testing.assert_close(compose(m, inverse(m)), torch.eye(3, dtype=F64), rtol=0, atol=1e-9)
 
 
-@given(st.tuples(finite, finite), angles, st.tuples(scales, scales),
-       st.lists(st.tuples(finite, finite), min_size=1, max_size=6))
+@given(
+    st.tuples(finite, finite),
+    angles,
+    st.tuples(scales, scales),
+    st.lists(st.tuples(finite, finite), min_size=1, max_size=6),
+)
 def test_pre_and_post_multiplied_forms_agree(offset, angle, scale, pts):
     """(T·S·R·p)ᵀ = pᵀ·Rᵀ·Sᵀ·Tᵀ (report eqs. 3 and 4)."""
     pre = compose_trs(t64(*offset), t64(angle), t64(*scale))
@@ -262,22 +282,62 @@ def test_pre_and_post_multiplied_forms_agree(offset, angle, scale, pts):
 @pytest.mark.parametrize(
     "call, exc, match",
     [
-        (lambda: translation(torch.zeros(3)), ShapeError, r"offset: expected shape \(\*, 2\), got \(3\)"),
-        (lambda: translation(torch.zeros(2, dtype=torch.long)), TypeError, "offset: expected a floating"),
+        (
+            lambda: translation(torch.zeros(3)),
+            ShapeError,
+            r"offset: expected shape \(\*, 2\), got \(3\)",
+        ),
+        (
+            lambda: translation(torch.zeros(2, dtype=torch.long)),
+            TypeError,
+            "offset: expected a floating",
+        ),
         (lambda: rotation(torch.tensor(1)), TypeError, "angle: expected a floating"),
         (lambda: rotation("90"), TypeError, "angle: expected a float tensor or a number, got str"),
-        (lambda: scaling(torch.zeros(4, 3), per_axis=True), ShapeError, r"factor: expected shape \(\*, 2\)"),
+        (
+            lambda: scaling(torch.zeros(4, 3), per_axis=True),
+            ShapeError,
+            r"factor: expected shape \(\*, 2\)",
+        ),
         (lambda: shear(torch.tensor([1.0]), torch.tensor(2)), TypeError, "b: expected a floating"),
         (lambda: homography(torch.zeros(9)), ShapeError, r"h: expected shape \(\*, 8\), got \(9\)"),
         (lambda: compose(), ValueError, "at least one"),
         (lambda: compose(torch.eye(3), torch.eye(2)), ShapeError, r"matrices\[1\]: expected shape"),
-        (lambda: transform_points(torch.eye(3), torch.zeros(5, 3)), ShapeError, r"points: expected shape \(\*, N, 2\), got \(5, 3\)"),
-        (lambda: transform_points(torch.eye(2), torch.zeros(5, 2)), ShapeError, r"matrix: expected shape \(\*, 3, 3\)"),
-        (lambda: transform_points(torch.eye(3), torch.zeros(5, 2, dtype=torch.int64)), TypeError, "points: expected a floating"),
-        (lambda: transform_points(torch.eye(3), torch.zeros(5, 2, dtype=F64)), TypeError, "matrix is torch.float32"),
-        (lambda: transform_points(torch.eye(3).expand(4, 3, 3), torch.zeros(3, 5, 2)), RuntimeError, "size"),
-        (lambda: inverse(torch.zeros(3, 4)), ShapeError, r"matrix: expected shape \(\*, 3, 3\), got \(3, 4\)"),
-        (lambda: compose_trs(torch.zeros(2), torch.tensor(1), 1.0), TypeError, "angle: expected a floating"),
+        (
+            lambda: transform_points(torch.eye(3), torch.zeros(5, 3)),
+            ShapeError,
+            r"points: expected shape \(\*, N, 2\), got \(5, 3\)",
+        ),
+        (
+            lambda: transform_points(torch.eye(2), torch.zeros(5, 2)),
+            ShapeError,
+            r"matrix: expected shape \(\*, 3, 3\)",
+        ),
+        (
+            lambda: transform_points(torch.eye(3), torch.zeros(5, 2, dtype=torch.int64)),
+            TypeError,
+            "points: expected a floating",
+        ),
+        (
+            lambda: transform_points(torch.eye(3), torch.zeros(5, 2, dtype=F64)),
+            TypeError,
+            "matrix is torch.float32",
+        ),
+        (
+            lambda: transform_points(torch.eye(3).expand(4, 3, 3), torch.zeros(3, 5, 2)),
+            RuntimeError,
+            "size",
+        ),
+        (
+            lambda: inverse(torch.zeros(3, 4)),
+            ShapeError,
+            r"matrix: expected shape \(\*, 3, 3\), got \(3, 4\)",
+        ),
+        (
+            lambda: compose_trs(torch.zeros(2), torch.tensor(1), 1.0),
+            TypeError,
+            "angle: expected a floating",
+        ),
     ],
 )
 def test_error_paths(call, exc, match):

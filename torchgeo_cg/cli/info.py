@@ -34,8 +34,9 @@ def collect_info() -> dict[str, object]:
             info[name] = "not installed"
     devices = ["cpu"]
     if torch.cuda.is_available():
-        devices += [f"cuda:{i} ({torch.cuda.get_device_name(i)})"
-                    for i in range(torch.cuda.device_count())]
+        devices += [
+            f"cuda:{i} ({torch.cuda.get_device_name(i)})" for i in range(torch.cuda.device_count())
+        ]
     info["devices"] = devices
     info["threads"] = torch.get_num_threads()
     return info

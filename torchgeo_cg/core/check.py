@@ -119,7 +119,7 @@ def check_shape(
 
     if (star and len(got) < len(fixed)) or (not star and len(got) != len(fixed)):
         raise fail()
-    tail = got[len(got) - len(fixed):] if fixed else ()
+    tail = got[len(got) - len(fixed) :] if fixed else ()
     for token, size in zip(fixed, tail):
         if isinstance(token, int) or (isinstance(token, str) and token.isdigit()):
             if size != int(token):

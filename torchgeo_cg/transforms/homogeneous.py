@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.core.numerics import clamp_away_from_zero, safe_div
 
 __all__ = [

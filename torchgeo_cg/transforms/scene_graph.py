@@ -275,5 +275,3 @@ def solar_system(spin: bool = False) -> SceneGraph:
     scene.add("moon2", "planet", Orbit(radius=3.0, speed=2.0, spin=spin))
     scene.add("moon3", "moon2", Orbit(radius=1.0, speed=0.0 if spin else 2.0, spin=spin))
     return scene
-
-

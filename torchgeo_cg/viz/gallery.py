@@ -11,7 +11,7 @@ from torchgeo_cg.viz.registry import GalleryFigure, registered_figures
 
 __all__ = ["build_gallery", "load_figure_modules"]
 
-_SKIP = {"registry", "gallery", "style"}
+_SKIP = {"registry", "gallery", "style"}  # helpers, not figure modules
 
 
 def load_figure_modules() -> list[str]:
