@@ -1,3 +1,71 @@
-"""torchgeo_cg.curves (being built)."""
+"""Curves: Bernstein/Bezier, Hermite/PCHIP, parametric and implicit 2D curves, marching squares.
 
-__all__: list[str] = []
+Report sections 1.1-1.3. Every function is batched over leading dimensions,
+differentiable, and takes dtype and device from its inputs.
+"""
+
+from torchgeo_cg.curves.bernstein import bernstein_basis
+from torchgeo_cg.curves.bezier import (
+    BezierCurve,
+    SplitResult,
+    bezier,
+    bezier_arclength_params,
+    bezier_curvature,
+    bezier_derivative,
+    bezier_length,
+    bezier_normal,
+    bezier_tangent,
+    cubic_bezier,
+    de_casteljau,
+    elevate_bezier,
+    quartic_bezier,
+    split_bezier,
+)
+from torchgeo_cg.curves.hermite import (
+    HermiteControls,
+    HermiteCurve,
+    HermiteSpline,
+    PchipInterpolator,
+    bezier_to_hermite,
+    cardinal_tangents,
+    catmull_rom_tangents,
+    check_knots,
+    hermite,
+    hermite_basis,
+    hermite_spline,
+    hermite_to_bezier,
+    pchip_interpolate,
+    pchip_tangents,
+)
+
+__all__ = [
+    "bernstein_basis",
+    "BezierCurve",
+    "SplitResult",
+    "bezier",
+    "bezier_arclength_params",
+    "bezier_curvature",
+    "bezier_derivative",
+    "bezier_length",
+    "bezier_normal",
+    "bezier_tangent",
+    "cubic_bezier",
+    "de_casteljau",
+    "elevate_bezier",
+    "quartic_bezier",
+    "split_bezier",
+    "HermiteControls",
+    "HermiteCurve",
+    "HermiteSpline",
+    "PchipInterpolator",
+    "bezier_to_hermite",
+    "cardinal_tangents",
+    "catmull_rom_tangents",
+    "check_knots",
+    "hermite",
+    "hermite_basis",
+    "hermite_spline",
+    "hermite_to_bezier",
+    "pchip_interpolate",
+    "pchip_tangents",
+]
