@@ -42,6 +42,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
+    """Add the ``bench`` subcommand to the ``torchgeo-cg`` subparsers ``sub``."""
     p = sub.add_parser("bench", help="run the benchmarks against the peer libraries")
     p.add_argument("--quick", action="store_true", help="smaller sizes, shorter timing")
     p.add_argument("--only", nargs="*", help="areas to run (default: all)")

@@ -16,6 +16,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
+    """Add the ``gallery`` subcommand to the ``torchgeo-cg`` subparsers ``sub``."""
     p = sub.add_parser("gallery", help="render the figure gallery (PNG/GIF + index.html)")
     p.add_argument("--out", default="gallery", help="output folder (default: ./gallery)")
     p.add_argument("--section", nargs="*", default=None, help="only these sections")

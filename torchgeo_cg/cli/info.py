@@ -58,6 +58,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
+    """Add the ``info`` subcommand to the ``torchgeo-cg`` subparsers ``sub``."""
     p = sub.add_parser("info", help="print versions, devices and thread count")
     p.add_argument("--brief", action="store_true", help="one line")
     p.set_defaults(func=_run)

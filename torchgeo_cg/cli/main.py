@@ -15,6 +15,7 @@ __all__ = ["build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``torchgeo-cg`` parser, with one subparser per module of :mod:`torchgeo_cg.cli`."""
     import torchgeo_cg.cli as cli
 
     parser = argparse.ArgumentParser(

@@ -51,9 +51,15 @@ def figure(section: str, filename: str, title: str, caption: str):
 
     def wrap(fn: Callable[[Path], None]) -> Callable[[Path], None]:
         existing = _REGISTRY.get(filename)
-        if existing is not None and existing.render is not fn:
-            if existing.render.__qualname__ != fn.__qualname__:
-                raise ValueError(f"figure: filename {filename!r} is already registered")
+        same = existing is not None and (
+            existing.render.__module__,
+            existing.render.__qualname__,
+        ) == (
+            fn.__module__,
+            fn.__qualname__,
+        )  # the same function registered again, e.g. by a module re-import
+        if existing is not None and not same:
+            raise ValueError(f"figure: filename {filename!r} is already registered")
         _REGISTRY[filename] = GalleryFigure(section, filename, title, caption, fn)
         return fn
 
