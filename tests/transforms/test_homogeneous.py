@@ -325,8 +325,23 @@ def test_pre_and_post_multiplied_forms_agree(offset, angle, scale, pts):
         ),
         (
             lambda: transform_points(torch.eye(3).expand(4, 3, 3), torch.zeros(3, 5, 2)),
-            RuntimeError,
-            "size",
+            ShapeError,
+            r"batch dims do not broadcast: matrix \(4\), points \(3\)",
+        ),
+        (
+            lambda: compose(torch.eye(3).expand(4, 3, 3), torch.eye(3).expand(2, 3, 3)),
+            ShapeError,
+            r"matrices\[0\] \(4\), matrices\[1\] \(2\)",
+        ),
+        (
+            lambda: shear(torch.zeros(3), torch.zeros(2)),
+            ShapeError,
+            r"a \(3\), b \(2\)",
+        ),
+        (
+            lambda: compose_trs(torch.zeros(3, 2), torch.zeros(2), 1.0),
+            ShapeError,
+            r"offset \(3\), angle \(2\)",
         ),
         (
             lambda: inverse(torch.zeros(3, 4)),

@@ -19,7 +19,14 @@ from collections.abc import Mapping, Sequence
 
 import torch
 
-__all__ = ["ShapeError", "check_shape", "check_float", "check_tensor", "format_shape"]
+__all__ = [
+    "ShapeError",
+    "check_shape",
+    "check_float",
+    "check_tensor",
+    "check_broadcastable",
+    "format_shape",
+]
 
 
 class ShapeError(ValueError):
@@ -132,3 +139,30 @@ def check_shape(
     if star:
         bound["*"] = got[: len(got) - len(fixed)]
     return bound
+
+
+def check_broadcastable(batches: Mapping[str, Sequence[int]]) -> tuple[int, ...]:
+    """Broadcast the batch shapes of several arguments, or name the ones that clash.
+
+    Args:
+        batches: argument name -> its batch shape (e.g. ``x.shape[:-2]``).
+
+    Returns:
+        The broadcast batch shape.
+
+    Raises:
+        ShapeError: the batch shapes do not broadcast; the message names the arguments.
+
+    Example:
+        >>> check_broadcastable({"matrix": (4, 1), "points": (3,)})
+        (4, 3)
+        >>> check_broadcastable({"matrix": (4,), "points": (3,)})
+        Traceback (most recent call last):
+        ...
+        torchgeo_cg.core.check.ShapeError: batch dims do not broadcast: matrix (4), points (3)
+    """
+    try:
+        return tuple(torch.broadcast_shapes(*(tuple(b) for b in batches.values())))
+    except RuntimeError:
+        listed = ", ".join(f"{name} {format_shape(tuple(b))}" for name, b in batches.items())
+        raise ShapeError(f"batch dims do not broadcast: {listed}") from None

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import clamp_away_from_zero, safe_div
 
 __all__ = [
@@ -195,6 +195,7 @@ def shear(a: torch.Tensor | float, b: torch.Tensor | float) -> torch.Tensor:
     """
     a = _as_float(a, "a")
     b = _as_float(b, "b", like=a)
+    check_broadcastable({"a": a.shape, "b": b.shape})
     a, b = torch.broadcast_tensors(a, b)
     one, zero = torch.ones_like(a), torch.zeros_like(a)
     return _from_rows(one, a, zero, b, one, zero, zero, zero, one)
@@ -249,9 +250,11 @@ def compose(*matrices: torch.Tensor) -> torch.Tensor:
     """
     if len(matrices) == 0:
         raise ValueError("compose: expected at least one matrix, got none")
-    out = _check_matrix(matrices[0], "matrices[0]")
-    for i, m in enumerate(matrices[1:], start=1):
-        out = out @ _check_matrix(m, f"matrices[{i}]")
+    named = {f"matrices[{i}]": _check_matrix(m, f"matrices[{i}]") for i, m in enumerate(matrices)}
+    check_broadcastable({name: m.shape[:-2] for name, m in named.items()})
+    out = matrices[0]
+    for m in matrices[1:]:
+        out = out @ m
     return out
 
 
@@ -290,6 +293,14 @@ def compose_trs(
     check_float(offset, "offset")
     angle = _as_float(angle, "angle", like=offset)
     scale = _as_float(scale, "scale", like=offset)
+    per_axis = scale.ndim >= 1 and scale.shape[-1] == 2
+    check_broadcastable(
+        {
+            "offset": offset.shape[:-1],
+            "angle": angle.shape,
+            "scale": scale.shape[:-1] if per_axis else scale.shape,
+        }
+    )
     t, r, s = translation(offset), rotation(angle, degrees=degrees), scaling(scale)
     if row_vectors:
         return compose(r.mT, s.mT, t.mT)
@@ -326,6 +337,7 @@ def transform_points(matrix: torch.Tensor, points: torch.Tensor, eps: float = 1e
     _check_matrix(matrix, "matrix")
     check_shape(points, ["*", "N", "2"], "points")
     check_float(points, "points")
+    check_broadcastable({"matrix": matrix.shape[:-2], "points": points.shape[:-2]})
     if matrix.dtype != points.dtype or matrix.device != points.device:
         raise TypeError(
             f"transform_points: matrix is {matrix.dtype} on {matrix.device} but points is "
