@@ -21,6 +21,7 @@ from torchgeo_cg.curves.bezier import (
     quartic_bezier,
     split_bezier,
 )
+from torchgeo_cg.curves.fitting import BezierFit, fit_bezier, fit_parameters
 from torchgeo_cg.curves.hermite import (
     HermiteControls,
     HermiteCurve,
@@ -36,6 +37,15 @@ from torchgeo_cg.curves.hermite import (
     hermite_to_bezier,
     pchip_interpolate,
     pchip_tangents,
+)
+from torchgeo_cg.curves.marching_squares import MarchingSquaresResult, marching_squares
+from torchgeo_cg.curves.parametric import (
+    circle,
+    cycloid,
+    figure_eight_implicit,
+    figure_eight_parametric,
+    grid_2d,
+    implicit_circle,
 )
 
 __all__ = [
@@ -68,4 +78,15 @@ __all__ = [
     "hermite_to_bezier",
     "pchip_interpolate",
     "pchip_tangents",
+    "BezierFit",
+    "fit_bezier",
+    "fit_parameters",
+    "MarchingSquaresResult",
+    "marching_squares",
+    "circle",
+    "cycloid",
+    "figure_eight_implicit",
+    "figure_eight_parametric",
+    "grid_2d",
+    "implicit_circle",
 ]

@@ -1,0 +1,222 @@
+"""Marching squares: iso-lines of batched 2D fields as polylines, differentiable in the values.
+
+Convention:
+    - Fields are ``(*, H, W)`` with ``indexing="ij"``: array axis 0 is x and
+      axis 1 is y, so ``field[..., i, j]`` is the value at the point
+      ``origin + (i * spacing_x, j * spacing_y)``. Vertices come out as
+      ``(x, y)``. With ``origin = (0, 0)`` and ``spacing = (1, 1)`` a vertex is
+      exactly skimage's ``(row, col)``: ``skimage.measure.find_contours(f[b])``
+      returns the same numbers (tested to 1e-6), with no axis swap, because
+      skimage's row axis *is* our axis 0.
+    - A corner is "above" when ``value > iso``; the vertex on a crossing edge is
+      the linear interpolation ``a + (iso - f_a) / (f_b - f_a) (b - a)``.
+    - Orientation and saddle handling follow skimage (``positive_orientation=
+      "low"``): polylines keep values below ``iso`` on their left in (row, col)
+      index space. ``fully_connected="low"`` joins diagonal low corners in saddle
+      cells; ``"high"`` the high ones.
+    - Closed polylines repeat their first vertex at the end, like skimage.
+    - Cells with a NaN corner produce nothing (skimage skips them too).
+    - A corner exactly equal to ``iso`` gives vertices of zero length apart on
+      two edges; skimage merges those by coordinate, we keep both (so vertex
+      counts can differ from skimage only on such exact ties).
+
+Topology (which edges cross and how segments chain into polylines) is computed
+without gradients, from a 16-case table (``_marching_squares_tables.py``);
+vertex positions are gathered from the field, so they are differentiable with
+respect to the field values (and origin and spacing). Segments are chained by
+pointer jumping (``O(log V)`` vectorised rounds), never by a loop over vertices.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import torch
+
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
+
+__all__ = ["MarchingSquaresResult", "marching_squares"]
+
+
+class MarchingSquaresResult(NamedTuple):
+    """Polylines of all fields, packed.
+
+    Attributes:
+        vertices: ``(V, 2)`` polyline vertices ``(x, y)``, polyline after polyline.
+        lengths: ``(P,)`` long, vertices per polyline (closed ones include the repeat).
+        batch: ``(P,)`` long, the flat index of the field each polyline comes from.
+        closed: ``(P,)`` bool, whether the polyline is a closed loop.
+    """
+
+    vertices: torch.Tensor
+    lengths: torch.Tensor
+    batch: torch.Tensor
+    closed: torch.Tensor
+
+    def polylines(self) -> list[torch.Tensor]:
+        """The polylines as a list of ``(L_p, 2)`` tensors (views of ``vertices``)."""
+        return list(self.vertices.split(self.lengths.tolist()))
+
+
+def _pair(value, like: torch.Tensor, name: str) -> torch.Tensor:
+    if isinstance(value, torch.Tensor):
+        check_float(value, name)
+        check_shape(value, ["2"], name)
+        return value.to(like.dtype)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        value = (value, value)
+    try:
+        out = torch.as_tensor(value, dtype=like.dtype, device=like.device)
+    except (TypeError, ValueError, RuntimeError) as err:
+        raise TypeError(f"{name}: expected two numbers or a (2,) tensor, got {value!r}") from err
+    check_shape(out, ["2"], name)
+    return out
+
+
+def _segment_table(fully_connected: str, device) -> torch.Tensor:
+    return torch.tensor(SEGMENTS[fully_connected], dtype=torch.long, device=device)  # (16, 2, 2)
+
+
+def _chain(next_vertex: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Order vertices along chains given successors (``-1`` at ends).
+
+    Every vertex has at most one successor and one predecessor, so the graph is a
+    set of paths and cycles. Returns ``(order, chain_of_sorted, closed_tail)``:
+    the vertex order along chains, the chain key of each ordered vertex (its
+    tail), and per vertex whether it is the tail of a cut cycle.
+    """
+    count = next_vertex.shape[0]
+    ids = torch.arange(count, device=next_vertex.device)
+    rounds = max(1, math.ceil(math.log2(count + 1)) + 1)
+    # 1. Find cycles: jump with tails looping onto themselves.
+    ptr = torch.where(next_vertex >= 0, next_vertex, ids)
+    least = ids.clone()
+    for _ in range(rounds):
+        least = torch.minimum(least, least[ptr])
+        ptr = ptr[ptr]
+    in_cycle = next_vertex[ptr] >= 0
+    # 2. Cut each cycle in front of its smallest vertex; that vertex becomes the head.
+    cut = in_cycle & (next_vertex == least)
+    succ = torch.where(cut, torch.full_like(next_vertex, -1), next_vertex)
+    # 3. List ranking: distance to the tail and the tail itself.
+    ptr = torch.where(succ >= 0, succ, ids)
+    dist = (succ >= 0).long()
+    for _ in range(rounds):
+        dist = dist + dist[ptr]
+        ptr = ptr[ptr]
+    tail = ptr
+    order = torch.argsort(tail * (count + 1) + (count - dist), stable=True)
+    return order, tail[order], cut
+
+
+def marching_squares(
+    field: torch.Tensor,
+    iso: float = 0.0,
+    origin=(0.0, 0.0),
+    spacing=(1.0, 1.0),
+    fully_connected: str = "low",
+) -> MarchingSquaresResult:
+    """Extract the ``iso`` level lines of ``(*, H, W)`` fields as polylines.
+
+    Convention:
+        See the module docstring: ``indexing="ij"`` (axis 0 is x), vertices
+        ``origin + index * spacing`` in ``(x, y)``, skimage's orientation and
+        saddle rule, closed polylines repeat their first vertex.
+
+    Args:
+        field: ``(*, H, W)`` float values, ``H, W >= 2``.
+        iso: the level.
+        origin: ``(2,)`` position of ``field[..., 0, 0]``.
+        spacing: ``(2,)`` (or one number) grid step along axis 0 (x) and axis 1 (y).
+        fully_connected: ``"low"`` or ``"high"``: which diagonal corners join in saddles.
+
+    Returns:
+        :class:`MarchingSquaresResult` ``(vertices (V, 2), lengths (P,), batch (P,),
+        closed (P,))``; ``vertices`` is differentiable with respect to ``field``.
+
+    Raises:
+        ShapeError: ``field`` is not at least 2D with ``H, W >= 2``.
+        ValueError: unknown ``fully_connected``.
+
+    Example:
+        >>> f = torch.tensor([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0]])
+        >>> result = marching_squares(f)
+        >>> result.vertices
+        tensor([[1.0000, 0.5000],
+                [1.5000, 1.0000],
+                [1.0000, 1.5000],
+                [0.5000, 1.0000],
+                [1.0000, 0.5000]])
+        >>> result.lengths, result.closed
+        (tensor([5]), tensor([True]))
+    """
+    check_float(field, "field")
+    sizes = check_shape(field, ["*", "H", "W"], "field")
+    height, width = sizes["H"], sizes["W"]
+    if height < 2 or width < 2:
+        raise ShapeError(
+            f"field: expected H, W >= 2, got shape {tuple(field.shape)}")
+    if fully_connected not in SEGMENTS:
+        raise ValueError(f"fully_connected: expected 'low' or 'high', got {fully_connected!r}")
+    origin = _pair(origin, field, "origin")
+    spacing = _pair(spacing, field, "spacing")
+    values = field.reshape(-1, height, width)  # (B, H, W)
+    n_h = height * (width - 1)  # edges along axis 1 ("horizontal" in index space)
+    n_edges = n_h + (height - 1) * width
+    with torch.no_grad():
+        f = values.detach()
+        above = f > iso
+        case = (above[:, :-1, :-1].long() + 2 * above[:, :-1, 1:].long()
+                + 4 * above[:, 1:, :-1].long() + 8 * above[:, 1:, 1:].long())  # (B, H-1, W-1)
+        nan = f.isnan()
+        nan_cell = nan[:, :-1, :-1] | nan[:, :-1, 1:] | nan[:, 1:, :-1] | nan[:, 1:, 1:]
+        case = torch.where(nan_cell, torch.zeros_like(case), case)
+        b, i, j = ((case > 0) & (case < 15)).nonzero(as_tuple=True)  # active cells
+        segments = _segment_table(fully_connected, f.device)[case[b, i, j]]  # (N, 2, 2)
+        valid = segments[..., 0] >= 0  # (N, 2)
+        cell, slot = valid.nonzero(as_tuple=True)
+        ends = segments[cell, slot]  # (S, 2) edge codes
+        b, i, j = b[cell, None], i[cell, None], j[cell, None]
+        # Global edge ids: top/bottom are axis-1 edges, left/right axis-0 edges.
+        horizontal = b * n_edges + (i + (ends == 2).long()) * (width - 1) + j
+        vertical = b * n_edges + n_h + i * width + j + (ends == 1).long()
+        edge_id = torch.where((ends == 0) | (ends == 2), horizontal, vertical)  # (S, 2)
+        unique_id, inverse = torch.unique(edge_id.reshape(-1), return_inverse=True)
+        inverse = inverse.reshape(-1, 2)
+        next_vertex = torch.full_like(unique_id, -1)
+        next_vertex[inverse[:, 0]] = inverse[:, 1]
+        order, chain, cut = _chain(next_vertex)
+        # Chains: consecutive runs of equal keys; closed if its tail was a cut.
+        _, counts = torch.unique_consecutive(chain, return_counts=True)
+        starts = counts.cumsum(0) - counts
+        closed = cut[chain[starts]] if counts.numel() else counts.bool()
+        out_len = counts + closed.long()
+        out_start = out_len.cumsum(0) - out_len
+        chain_index = torch.repeat_interleave(torch.arange(counts.numel(), device=f.device),
+                                              counts)
+        rank = torch.arange(order.numel(), device=f.device) - starts[chain_index]
+        gather = torch.empty(int(out_len.sum()), dtype=torch.long, device=f.device)
+        gather[out_start[chain_index] + rank] = order
+        gather[(out_start + counts)[closed]] = order[starts[closed]]
+        # Decode each used edge id into its two grid corners.
+        batch_of = unique_id // n_edges
+        local = unique_id % n_edges
+        is_h = local < n_h
+        local_v = local - n_h
+        i0 = torch.where(is_h, local // (width - 1), local_v // width)
+        j0 = torch.where(is_h, local % (width - 1), local_v % width)
+        i1 = i0 + (~is_h).long()
+        j1 = j0 + is_h.long()
+        polyline_batch = batch_of[order[starts]] if counts.numel() else counts
+    fa = values[batch_of, i0, j0]  # differentiable gathers
+    fb = values[batch_of, i1, j1]
+    den = fb - fa
+    zero = den == 0
+    fraction = torch.where(zero, torch.zeros_like(den),
+                           (iso - fa) / torch.where(zero, torch.ones_like(den), den))
+    index_xy = torch.stack([i0.to(values.dtype) + torch.where(is_h, 0.0, 1.0) * fraction,
+                            j0.to(values.dtype) + torch.where(is_h, 1.0, 0.0) * fraction], dim=-1)
+    points = origin + index_xy * spacing  # (U, 2)
+    return MarchingSquaresResult(points[gather], out_len, polyline_batch, closed)
