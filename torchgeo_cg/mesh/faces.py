@@ -173,16 +173,19 @@ def check_faces(
     if bad is not None:
         raise ValueError(f"{name}: face {bad} repeats a vertex ({faces_fk[bad].tolist()})")
     if not allow_duplicates:
-        _, inverse_f = torch.unique(sorted_fk, dim=0, return_inverse=True)
-        first_of_group = torch.full((F,), F, dtype=torch.long, device=faces_fk.device)
-        arange_f = torch.arange(F, device=faces_fk.device)
-        first_of_group = first_of_group.scatter_reduce(0, inverse_f, arange_f, "amin")
-        bad = first(first_of_group[inverse_f] != arange_f)
+        # lexicographic order of the sorted rows: stable sorts, last column first
+        order_f = torch.arange(F, device=faces_fk.device)
+        for k in range(K - 1, -1, -1):  # loop over polygon degree, not faces
+            order_f = order_f[torch.sort(sorted_fk[order_f, k], stable=True).indices]
+        rows_fk = sorted_fk[order_f]
+        same_f = (rows_fk[1:] == rows_fk[:-1]).all(dim=1)
+        bad = first(same_f)
         if bad is not None:
-            orig = int(first_of_group[inverse_f[bad]])
+            # stable sorts keep the earlier face first among equal rows
+            later, earlier = int(order_f[bad + 1]), int(order_f[bad])
             raise ValueError(
-                f"{name}: face {bad} repeats face {orig} (same vertices "
-                f"{faces_fk[bad][valid_fk[bad]].tolist()})"
+                f"{name}: face {later} repeats face {earlier} (same vertices "
+                f"{faces_fk[later][valid_fk[later]].tolist()})"
             )
     return faces_fk
 

@@ -1,0 +1,548 @@
+"""Catmull-Clark subdivision as a sparse operator built once from the topology (report 1.5).
+
+The topology (faces) gives a sparse matrix ``S`` of shape ``(V1, V0)`` whose
+rows are OpenSubdiv's Catmark stencils; the geometry is refined by one sparse
+matmul per level, ``V1 = S @ V0``, for any batch of shapes sharing the faces
+and for any per-vertex data (positions, UVs, features). Backward multiplies by
+the cached transpose ``S^T``.
+
+Convention:
+    - Faces are ``(F, K)`` long padded with ``-1`` (or a list of index lists) and
+      may mix triangles, quads and n-gons; winding counter-clockwise seen from
+      outside. Output faces are quads ``(F1, 4)``, ``F1 = sum of face sizes``,
+      with the winding of their parent face.
+    - New vertex order (stable, documented): first the ``V0`` *vertex points*
+      (new vertex ``i`` is the child of old vertex ``i``), then the ``F0`` *face
+      points* (in face order), then the ``E0`` *edge points*, edges sorted by
+      ``(min(a, b), max(a, b))``. So ``V1 = V0 + F0 + E0``, and an original
+      vertex keeps its index at every level.
+    - Output face ``sum(size[:f]) + p`` is the quad at corner ``p`` of face ``f``:
+      ``(vertex_point[v_p], edge_point[v_p, v_p+1], face_point[f], edge_point[v_p-1, v_p])``.
+    - Rules (OpenSubdiv Catmark, Halstead et al. 1993): an edge with exactly two
+      faces is *smooth*; any other edge (boundary: 1 face, non-manifold: 3+) is
+      *sharp*. Face point: mean of its vertices. Smooth edge point:
+      ``1/4 (v0 + v1) + 1/4 (f0 + f1)``; sharp edge point: ``1/2 (v0 + v1)``.
+      Vertex with ``s`` sharp edges out of ``n`` edges and ``m`` faces:
+      ``s <= 1`` (smooth, or a dart): ``((n - 2) V + mean(edge nbrs) + mean(face points)) / n``,
+      which is ``(n-2)/n V + 1/n^2 sum e + 1/n^2 sum f`` when ``m = n``;
+      ``s = 2`` (boundary/crease): ``3/4 V + 1/8 (a + b)``, ``a, b`` its sharp
+      neighbours; ``s > 2`` (e.g. non-manifold fins): corner, kept.
+      A *corner* is a boundary vertex of valence 2 (one face): it is kept with
+      ``boundary="edge_and_corner"`` and smoothed by the boundary rule with
+      ``boundary="edge_only"`` (OpenSubdiv ``VTX_BOUNDARY_EDGE_ONLY``, the default).
+    - Unreferenced vertices pass through unchanged (their row of ``S`` is ``e_i``).
+    - Every row of ``S`` sums to 1, so ``S`` commutes with rotations and
+      translations applied to the (row-per-vertex) positions.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import torch
+from torch import nn
+
+from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.mesh.faces import check_faces
+
+__all__ = [
+    "SubdivisionOperator",
+    "catmull_clark_operator",
+    "apply_operator",
+    "catmull_clark",
+    "CatmullClark",
+    "limit_positions",
+]
+
+_BOUNDARY_MODES = ("edge_only", "edge_and_corner")
+
+
+class SubdivisionOperator(NamedTuple):
+    """One level of subdivision, built once from the topology.
+
+    Attributes:
+        matrix: ``(V1, V0)`` sparse CSR stencil matrix, ``V1 = S @ V0``.
+        matrix_t: ``(V0, V1)`` sparse CSR transpose, used by backward.
+        faces: ``(F1, 4)`` long output quads.
+        num_vertices_in: ``V0``.
+        num_vertices_out: ``V1 = V0 + F0 + E0``.
+        num_faces_in: ``F0`` (face points start at row ``V0``).
+        num_edges_in: ``E0`` (edge points start at row ``V0 + F0``).
+        boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+    """
+
+    matrix: torch.Tensor
+    matrix_t: torch.Tensor
+    faces: torch.Tensor
+    num_vertices_in: int
+    num_vertices_out: int
+    num_faces_in: int
+    num_edges_in: int
+    boundary: str
+
+
+class _Topology(NamedTuple):
+    """Corner/edge/vertex tables of a padded polygon mesh (all 1-D, long or bool)."""
+
+    face_c: torch.Tensor  # (C,) face of each corner, corners in face-major order
+    vert_c: torch.Tensor  # (C,) vertex at the corner
+    next_c: torch.Tensor  # (C,) next vertex in the face (half-edge vert_c -> next_c)
+    prev_corner_c: torch.Tensor  # (C,) index of the previous corner of the same face
+    size_c: torch.Tensor  # (C,) size of the corner's face
+    edge_c: torch.Tensor  # (C,) edge of the half-edge vert_c -> next_c
+    edge_lo_e: torch.Tensor  # (E,) smaller endpoint
+    edge_hi_e: torch.Tensor  # (E,) larger endpoint
+    sharp_e: torch.Tensor  # (E,) bool: not exactly two faces
+    valence_v: torch.Tensor  # (V,) number of edges
+    num_faces_v: torch.Tensor  # (V,) number of incident faces
+    kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
+
+
+def _check_boundary(boundary: str) -> str:
+    if boundary not in _BOUNDARY_MODES:
+        raise ValueError(f"boundary: expected one of {_BOUNDARY_MODES}, got {boundary!r}")
+    return boundary
+
+
+def _topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str) -> _Topology:
+    """Vectorized corner, edge and vertex classification (sort/unique/bincount)."""
+    V = num_vertices
+    valid_fk = faces_fk >= 0
+    size_f = valid_fk.sum(1)
+    face_c, pos_c = torch.nonzero(valid_fk, as_tuple=True)  # face-major, then position
+    size_c = size_f[face_c]
+    start_c = (torch.cumsum(size_f, 0) - size_f)[face_c]
+    vert_c = faces_fk[face_c, pos_c]
+    next_c = faces_fk[face_c, (pos_c + 1) % size_c]
+    prev_corner_c = start_c + (pos_c - 1) % size_c
+    lo_c, hi_c = torch.minimum(vert_c, next_c), torch.maximum(vert_c, next_c)
+    key_e, edge_c = torch.unique(lo_c * max(V, 1) + hi_c, return_inverse=True)
+    E = key_e.numel()
+    edge_lo_e, edge_hi_e = key_e // max(V, 1), key_e % max(V, 1)
+    sharp_e = torch.bincount(edge_c, minlength=E) != 2
+    ends = torch.cat([edge_lo_e, edge_hi_e])
+    valence_v = torch.bincount(ends, minlength=V)
+    sharp_v = torch.bincount(ends[torch.cat([sharp_e, sharp_e])], minlength=V)
+    num_faces_v = torch.bincount(vert_c, minlength=V)
+    kind_v = torch.ones(V, dtype=torch.long, device=faces_fk.device)
+    kind_v[sharp_v == 2] = 2
+    if boundary == "edge_and_corner":
+        kind_v[(sharp_v == 2) & (valence_v == 2)] = 3
+    kind_v[sharp_v > 2] = 3
+    kind_v[valence_v == 0] = 0
+    return _Topology(
+        face_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
+        sharp_e, valence_v, num_faces_v, kind_v,
+    )
+
+
+def _sparse_csr(rows, cols, weights, shape) -> tuple[torch.Tensor, torch.Tensor]:
+    """Sum duplicate ``(row, col)`` entries; return the CSR matrix and its CSR transpose.
+
+    One sort of the flattened keys ``row * n_cols + col`` (``torch.unique``), a
+    scatter-add of the weights, and one stable sort of the columns for the transpose.
+    """
+    n_rows, n_cols = shape
+    keep = weights != 0
+    rows, cols, weights = rows[keep], cols[keep], weights[keep]
+    key_u, inverse = torch.unique(rows * n_cols + cols, return_inverse=True)  # sorted
+    values_u = weights.new_zeros(key_u.numel()).index_add_(0, inverse, weights)
+    rows_u, cols_u = key_u // n_cols, key_u % n_cols
+    crow = rows_u.new_zeros(n_rows + 1)
+    crow[1:] = torch.cumsum(torch.bincount(rows_u, minlength=n_rows), 0)
+    order_t = torch.sort(cols_u, stable=True).indices  # rows stay sorted within a column
+    crow_t = cols_u.new_zeros(n_cols + 1)
+    crow_t[1:] = torch.cumsum(torch.bincount(cols_u, minlength=n_cols), 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "sparse CSR is in beta"
+        matrix = torch.sparse_csr_tensor(
+            crow, cols_u, values_u, shape, check_invariants=False
+        )
+        matrix_t = torch.sparse_csr_tensor(
+            crow_t, rows_u[order_t], values_u[order_t], (n_cols, n_rows), check_invariants=False
+        )
+    return matrix, matrix_t
+
+
+def _corner_grid(faces_fk: torch.Tensor, face_x: torch.Tensor):
+    """For items living on faces ``face_x`` (X,), the ``(X, K)`` vertex grid and its mask."""
+    cols_xk = faces_fk[face_x]
+    return cols_xk, cols_xk >= 0
+
+
+def catmull_clark_operator(
+    faces: torch.Tensor | Sequence[Sequence[int]],
+    num_vertices: int,
+    boundary: str = "edge_only",
+    device: torch.device | str | None = None,
+    dtype: torch.dtype | None = None,
+) -> SubdivisionOperator:
+    """Build one level of Catmull-Clark subdivision as a sparse ``(V1, V0)`` matrix.
+
+    Convention:
+        OpenSubdiv Catmark rules and the new-vertex order of the module
+        docstring: ``[vertex points (V0) | face points (F0) | edge points (E0)]``.
+        The build runs under ``torch.no_grad()`` with sort/unique/bincount only
+        (no Python loop over faces, edges or vertices).
+
+    Args:
+        faces: ``(F0, K)`` long padded with ``-1``, or a list of index lists;
+            triangles, quads and n-gons may be mixed.
+        num_vertices: ``V0`` (vertices not used by any face pass through).
+        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"`` (keep
+            valence-2 boundary vertices fixed).
+        device: device of the operator (default: that of ``faces``, CPU for lists).
+        dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+
+    Returns:
+        :class:`SubdivisionOperator` with ``matrix`` ``(V1, V0)``, ``matrix_t``
+        ``(V0, V1)``, ``faces`` ``(F1, 4)`` and the sizes.
+
+    Raises:
+        ValueError: bad ``boundary``; indices out of range, faces with fewer than
+            3 distinct vertices, repeated vertices or repeated faces (the message
+            names the face index).
+
+    Example:
+        >>> quad = [[0, 1, 2, 3]]
+        >>> op = catmull_clark_operator(quad, 4)
+        >>> op.num_vertices_out, op.faces.shape
+        (9, torch.Size([4, 4]))
+        >>> op.matrix.to_dense()[4:6]  # the face point, then the edge point of (0, 1)
+        tensor([[0.2500, 0.2500, 0.2500, 0.2500],
+                [0.5000, 0.5000, 0.0000, 0.0000]])
+    """
+    _check_boundary(boundary)
+    with torch.no_grad():
+        faces_fk = check_faces(faces, num_vertices)
+        if device is not None:
+            faces_fk = faces_fk.to(device)
+        dev = faces_fk.device
+        wdtype = torch.get_default_dtype() if dtype is None else dtype
+        V0, F0 = num_vertices, faces_fk.shape[0]
+        topo = _topology(faces_fk, V0, boundary)
+        E0 = topo.edge_lo_e.numel()
+        V1 = V0 + F0 + E0
+        row_face, row_edge = V0, V0 + F0
+        w = lambda x: x.to(wdtype)  # noqa: E731
+        rows, cols, vals = [], [], []
+
+        # Face points: mean of the face's vertices.
+        rows.append(row_face + topo.face_c)
+        cols.append(topo.vert_c)
+        vals.append(1.0 / w(topo.size_c))
+
+        # Edge points: sharp 1/2 (v0 + v1); smooth 1/4 (v0 + v1) + 1/4 (f0 + f1).
+        e_all = torch.arange(E0, device=dev)
+        w_end_e = torch.where(topo.sharp_e, 0.5, 0.25).to(wdtype)
+        rows += [row_edge + e_all, row_edge + e_all]
+        cols += [topo.edge_lo_e, topo.edge_hi_e]
+        vals += [w_end_e, w_end_e]
+        # face-point part: each half-edge of a smooth edge adds 1/4 of its face point
+        cols_ck, mask_ck = _corner_grid(faces_fk, topo.face_c)
+        smooth_c = ~topo.sharp_e[topo.edge_c]
+        w_ck = (mask_ck & smooth_c[:, None]) / (4.0 * w(topo.size_c))[:, None]
+        rows.append((row_edge + topo.edge_c)[:, None].expand_as(cols_ck).reshape(-1))
+        cols.append(cols_ck.reshape(-1))
+        vals.append(w_ck.reshape(-1))
+
+        # Vertex points.
+        kind_v = topo.kind_v
+        n_v = w(topo.valence_v).clamp(min=1)  # isolated vertices have kind 0 anyway
+        m_v = w(topo.num_faces_v).clamp(min=1)
+        smooth_v, crease_v = kind_v == 1, kind_v == 2
+        self_v = torch.where(smooth_v, (n_v - 2) / n_v, torch.where(crease_v, 0.75, 1.0))
+        rows.append(torch.arange(V0, device=dev))
+        cols.append(torch.arange(V0, device=dev))
+        vals.append(self_v.to(wdtype))
+        # edge neighbours: smooth 1/n^2 each; crease 1/8 for the two sharp neighbours
+        v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
+        nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
+        sharp_side = torch.cat([topo.sharp_e, topo.sharp_e])
+        kind_side = kind_v[v_side]
+        w_side = torch.where(
+            kind_side == 1,
+            1.0 / (n_v[v_side] * n_v[v_side]),
+            torch.where((kind_side == 2) & sharp_side, 0.125, 0.0).to(wdtype),
+        )
+        rows.append(v_side)
+        cols.append(nbr_side)
+        vals.append(w_side.to(wdtype))
+        # face points of smooth vertices: 1/(n m) each, spread over the face's vertices
+        v_c = topo.vert_c
+        w_c = torch.where(smooth_v[v_c], 1.0 / (n_v[v_c] * m_v[v_c] * w(topo.size_c)), 0.0)
+        rows.append(v_c[:, None].expand_as(cols_ck).reshape(-1))
+        cols.append(cols_ck.reshape(-1))
+        vals.append((mask_ck * w_c[:, None]).reshape(-1).to(wdtype))
+
+        matrix, matrix_t = _sparse_csr(
+            torch.cat(rows), torch.cat(cols), torch.cat(vals), (V1, V0)
+        )
+        faces_q4 = torch.stack(
+            [
+                topo.vert_c,
+                row_edge + topo.edge_c,
+                row_face + topo.face_c,
+                row_edge + topo.edge_c[topo.prev_corner_c],
+            ],
+            dim=1,
+        )
+    return SubdivisionOperator(matrix, matrix_t, faces_q4, V0, V1, F0, E0, boundary)
+
+
+class _SparseApply(torch.autograd.Function):
+    """``S @ X`` with backward ``S^T @ dY`` from the cached transpose (no autograd on S)."""
+
+    @staticmethod
+    def forward(ctx, matrix, matrix_t, x2d):
+        ctx.matrix_t = matrix_t
+        return matrix @ x2d
+
+    @staticmethod
+    def backward(ctx, grad_y):
+        return None, None, ctx.matrix_t @ grad_y.contiguous()
+
+
+def _apply_matrix(matrix, matrix_t, verts: torch.Tensor) -> torch.Tensor:
+    """Apply a ``(V1, V0)`` sparse matrix to ``(*, V0, D)`` verts -> ``(*, V1, D)``."""
+    batch, (V0, D) = verts.shape[:-2], verts.shape[-2:]
+    if matrix.dtype != verts.dtype or matrix.device != verts.device:
+        matrix = matrix.to(device=verts.device, dtype=verts.dtype)
+        matrix_t = matrix_t.to(device=verts.device, dtype=verts.dtype)
+    x2d = verts.movedim(-2, 0).reshape(V0, -1)  # (V0, B*D)
+    y2d = _SparseApply.apply(matrix, matrix_t, x2d)  # (V1, B*D)
+    return y2d.reshape(y2d.shape[0], *batch, D).movedim(0, -2)
+
+
+def _check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:
+    check_tensor(verts, name)
+    check_shape(verts, ["*", "V", "D"], name, {"V": num_vertices})
+    check_float(verts, name)
+
+
+def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
+    """Refine per-vertex data with one operator: ``(*, V0, D) -> (*, V1, D)``.
+
+    Convention:
+        Rows are vertices (``verts[..., i, :]`` is vertex ``i``); ``D`` is any
+        width, so positions, UVs and features refine alike. Differentiable in
+        ``verts``; backward uses ``operator.matrix_t``. The operator is cast to
+        ``verts``' dtype and device when they differ.
+
+    Args:
+        operator: from :func:`catmull_clark_operator`.
+        verts: ``(*, V0, D)`` float.
+
+    Returns:
+        ``(*, V1, D)``.
+
+    Example:
+        >>> op = catmull_clark_operator([[0, 1, 2]], 3)
+        >>> apply_operator(op, torch.tensor([[0., 0.], [3., 0.], [0., 3.]]))[3:5]
+        tensor([[1.0000, 1.0000],
+                [1.5000, 0.0000]])
+    """
+    _check_verts(verts, operator.num_vertices_in)
+    return _apply_matrix(operator.matrix, operator.matrix_t, verts)
+
+
+def catmull_clark(
+    verts: torch.Tensor,
+    faces: torch.Tensor | Sequence[Sequence[int]],
+    levels: int = 1,
+    boundary: str = "edge_only",
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Subdivide ``levels`` times; convenience wrapper over :class:`CatmullClark`.
+
+    Convention:
+        See the module docstring (OpenSubdiv Catmark rules, new-vertex order).
+
+    Args:
+        verts: ``(*, V, D)`` float; a batch of shapes sharing ``faces``.
+        faces: ``(F, K)`` long padded with ``-1`` (same device as ``verts``), or
+            a list of index lists.
+        levels: number of subdivision steps, ``>= 0``.
+        boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+
+    Returns:
+        ``(verts (*, V_L, D), faces (F_L, 4) long)``; ``levels = 0`` returns the
+        input unchanged (faces padded).
+
+    Raises:
+        ValueError: ``verts`` and ``faces`` on different devices, or bad faces.
+
+    Example:
+        >>> cube_v = torch.tensor([[x, y, z] for x in (0., 1.) for y in (0., 1.) for z in (0., 1.)])
+        >>> cube_f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4],
+        ...           [1, 5, 7, 3]]
+        >>> v1, f1 = catmull_clark(cube_v, cube_f)
+        >>> v1.shape, f1.shape
+        (torch.Size([26, 3]), torch.Size([24, 4]))
+        >>> v1[0] * 9  # the corner moved to (2/9, 2/9, 2/9)
+        tensor([2.0000, 2.0000, 2.0000])
+    """
+    check_tensor(verts, "verts")
+    if isinstance(faces, torch.Tensor) and faces.device != verts.device:
+        raise ValueError(
+            f"verts and faces must be on the same device, got {verts.device} and {faces.device}"
+        )
+    check_shape(verts, ["*", "V", "D"], "verts")
+    module = CatmullClark(faces, verts.shape[-2], levels=levels, boundary=boundary)
+    module = module.to(device=verts.device, dtype=verts.dtype)
+    return module(verts), module.faces
+
+
+class CatmullClark(nn.Module):
+    """Catmull-Clark subdivision, ``levels`` steps, operators built once and cached.
+
+    Convention:
+        See the module docstring. One :class:`SubdivisionOperator` per level is
+        stored as non-persistent buffers (``matrix_{l}``, ``matrix_t_{l}``,
+        ``faces_{l}``), so ``.to(device, dtype)`` moves them.
+
+    Args:
+        faces: ``(F, K)`` long padded with ``-1``, or a list of index lists.
+        num_vertices: ``V``.
+        levels: number of subdivision steps, ``>= 0`` (default 1).
+        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"``.
+        device: device of the buffers (default: that of ``faces``).
+        dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+
+    Shape:
+        - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
+        - forward output: ``(*, V_L, D)``; ``.faces``: ``(F_L, 4)`` long (the input
+          faces, padded, when ``levels = 0``).
+
+    Example:
+        >>> cc = CatmullClark([[0, 1, 2, 3]], 4, levels=2)
+        >>> out = cc(torch.rand(5, 4, 3))  # 5 shapes sharing one quad
+        >>> out.shape, cc.faces.shape, cc.num_vertices_out
+        (torch.Size([5, 25, 3]), torch.Size([16, 4]), 25)
+    """
+
+    def __init__(
+        self,
+        faces: torch.Tensor | Sequence[Sequence[int]],
+        num_vertices: int,
+        levels: int = 1,
+        boundary: str = "edge_only",
+        device: torch.device | str | None = None,
+        dtype: torch.dtype | None = None,
+    ) -> None:
+        super().__init__()
+        if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
+            raise ValueError(f"levels: expected an int >= 0, got {levels!r}")
+        _check_boundary(boundary)
+        self.levels, self.boundary = levels, boundary
+        self.num_vertices_in = num_vertices
+        faces_fk = check_faces(faces, num_vertices)
+        if device is not None:
+            faces_fk = faces_fk.to(device)
+        self.register_buffer("faces_0", faces_fk, persistent=False)
+        count = num_vertices
+        self.sizes: list[tuple[int, int, int]] = []  # (V_in, F_in, E_in) per level
+        for level in range(levels):  # loop over levels only
+            op = catmull_clark_operator(faces_fk, count, boundary, dtype=dtype)
+            self.register_buffer(f"matrix_{level}", op.matrix, persistent=False)
+            self.register_buffer(f"matrix_t_{level}", op.matrix_t, persistent=False)
+            self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
+            self.sizes.append((op.num_vertices_in, op.num_faces_in, op.num_edges_in))
+            faces_fk, count = op.faces, op.num_vertices_out
+        self.num_vertices_out = count
+
+    @property
+    def faces(self) -> torch.Tensor:
+        """``(F_L, 4)`` long faces of the last level (input faces when ``levels = 0``)."""
+        return getattr(self, f"faces_{self.levels}")
+
+    def operator(self, level: int) -> SubdivisionOperator:
+        """The cached :class:`SubdivisionOperator` of step ``level`` (0-based)."""
+        if not 0 <= level < self.levels:
+            raise IndexError(f"level: expected 0 <= level < {self.levels}, got {level}")
+        v_in, f_in, e_in = self.sizes[level]
+        return SubdivisionOperator(
+            getattr(self, f"matrix_{level}"),
+            getattr(self, f"matrix_t_{level}"),
+            getattr(self, f"faces_{level + 1}"),
+            v_in, v_in + f_in + e_in, f_in, e_in, self.boundary,
+        )
+
+    def forward(self, verts: torch.Tensor) -> torch.Tensor:
+        _check_verts(verts, self.num_vertices_in)
+        for level in range(self.levels):
+            verts = _apply_matrix(
+                getattr(self, f"matrix_{level}"), getattr(self, f"matrix_t_{level}"), verts
+            )
+        return verts
+
+    def extra_repr(self) -> str:
+        return (
+            f"levels={self.levels}, boundary={self.boundary!r}, "
+            f"num_vertices={self.num_vertices_in} -> {self.num_vertices_out}"
+        )
+
+
+def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
+    """Exact limit-surface positions of the refined vertices: ``L @ S @ verts``.
+
+    ``S`` is ``operator.matrix``; ``L`` applies the Catmull-Clark limit masks on
+    the refined all-quad mesh ``operator.faces``: smooth vertex of valence ``n``:
+    ``(n^2 V + 4 sum e_i + sum d_i) / (n (n + 5))`` (``e_i`` edge neighbours,
+    ``d_i`` the opposite corner of each incident quad, Halstead et al. 1993);
+    boundary/crease vertex: ``(a + 4 V + b) / 6``; corners and unreferenced
+    vertices: ``V``.
+
+    Convention:
+        Same classification and ``boundary`` mode as the operator. Because the
+        vertex points come first, ``out[..., :V0, :]`` are the limit positions of
+        the original control vertices. Differentiable in ``verts``.
+
+    Args:
+        operator: from :func:`catmull_clark_operator`.
+        verts: ``(*, V0, D)`` float control data at the operator's input level.
+
+    Returns:
+        ``(*, V1, D)`` limit positions of the vertices of ``operator.faces``.
+
+    Example:
+        >>> square = torch.tensor([[0., 0.], [1., 0.], [1., 1.], [0., 1.]])
+        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, boundary="edge_and_corner")
+        >>> limit_positions(op, square)[4:6]  # centre, then the middle of the bottom edge
+        tensor([[0.5000, 0.5000],
+                [0.5000, 0.0000]])
+    """
+    _check_verts(verts, operator.num_vertices_in)
+    faces_q4 = operator.faces
+    V1 = operator.num_vertices_out
+    with torch.no_grad():
+        topo = _topology(faces_q4, V1, operator.boundary)
+        dev, wdtype = faces_q4.device, operator.matrix.dtype
+        n_v = topo.valence_v.to(wdtype).clamp(min=1)
+        m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
+        kind_v = topo.kind_v
+        smooth_v, crease_v = kind_v == 1, kind_v == 2
+        self_v = torch.where(smooth_v, n_v / (n_v + 5), torch.where(crease_v, 2.0 / 3.0, 1.0))
+        v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
+        nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
+        sharp_side = torch.cat([topo.sharp_e, topo.sharp_e])
+        kind_side = kind_v[v_side]
+        w_side = torch.where(
+            kind_side == 1,
+            4.0 / (n_v[v_side] * (n_v[v_side] + 5)),
+            torch.where((kind_side == 2) & sharp_side, 1.0 / 6.0, 0.0).to(wdtype),
+        )
+        # opposite corner of each quad corner: two steps along the face
+        diag_c = topo.vert_c[topo.prev_corner_c[topo.prev_corner_c]]
+        v_c = topo.vert_c
+        w_c = torch.where(smooth_v[v_c], 1.0 / (m_v[v_c] * (n_v[v_c] + 5)), 0.0)
+        arange_v = torch.arange(V1, device=dev)
+        limit, limit_t = _sparse_csr(
+            torch.cat([arange_v, v_side, v_c]),
+            torch.cat([arange_v, nbr_side, diag_c]),
+            torch.cat([self_v.to(wdtype), w_side.to(wdtype), w_c.to(wdtype)]),
+            (V1, V1),
+        )
+    refined = _apply_matrix(operator.matrix, operator.matrix_t, verts)
+    return _apply_matrix(limit, limit_t, refined)
