@@ -502,7 +502,7 @@ def bezier_length(
         b = hodo.new_ones(count)
         whole = _speed_integral(hodo, a, b, gl)
         estimate = whole.clone()  # (B,) current length estimates
-        done_curve, done_a, done_b = [], [], []
+        done_curve, done_a, done_b = [curve[:0]], [a[:0]], [b[:0]]
         for depth in range(max_depth + 1):
             if curve.numel() == 0:
                 break
@@ -543,7 +543,9 @@ def bezier_arclength_params(
     (8-node Gauss-Legendre each), inverted linearly, then polished by Newton
     steps on ``s(t) - s_k`` inside the bracketing step. The parameters are
     computed without gradients (they are the solution of an equation, treated as
-    constants); evaluate the curve at them to get differentiable points.
+    constants); evaluate the curve at them to get differentiable points. Pieces
+    are equal to about ``1e-12`` relative on smooth curves and ``1e-7`` next to
+    a cusp, where the kink in ``|B'|`` limits the tabulated first guess.
 
     Convention:
         ``t_0 = 0`` and ``t_{n-1} = 1``; ``s(t_k) = k L / (n - 1)``.
