@@ -1,0 +1,478 @@
+"""Marching cubes: vectorized, batched, differentiable, watertight (report section 1.4).
+
+The algorithm of the report, without a Python loop over cells:
+
+1. every sample is classified once (inside when ``f < iso``), and the eight
+   corner bits of every cell are packed into a ``uint8`` case index with three
+   shifted sums over the whole volume;
+2. only the cells with ``0 < case < 255`` are kept;
+3. a vertex is made for each grid edge whose two samples are classified
+   differently, keyed by (lower grid corner, direction), so the output is welded:
+   neighbouring cells share the vertex of their common edge;
+4. each active cell looks its triangles up in the generated 256-case table
+   (:mod:`torchgeo_cg.mesh._marching_cubes_tables`) and maps its local edges to
+   the global vertex ids through a dense id map.
+
+Positions are interpolated along the crossing edges with
+``t = (iso - f1) / (f2 - f1)`` (report section 1.4), which is where gradients
+flow to ``volume`` and ``iso``.
+
+Convention:
+    - Volumes are indexed ``indexing="ij"``: array axis 0 is x, 1 is y, 2 is z.
+      Sample ``(i, j, k)`` sits at world ``origin + spacing * (i, j, k)``.
+    - Negative inside (an SDF): a sample is *inside* when ``f < iso``; a sample
+      exactly equal to ``iso`` is outside. This one rule classifies degenerate data.
+    - Faces are wound counter-clockwise seen from the outside, so the right-hand
+      normal ``(v1 - v0) x (v2 - v0)`` points towards increasing field values;
+      ``normals`` (the unit field gradient) point the same way.
+    - Ambiguous cube faces separate the inside corners (see the tables module), so
+      the surface is closed and edge-manifold wherever it stays inside the volume.
+    - Interpolation guard: ``|f2 - f1|`` below ``finfo(dtype).eps`` is clamped to
+      that size (sign kept) and ``t`` is clamped to ``[delta, 1 - delta]`` with
+      ``delta = sqrt(finfo(dtype).eps)`` (3.5e-4 in float32, 1.5e-8 in float64),
+      so samples equal to ``iso`` give neither duplicate vertices nor zero-area
+      faces; where a clamp is active its gradient is zero. Gradients are finite.
+    - Batches are returned packed: ``faces`` index the packed ``verts``;
+      :meth:`MarchingCubesResult.split` gives one mesh per volume.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import torch
+from torch import nn
+
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.numerics import safe_div, safe_norm
+from torchgeo_cg.mesh._marching_cubes_tables import MAX_TRIANGLES, table_tensors
+
+__all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes"]
+
+
+class MarchingCubesResult(NamedTuple):
+    """The packed output of :func:`marching_cubes`.
+
+    Attributes:
+        verts: ``(V, 3)`` world positions, dtype of the volume.
+        faces: ``(F, 3)`` long indices into ``verts`` (packed over the batch),
+            wound outward.
+        normals: ``(V, 3)`` unit field gradients at the vertices (outward).
+        face_weights: ``(F,)`` probability of each face's cell configuration
+            (soft mode), or ones when ``temperature=None``.
+        verts_per_mesh: ``(B,)`` long, vertices of each volume (``B = 1`` unbatched).
+        faces_per_mesh: ``(B,)`` long, faces of each volume.
+    """
+
+    verts: torch.Tensor
+    faces: torch.Tensor
+    normals: torch.Tensor
+    face_weights: torch.Tensor
+    verts_per_mesh: torch.Tensor
+    faces_per_mesh: torch.Tensor
+
+    def split(self) -> list[MarchingCubesResult]:
+        """One result per volume, with ``faces`` re-indexed into that mesh's own ``verts``.
+
+        Returns:
+            A list of ``B`` results; each has ``verts_per_mesh`` and
+            ``faces_per_mesh`` of shape ``(1,)``.
+
+        Example:
+            >>> x = torch.linspace(-1, 1, 8)
+            >>> r2 = (torch.stack(torch.meshgrid(x, x, x, indexing="ij")) ** 2).sum(0)
+            >>> result = marching_cubes(torch.stack([r2 - 0.5, r2 - 0.8]))
+            >>> result.verts_per_mesh, result.faces_per_mesh
+            (tensor([ 96, 192]), tensor([188, 380]))
+            >>> [(m.verts.shape[0], int(m.faces.max())) for m in result.split()]
+            [(96, 95), (192, 191)]
+        """
+        vcounts = self.verts_per_mesh.tolist()
+        fcounts = self.faces_per_mesh.tolist()
+        voffsets = [0]
+        for n in vcounts[:-1]:
+            voffsets.append(voffsets[-1] + n)
+        parts = zip(
+            self.verts.split(vcounts),
+            self.faces.split(fcounts),
+            self.normals.split(vcounts),
+            self.face_weights.split(fcounts),
+            self.verts_per_mesh.split(1),
+            self.faces_per_mesh.split(1),
+            voffsets,
+        )
+        return [
+            MarchingCubesResult(v, f - off, n, w, vc, fc) for v, f, n, w, vc, fc, off in parts
+        ]
+
+
+def _per_mesh(value, name: str, batch: int, like: torch.Tensor) -> torch.Tensor:
+    """A number or ``()``/``(B,)`` tensor -> ``(B,)`` tensor with the dtype/device of ``like``."""
+    if isinstance(value, torch.Tensor):
+        check_float(value, name)
+        if value.ndim > 1 or (value.ndim == 1 and value.shape[0] not in (1, batch)):
+            raise ShapeError(
+                f"{name}: expected a number or a tensor of shape () or ({batch},), "
+                f"got {tuple(value.shape)}"
+            )
+        return value.to(device=like.device, dtype=like.dtype).reshape(-1).expand(batch)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"{name}: expected a number or a float tensor, got {type(value).__name__}")
+    return like.new_full((batch,), float(value))
+
+
+def _per_mesh_vec(value, name: str, batch: int, like: torch.Tensor) -> torch.Tensor:
+    """A 3-sequence or ``(3,)``/``(B, 3)`` tensor -> ``(B, 3)`` tensor like ``like``."""
+    if not isinstance(value, torch.Tensor):
+        if not isinstance(value, Sequence) or len(value) != 3 or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+        ):
+            raise TypeError(f"{name}: expected 3 numbers or a (3,) / (B, 3) tensor, got {value!r}")
+        return like.new_tensor([float(v) for v in value]).expand(batch, 3)
+    check_float(value, name)
+    if value.ndim == 1:
+        check_shape(value, ["3"], name)
+        value = value.unsqueeze(0)
+    else:
+        check_shape(value, ["B", "3"], name)
+        if value.shape[0] not in (1, batch):
+            raise ShapeError(
+                f"{name}: expected shape (3,) or ({batch}, 3), got {tuple(value.shape)}"
+            )
+    return value.to(device=like.device, dtype=like.dtype).expand(batch, 3)
+
+
+#: Cells per slab (about): the volume is classified slab by slab along x, so every
+#: intermediate stays small (cache-resident, no page faults on big fresh buffers).
+_SLAB_CELLS = 1 << 19
+#: Cells per slab of the (cell, direction) -> vertex id map used to weld the faces.
+_MAP_CELLS = 1 << 17
+
+
+def _nonzero_sparse(mask: torch.Tensor) -> torch.Tensor:
+    """``mask.nonzero()`` for a sparse flat bool mask: scan 8 bytes at a time, then refine.
+
+    Args:
+        mask: ``(N,)`` contiguous bool.
+
+    Returns:
+        ``(K,)`` long, the sorted indices of the True entries.
+    """
+    n8 = mask.shape[0] // 8 * 8
+    words = mask[:n8].view(torch.int64).nonzero().squeeze(1)  # (W,) words with a True
+    cand = (words[:, None] * 8 + torch.arange(8, device=mask.device)).view(-1)
+    found = cand[mask[cand]]
+    if n8 == mask.shape[0]:
+        return found
+    return torch.cat([found, n8 + mask[n8:].nonzero().squeeze(1)])
+
+
+def _active_cells(vol: torch.Tensor, iso_b: torch.Tensor, slab: int):
+    """Classify every sample and return the mixed cells of the padded cell grid.
+
+    The cell grid is padded by one cell on the far side of each axis (samples
+    replicated), so that every grid edge is the *lower* edge (from corner 0) of
+    exactly one cell; padded cells own vertices but never make triangles.
+
+    Args:
+        vol: ``(B, X, Y, Z)`` samples.
+        iso_b: ``(B,)`` levels (detached).
+        slab: cell layers (along x) per slab.
+
+    Returns:
+        ``(cell_id (A,), case (A,))`` long: ``cell_id`` is the flat index in the
+        padded cell grid laid out ``(X, B, Y, Z)`` (x-major), sorted; ``case`` has
+        bit ``c`` set when corner ``c = 4*dx + 2*dy + dz`` is inside (``f < iso``).
+    """
+    B, X, Y, Z = vol.shape
+    vol_x = vol.transpose(0, 1)  # (X, B, Y, Z) view
+    iso_view = iso_b.view(1, B, 1, 1)
+    ids, cases = [], []
+    for start in range(0, X, slab):  # loop over slabs of cell layers, not over cells
+        stop = min(start + slab, X)
+        n_samples = min(stop + 1, X) - start
+        inside = torch.empty(stop + 1 - start, B, Y + 1, Z + 1, dtype=torch.bool,
+                             device=vol.device)  # (L, B, Y+1, Z+1)
+        torch.lt(vol_x[start:start + n_samples], iso_view, out=inside[:n_samples, :, :Y, :Z])
+        inside[:n_samples, :, Y, :Z] = inside[:n_samples, :, Y - 1, :Z]
+        inside[:n_samples, :, :, Z] = inside[:n_samples, :, :, Z - 1]
+        if n_samples < inside.shape[0]:
+            inside[n_samples] = inside[n_samples - 1]
+        bits = inside.view(torch.uint8)
+        case = bits[..., 1:] << 1
+        case += bits[..., :-1]  # (L, B, Y+1, Z), bits dz
+        case_yz = case[:, :, 1:] << 2
+        case_yz += case[:, :, :-1]  # (L, B, Y, Z)
+        case = case_yz[1:] << 4
+        case += case_yz[:-1]  # (L-1, B, Y, Z) uint8
+        case = case.view(-1)
+        case -= 1  # 0 and 255 become 255 and 254
+        active = _nonzero_sparse(case < 254)
+        ids.append(active + start * (B * Y * Z))
+        cases.append(case[active].long() + 1)
+    return torch.cat(ids), torch.cat(cases)
+
+
+def _vertex_gradient(flat_vol, lower, upper, corner_ijk, d_v, t, f1, f2, sizes, spacing_v):
+    """Field gradient at the vertices, in world units: ``(V, 3)``.
+
+    Along the edge direction ``d`` it is the slope of the interpolant,
+    ``(f2 - f1) / spacing_d``; across it, central differences (one-sided on the
+    border) at both edge ends, blended with ``t``.
+    """
+    X, Y, Z = sizes
+    size_t = torch.tensor(sizes, device=lower.device)
+    stride_t = torch.tensor([Y * Z, Z, 1], device=lower.device)
+    arange_v = torch.arange(d_v.shape[0], device=lower.device)
+    grad = torch.zeros_like(spacing_v)  # (V, 3)
+    grad = grad.index_put((arange_v, d_v), (f2 - f1) / spacing_v[arange_v, d_v])
+    for shift in (1, 2):  # the two axes across the edge
+        a = (d_v + shift) % 3
+        c = corner_ijk[arange_v, a]
+        up = (c < size_t[a] - 1).long()
+        down = (c > 0).long()
+        stride = stride_t[a]
+        step_up, step_down = up * stride, down * stride
+        h = (up + down).to(flat_vol.dtype) * spacing_v[arange_v, a]
+        g_lower = (flat_vol[lower + step_up] - flat_vol[lower - step_down]) / h
+        g_upper = (flat_vol[upper + step_up] - flat_vol[upper - step_down]) / h
+        grad = grad.index_put((arange_v, a), g_lower + t * (g_upper - g_lower))
+    return grad
+
+
+def marching_cubes(
+    volume: torch.Tensor,
+    iso: float | torch.Tensor = 0.0,
+    origin: Sequence[float] | torch.Tensor = (0.0, 0.0, 0.0),
+    spacing: Sequence[float] | torch.Tensor = (1.0, 1.0, 1.0),
+    temperature: float | torch.Tensor | None = None,
+) -> MarchingCubesResult:
+    """Extract the ``iso`` level set of one or a batch of volumes as welded triangle meshes.
+
+    Convention:
+        ``indexing="ij"`` (axis 0 is x), world = ``origin + spacing * index``;
+        inside is ``f < iso`` (negative-inside SDF; ``f == iso`` is outside); faces
+        wound outward (towards increasing values), normals likewise; ambiguous faces
+        separate the inside corners, so closed level sets give watertight meshes;
+        ``t`` clamped to ``[delta, 1 - delta]``, ``delta = sqrt(finfo.eps)``. See the
+        module docstring.
+
+    Args:
+        volume: ``(X, Y, Z)`` or ``(B, X, Y, Z)`` float samples, each of X, Y, Z >= 2.
+        iso: the level, a number or a ``()`` / ``(B,)`` tensor (differentiable).
+        origin: world position of sample ``(0, 0, 0)``: 3 numbers, or ``(3,)`` /
+            ``(B, 3)`` tensor.
+        spacing: positive sample spacing per axis: 3 numbers, or ``(3,)`` / ``(B, 3)``.
+        temperature: ``None`` (hard mode, weights 1) or a positive number / ``()`` /
+            ``(B,)`` tensor ``tau``: soft mode, where each corner is inside with
+            probability ``p = sigmoid((iso - f) / tau)`` and every face of a cell gets
+            the probability of its cell's configuration under independent corners
+            (Liao et al. 2018, Deep Marching Cubes).
+
+    Returns:
+        :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3) long, normals
+        (V, 3), face_weights (F,), verts_per_mesh (B,), faces_per_mesh (B,))``,
+        packed over the batch (``B = 1`` for an unbatched volume). No surface gives
+        empty tensors of the right shapes and dtypes.
+
+    Raises:
+        TypeError: ``volume`` is not a float tensor, or an argument has a wrong type.
+        ShapeError: ``volume`` is not 3D/4D, has a spatial size < 2, or an argument
+            has a wrong shape.
+        ValueError: ``spacing`` or ``temperature`` is not positive.
+
+    Example:
+        >>> x = torch.linspace(-1.0, 1.0, 5)
+        >>> r2 = (torch.stack(torch.meshgrid(x, x, x, indexing="ij")) ** 2).sum(0)
+        >>> mesh = marching_cubes(r2 - 0.36, origin=(-1.0, -1.0, -1.0), spacing=(0.5, 0.5, 0.5))
+        >>> mesh.verts.shape, mesh.faces.shape, mesh.verts_per_mesh
+        (torch.Size([30, 3]), torch.Size([56, 3]), tensor([30]))
+        >>> mesh.verts[:2]
+        tensor([[-0.5733,  0.0000,  0.0000],
+                [-0.2200, -0.5000,  0.0000]])
+        >>> mesh.normals[:2]
+        tensor([[-1.0000,  0.0000,  0.0000],
+                [-0.4472, -0.8944,  0.0000]])
+        >>> mesh.faces[:2]
+        tensor([[0, 4, 2],
+                [0, 2, 6]])
+        >>> soft = marching_cubes(r2 - 0.36, temperature=0.1)
+        >>> soft.face_weights[:3]
+        tensor([0.4723, 0.4723, 0.4723])
+    """
+    check_float(volume, "volume")
+    if volume.ndim not in (3, 4):
+        raise ShapeError(
+            f"volume: expected shape (X, Y, Z) or (B, X, Y, Z), got {tuple(volume.shape)}"
+        )
+    vol = (volume if volume.ndim == 4 else volume.unsqueeze(0)).contiguous()
+    B, X, Y, Z = vol.shape
+    if min(X, Y, Z) < 2:
+        raise ShapeError(
+            f"volume: expected every spatial size >= 2, got shape {tuple(volume.shape)}"
+        )
+    dtype, device = vol.dtype, vol.device
+    iso_b = _per_mesh(iso, "iso", B, vol)  # (B,)
+    origin_b = _per_mesh_vec(origin, "origin", B, vol)  # (B, 3)
+    spacing_b = _per_mesh_vec(spacing, "spacing", B, vol)  # (B, 3)
+    if bool((spacing_b.detach() <= 0).any()):
+        raise ValueError(f"spacing: expected positive values, got {spacing_b.detach().tolist()}")
+    tau_b = None
+    if temperature is not None:
+        tau_b = _per_mesh(temperature, "temperature", B, vol)
+        if bool((tau_b.detach() <= 0).any()):
+            raise ValueError(f"temperature: expected > 0, got {tau_b.detach().tolist()}")
+
+    tri_table, num_tris, edge_dir, edge_off, corner_off = table_tensors(device)
+    XYZ, BYZ = X * Y * Z, B * Y * Z
+    strides = torch.tensor([Y * Z, Z, 1], device=device)  # sample strides in vol
+    slab = max(1, _SLAB_CELLS // BYZ)
+
+    with torch.no_grad():
+        # 1.-2. classify once, pack corner bits, keep mixed cells of the padded grid.
+        cell_id, cases_a = _active_cells(vol.detach(), iso_b.detach(), slab)  # (A,), (A,)
+        k_a = cell_id % Z
+        j_a = (cell_id // Z) % Y
+        b_a = (cell_id // (Y * Z)) % B
+        i_a = cell_id // BYZ
+        corner0 = b_a * XYZ + i_a * (Y * Z) + j_a * Z + k_a  # (A,) flat sample of corner 0
+
+        # 3. one vertex per crossing grid edge = crossing lower edge of a cell
+        #    (corner 0 against corners 4, 2, 1 for x, y, z).
+        bit0 = cases_a & 1
+        crosses = torch.stack(
+            [bit0 != ((cases_a >> 4) & 1), bit0 != ((cases_a >> 2) & 1),
+             bit0 != ((cases_a >> 1) & 1)], dim=1
+        )  # (A, 3)
+        vert_cell, d_v = crosses.nonzero().unbind(1)  # (V,), (V,) sorted by (cell, d)
+        n_verts = d_v.shape[0]
+        vert_key = cell_id[vert_cell] * 3 + d_v  # (V,) sorted: 3 * owner cell + d
+
+        # 4. triangles of the real (unpadded) active cells; local edge e of cell c is the
+        #    lower edge (direction edge_dir[e]) of the cell c + edge_off[e], i.e. has the
+        #    key 3 * c + key_delta[e].
+        real = (i_a < X - 1) & (j_a < Y - 1) & (k_a < Z - 1)  # (A,)
+        key_delta = (edge_off * torch.tensor([BYZ, Z, 1], device=device)).sum(-1) * 3 + edge_dir
+        tri_delta = torch.where(tri_table >= 0, key_delta[tri_table.clamp_min(0)], -1)
+        n_tri = torch.where(real, num_tris[cases_a], 0)  # (A,)
+        cell_of_face = torch.repeat_interleave(n_tri)  # (F,) sorted
+        first_face = n_tri.cumsum(0).sub_(n_tri)  # (A,)
+        slot = torch.arange(cell_of_face.shape[0], device=device) - first_face[cell_of_face]
+        tri_rows = tri_delta.view(-1, 3)[cases_a[cell_of_face] * MAX_TRIANGLES + slot]  # (F, 3)
+        face_cell3 = cell_id[cell_of_face] * 3  # (F,) sorted
+        face_key = face_cell3[:, None] + tri_rows  # (F, 3)
+        faces = torch.empty_like(face_key)
+        # key -> vertex id through a dense map over one slab (+1 layer) at a time.
+        map_slab = max(1, _MAP_CELLS // BYZ)
+        layer_bounds = torch.arange(0, X + map_slab, map_slab, device=device).clamp_max(X)
+        layer_bounds = layer_bounds * (3 * BYZ)  # key bounds of the map slabs
+        face_bounds = torch.searchsorted(face_cell3, layer_bounds).tolist()
+        vert_lo = torch.searchsorted(vert_key, layer_bounds).tolist()
+        vert_hi = torch.searchsorted(
+            vert_key, (layer_bounds + 3 * BYZ).clamp_max(3 * X * BYZ)
+        ).tolist()
+        id_dtype = torch.int32 if n_verts < 2**31 else torch.long
+        id_map = torch.empty((map_slab + 1) * BYZ * 3, dtype=id_dtype, device=device)
+        for n in range(len(layer_bounds) - 1):  # loop over slabs, not over cells
+            f0, f1 = face_bounds[n], face_bounds[n + 1]
+            if f0 == f1:
+                continue
+            v0, v1 = vert_lo[n], vert_hi[n + 1]  # vertices of the slab and one more layer
+            base = n * map_slab * BYZ * 3
+            id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
+            faces[f0:f1] = id_map[face_key[f0:f1] - base].long()
+        b_face = b_a[cell_of_face]
+
+        lower = corner0[vert_cell]  # (V,) flat sample at the edge's lower end
+        upper = lower + strides[d_v]
+        b_v = b_a[vert_cell]
+        corner_ijk = torch.stack([i_a[vert_cell], j_a[vert_cell], k_a[vert_cell]], dim=1)
+        if B > 1:  # vertices and faces come x-major: group them by volume
+            order_v = torch.sort(b_v, stable=True).indices
+            new_id = torch.empty_like(order_v)
+            new_id[order_v] = torch.arange(n_verts, device=device)
+            order_f = torch.sort(b_face, stable=True).indices
+            faces = new_id[faces[order_f]]
+            cell_of_face, b_face = cell_of_face[order_f], b_face[order_f]
+            lower, upper, b_v, d_v = lower[order_v], upper[order_v], b_v[order_v], d_v[order_v]
+            corner_ijk = corner_ijk[order_v]
+        unit = torch.nn.functional.one_hot(d_v, 3)  # (V, 3)
+        verts_per_mesh = torch.bincount(b_v, minlength=B)
+        faces_per_mesh = torch.bincount(b_face, minlength=B)
+
+    # Differentiable part: interpolation t = (iso - f1) / (f2 - f1) (report 1.4).
+    flat_vol = vol.reshape(-1)
+    f1, f2 = flat_vol[lower], flat_vol[upper]  # (V,)
+    iso_v = iso_b[b_v]
+    eps = torch.finfo(dtype).eps
+    delta = math.sqrt(eps)
+    t = safe_div(iso_v - f1, f2 - f1, eps=eps).clamp(delta, 1.0 - delta)  # (V,)
+    index_pos = corner_ijk.to(dtype) + unit.to(dtype) * t[:, None]  # (V, 3) index space
+    spacing_v = spacing_b[b_v]
+    verts = origin_b[b_v] + spacing_v * index_pos
+
+    # Normals: the unit field gradient at the vertices (outward: increasing values).
+    grad = _vertex_gradient(
+        flat_vol, lower, upper, corner_ijk, d_v, t, f1, f2, (X, Y, Z), spacing_v
+    )  # (V, 3)
+    normals = grad / safe_norm(grad, keepdim=True).clamp_min(torch.finfo(dtype).tiny)
+
+    if tau_b is None:
+        face_weights = vol.new_ones(faces.shape[0])
+    else:
+        face_cells = torch.unique_consecutive(cell_of_face, return_inverse=True)
+        cells, face_to_cell = face_cells[0], face_cells[1]  # real active cells with faces
+        corner_delta = (corner_off * strides).sum(-1)  # (8,)
+        f_corners = flat_vol[corner0[cells][:, None] + corner_delta]  # (C, 8)
+        inside_bits = (cases_a[cells][:, None] >> torch.arange(8, device=device)) & 1
+        sign = (2 * inside_bits - 1).to(dtype)  # (C, 8): +1 inside, -1 outside
+        b_c = b_a[cells]
+        logits = sign * (iso_b[b_c][:, None] - f_corners) / tau_b[b_c][:, None]
+        # probability of the configuration: prod_c p_c^inside (1 - p_c)^outside
+        cell_weight = torch.nn.functional.logsigmoid(logits).sum(-1).exp()  # (C,)
+        face_weights = cell_weight[face_to_cell]
+    return MarchingCubesResult(verts, faces, normals, face_weights, verts_per_mesh, faces_per_mesh)
+
+
+class MarchingCubes(nn.Module):
+    """Module form of :func:`marching_cubes`, with the same defaults.
+
+    Tensor arguments are registered as non-persistent buffers, so ``.to()`` moves
+    them; numbers are kept as numbers.
+
+    Convention:
+        As :func:`marching_cubes`: ``indexing="ij"``, world = ``origin + spacing *
+        index``, inside ``f < iso``, faces and normals outward.
+
+    Args:
+        iso, origin, spacing, temperature: as in :func:`marching_cubes`.
+
+    Shapes:
+        ``forward(volume (X, Y, Z) or (B, X, Y, Z)) -> MarchingCubesResult``.
+
+    Example:
+        >>> x = torch.linspace(-1.0, 1.0, 5)
+        >>> r2 = (torch.stack(torch.meshgrid(x, x, x, indexing="ij")) ** 2).sum(0)
+        >>> MarchingCubes(iso=0.36)(r2).faces.shape
+        torch.Size([56, 3])
+    """
+
+    def __init__(
+        self,
+        iso: float | torch.Tensor = 0.0,
+        origin: Sequence[float] | torch.Tensor = (0.0, 0.0, 0.0),
+        spacing: Sequence[float] | torch.Tensor = (1.0, 1.0, 1.0),
+        temperature: float | torch.Tensor | None = None,
+    ) -> None:
+        super().__init__()
+        for name, value in (("iso", iso), ("origin", origin), ("spacing", spacing),
+                            ("temperature", temperature)):
+            if isinstance(value, torch.Tensor):
+                self.register_buffer(name, value, persistent=False)
+            else:
+                setattr(self, name, value)
+
+    def forward(self, volume: torch.Tensor) -> MarchingCubesResult:
+        return marching_cubes(volume, self.iso, self.origin, self.spacing, self.temperature)
