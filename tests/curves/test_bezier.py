@@ -311,7 +311,7 @@ def test_arclength_parameters_give_equal_pieces():
     assert t.shape == (5, n)
     for b in range(5):
         hodo = BPoly(bezier_derivative(cp[b]).numpy()[:, None, :], [0.0, 1.0])
-        pieces = [integrate.quad(lambda s: float(np.linalg.norm(hodo(s))), float(t[b, k]),
+        pieces = [integrate.quad(lambda s, h=hodo: float(np.linalg.norm(h(s))), float(t[b, k]),
                                  float(t[b, k + 1]), epsabs=1e-13, limit=200)[0]
                   for k in range(n - 1)]
         pieces = np.array(pieces)
@@ -339,7 +339,8 @@ def test_module_equals_functions_and_defaults_match(device, dtype):
     assert_close(curve.elevate().control_points, elevate_bezier(cp))
     points = curve.reparametrize_by_arclength(5)
     assert_close(points, bezier(cp, bezier_arclength_params(cp, 5)))
-    pairs = [(BezierCurve.split, split_bezier, "t0"), (BezierCurve.elevate, elevate_bezier, "times"),
+    pairs = [(BezierCurve.split, split_bezier, "t0"),
+             (BezierCurve.elevate, elevate_bezier, "times"),
              (BezierCurve.derivative, bezier_derivative, "order"),
              (BezierCurve.length, bezier_length, "rtol")]
     for method, function, name in pairs:

@@ -8,7 +8,9 @@ Convention:
       points all coincide falls back to uniform parameters.
     - The fit minimises ``sum_k |B(t_k) - x_k|^2`` over the control points; it is a
       batched linear least-squares problem solved in float64 (upcast, then cast
-      back) and is differentiable with respect to the points.
+      back) and is differentiable with respect to the points. Chord and
+      centripetal parameters are computed without gradients (treated as
+      constants), so the gradient is the one at fixed parameters.
 """
 
 from __future__ import annotations
