@@ -236,7 +236,7 @@ def catmull_clark_operator(
 
         # Edge points: sharp 1/2 (v0 + v1); smooth 1/4 (v0 + v1) + 1/4 (f0 + f1).
         e_all = torch.arange(E0, device=dev)
-        w_end_e = torch.where(topo.sharp_e, 0.5, 0.25).to(wdtype)
+        w_end_e = 0.25 + 0.25 * w(topo.sharp_e)  # 1/2 sharp, 1/4 smooth
         rows += [row_edge + e_all, row_edge + e_all]
         cols += [topo.edge_lo_e, topo.edge_hi_e]
         vals += [w_end_e, w_end_e]
@@ -253,7 +253,7 @@ def catmull_clark_operator(
         n_v = w(topo.valence_v).clamp(min=1)  # isolated vertices have kind 0 anyway
         m_v = w(topo.num_faces_v).clamp(min=1)
         smooth_v, crease_v = kind_v == 1, kind_v == 2
-        self_v = torch.where(smooth_v, (n_v - 2) / n_v, torch.where(crease_v, 0.75, 1.0))
+        self_v = torch.where(smooth_v, (n_v - 2) / n_v, 1.0 - 0.25 * w(crease_v))
         rows.append(torch.arange(V0, device=dev))
         cols.append(torch.arange(V0, device=dev))
         vals.append(self_v.to(wdtype))
@@ -265,7 +265,7 @@ def catmull_clark_operator(
         w_side = torch.where(
             kind_side == 1,
             1.0 / (n_v[v_side] * n_v[v_side]),
-            torch.where((kind_side == 2) & sharp_side, 0.125, 0.0).to(wdtype),
+            0.125 * w((kind_side == 2) & sharp_side),
         )
         rows.append(v_side)
         cols.append(nbr_side)
@@ -389,8 +389,10 @@ def catmull_clark(
             f"verts and faces must be on the same device, got {verts.device} and {faces.device}"
         )
     check_shape(verts, ["*", "V", "D"], "verts")
-    module = CatmullClark(faces, verts.shape[-2], levels=levels, boundary=boundary)
-    module = module.to(device=verts.device, dtype=verts.dtype)
+    module = CatmullClark(
+        faces, verts.shape[-2], levels=levels, boundary=boundary,
+        device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
+    )
     return module(verts), module.faces
 
 
@@ -523,7 +525,7 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
         m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
         kind_v = topo.kind_v
         smooth_v, crease_v = kind_v == 1, kind_v == 2
-        self_v = torch.where(smooth_v, n_v / (n_v + 5), torch.where(crease_v, 2.0 / 3.0, 1.0))
+        self_v = torch.where(smooth_v, n_v / (n_v + 5), 1.0 - crease_v.to(wdtype) / 3.0)
         v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
         nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
         sharp_side = torch.cat([topo.sharp_e, topo.sharp_e])
@@ -531,7 +533,7 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
         w_side = torch.where(
             kind_side == 1,
             4.0 / (n_v[v_side] * (n_v[v_side] + 5)),
-            torch.where((kind_side == 2) & sharp_side, 1.0 / 6.0, 0.0).to(wdtype),
+            ((kind_side == 2) & sharp_side).to(wdtype) / 6.0,
         )
         # opposite corner of each quad corner: two steps along the face
         diag_c = topo.vert_c[topo.prev_corner_c[topo.prev_corner_c]]
