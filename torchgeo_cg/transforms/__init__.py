@@ -1,5 +1,24 @@
 """Homogeneous 2D transforms, articulated scene graphs and transform estimation."""
 
+from torchgeo_cg.transforms.decompose import AffineDecomposition, decompose_affine
+from torchgeo_cg.transforms.estimation import (
+    HartleyNormalization,
+    HomographyFit,
+    find_affine,
+    find_euclidean,
+    find_homography_dlt,
+    find_similarity,
+    find_translation,
+    hartley_normalize,
+    reprojection_error,
+)
+from torchgeo_cg.transforms.fitting import (
+    FitResult,
+    HomographyModel,
+    fit_transform,
+    matrix_to_parameters,
+    parameters_to_matrix,
+)
 from torchgeo_cg.transforms.homogeneous import (
     compose,
     compose_trs,
@@ -14,6 +33,12 @@ from torchgeo_cg.transforms.homogeneous import (
     translation,
 )
 from torchgeo_cg.transforms.modules import HomogeneousTransform, TRSTransform
+from torchgeo_cg.transforms.report_shapes import (
+    ReportShapes,
+    ShapeFit,
+    fit_report_shapes,
+    report_shapes,
+)
 from torchgeo_cg.transforms.scene_graph import (
     FixedTransform,
     Orbit,
@@ -23,6 +48,26 @@ from torchgeo_cg.transforms.scene_graph import (
 )
 
 __all__ = [
+    "AffineDecomposition",
+    "FitResult",
+    "HartleyNormalization",
+    "HomographyFit",
+    "HomographyModel",
+    "ReportShapes",
+    "ShapeFit",
+    "decompose_affine",
+    "find_affine",
+    "find_euclidean",
+    "find_homography_dlt",
+    "find_similarity",
+    "find_translation",
+    "fit_report_shapes",
+    "fit_transform",
+    "hartley_normalize",
+    "matrix_to_parameters",
+    "parameters_to_matrix",
+    "report_shapes",
+    "reprojection_error",
     "FixedTransform",
     "HomogeneousTransform",
     "Orbit",
