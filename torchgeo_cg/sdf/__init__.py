@@ -1,3 +1,106 @@
-"""torchgeo_cg.sdf (being built)."""
+"""Signed distance fields: primitives, CSG operators, THE grid convention, mesh distances.
 
-__all__: list[str] = []
+Layout (one topic per file):
+
+- :mod:`~torchgeo_cg.sdf.primitives`: ``sphere``, ``box``, ``capsule``, ``plane``, ``torus``,
+  ``gyroid`` and 2D ``circle``, ``rectangle``, ``annulus``, each with an ``nn.Module``.
+- :mod:`~torchgeo_cg.sdf.operators`: ``union``, ``intersection``, ``difference``,
+  ``smooth_union``, ``smooth_intersection``, ``product``, ``translate``, ``rotate``, ``scale``.
+- :mod:`~torchgeo_cg.sdf.grid`: the grid convention (``indexing="ij"``, index ``(i, j, k)``
+  at ``origin + spacing * (i, j, k)``), ``grid_points``, ``sample_grid``, ``Volume``,
+  ``grid_interpolate``.
+- :mod:`~torchgeo_cg.sdf.level_set`: the report's ``zero_level_set``.
+- :mod:`~torchgeo_cg.sdf.gradients`: ``sdf_gradient``, ``sdf_normal``, ``eikonal_loss``.
+- :mod:`~torchgeo_cg.sdf.mesh_distance`: ``mesh_sdf`` (pseudo-normal and winding-number signs).
+- :mod:`~torchgeo_cg.sdf.sampler`: ``SDFSampler`` (DeepSDF distribution), ``.npz`` I/O.
+
+Convention: SDFs are negative inside; points are ``(*, N, 3)`` (or ``(*, N, 2)``).
+"""
+
+from torchgeo_cg.sdf.gradients import eikonal_loss, sdf_gradient, sdf_normal
+from torchgeo_cg.sdf.grid import (
+    Volume,
+    grid_interpolate,
+    grid_points,
+    grid_spacing,
+    index_to_world,
+    sample_grid,
+    world_to_index,
+)
+from torchgeo_cg.sdf.level_set import LevelSetPoints, zero_level_set
+from torchgeo_cg.sdf.mesh_distance import (
+    MeshSDFResult,
+    TriangleClosestPoint,
+    closest_point_on_triangle,
+    is_watertight,
+    mesh_sdf,
+    winding_number,
+)
+from torchgeo_cg.sdf.operators import (
+    Difference,
+    Intersection,
+    Product,
+    Rotate,
+    Scale,
+    SmoothIntersection,
+    SmoothUnion,
+    Translate,
+    Union,
+    difference,
+    intersection,
+    product,
+    rotate,
+    scale,
+    smooth_intersection,
+    smooth_union,
+    translate,
+    union,
+)
+from torchgeo_cg.sdf.primitives import (
+    Annulus,
+    Box,
+    Capsule,
+    Circle,
+    Gyroid,
+    Plane,
+    Rectangle,
+    Sphere,
+    Torus,
+    annulus,
+    box,
+    capsule,
+    circle,
+    gyroid,
+    plane,
+    rectangle,
+    sphere,
+    torus,
+)
+from torchgeo_cg.sdf.sampler import (
+    SDFSampler,
+    SDFSamples,
+    load_samples,
+    sample_mesh_surface,
+    save_samples,
+)
+
+__all__ = [
+    # primitives
+    "sphere", "box", "capsule", "plane", "torus", "gyroid", "circle", "rectangle", "annulus",
+    "Sphere", "Box", "Capsule", "Plane", "Torus", "Gyroid", "Circle", "Rectangle", "Annulus",
+    # operators
+    "union", "intersection", "difference", "smooth_union", "smooth_intersection", "product",
+    "translate", "rotate", "scale",
+    "Union", "Intersection", "Difference", "SmoothUnion", "SmoothIntersection", "Product",
+    "Translate", "Rotate", "Scale",
+    # grid
+    "Volume", "grid_spacing", "grid_points", "sample_grid", "index_to_world", "world_to_index",
+    "grid_interpolate",
+    # level set, gradients
+    "LevelSetPoints", "zero_level_set", "sdf_gradient", "sdf_normal", "eikonal_loss",
+    # mesh distance
+    "MeshSDFResult", "TriangleClosestPoint", "closest_point_on_triangle", "is_watertight",
+    "winding_number", "mesh_sdf",
+    # sampler
+    "SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples", "load_samples",
+]

@@ -1,0 +1,346 @@
+"""THE grid convention of torchgeo_cg: sampling SDFs on regular grids and reading them back.
+
+Every module that puts values on a 3D grid (SDF sampling, zero-level sets, marching
+cubes) uses this one convention::
+
+                z (axis 2, index k)
+                ^
+                |   y (axis 1, index j)
+                |  /
+                | /
+     origin --> o-------> x (axis 0, index i)
+
+     volume[i, j, k]  is the value at  origin + spacing * (i, j, k)
+                                      = (x0 + sx*i, y0 + sy*j, z0 + sz*k)
+
+     bounds = ((x0, y0, z0), (x1, y1, z1)),  resolution = (X, Y, Z)
+     spacing = (bounds[1] - bounds[0]) / (resolution - 1)      # both ends are samples
+     volume.shape == (X, Y, Z)  or (B, X, Y, Z) for a batch of B shapes
+
+Convention:
+    - ``indexing="ij"``: array axis 0 is x, axis 1 is y, axis 2 is z (as
+      ``torch.meshgrid(xs, ys, zs, indexing="ij")``). Index ``(i, j, k)`` maps to the
+      world point ``origin + spacing * (i, j, k)``; ``origin`` is the first corner of
+      ``bounds`` and the last sample sits exactly on the second corner (``linspace``).
+    - SDF values are negative inside.
+    - :func:`grid_interpolate` is trilinear and uses ``grid_sample(...,
+      align_corners=True)`` so grid sample ``i`` sits exactly at ``origin + spacing*i``;
+      points outside the bounds are clamped to the border value.
+    - ``origin`` and ``spacing`` are ``(3,)`` tensors of the volume's dtype and device.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import NamedTuple
+
+import torch
+import torch.nn.functional as F
+
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+
+__all__ = [
+    "Volume",
+    "grid_spacing",
+    "grid_points",
+    "sample_grid",
+    "index_to_world",
+    "world_to_index",
+    "grid_interpolate",
+]
+
+
+class Volume(NamedTuple):
+    """A sampled grid: ``values[..., i, j, k]`` lives at ``origin + spacing * (i, j, k)``.
+
+    Attributes:
+        values: ``(X, Y, Z)`` or ``(B, X, Y, Z)`` samples.
+        origin: ``(3,)`` world position of index ``(0, 0, 0)``.
+        spacing: ``(3,)`` distance between neighbouring samples along x, y, z.
+    """
+
+    values: torch.Tensor
+    origin: torch.Tensor
+    spacing: torch.Tensor
+
+
+def _resolution(resolution: int | Sequence[int]) -> tuple[int, int, int]:
+    if isinstance(resolution, torch.Tensor):
+        resolution = resolution.tolist()
+    res = (resolution,) * 3 if isinstance(resolution, int) else tuple(resolution)
+    if len(res) != 3 or not all(isinstance(r, int) and not isinstance(r, bool) for r in res):
+        raise TypeError(f"resolution: expected an int or 3 ints, got {resolution!r}")
+    if min(res) < 2:
+        raise ValueError(f"resolution: expected at least 2 samples per axis, got {res}")
+    return res  # type: ignore[return-value]
+
+
+def _bounds(bounds, device=None, dtype=None) -> torch.Tensor:
+    if isinstance(bounds, torch.Tensor):
+        b = bounds.to(device=device or bounds.device, dtype=dtype or bounds.dtype)
+    else:
+        b = torch.as_tensor(bounds, dtype=dtype or torch.get_default_dtype(), device=device)
+    check_float(b, "bounds")
+    if b.dim() == 1 and b.shape[0] == 2:  # (lo, hi) shared by all axes
+        b = b[:, None].expand(2, 3)
+    check_shape(b, [2, 3], "bounds")
+    if bool(~torch.isfinite(b).all()) or bool((b[1] <= b[0]).any()):
+        raise ValueError(f"bounds: expected finite bounds with lo < hi per axis, got {b.tolist()}")
+    return b
+
+
+def grid_spacing(
+    resolution: int | Sequence[int], bounds=(-1.0, 1.0), device=None, dtype=None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(origin, spacing)`` of the grid with ``resolution`` samples spanning ``bounds``.
+
+    Convention:
+        See the module docstring: ``spacing = (hi - lo) / (resolution - 1)``.
+
+    Args:
+        resolution: ``int`` or ``(X, Y, Z)``, each at least 2.
+        bounds: ``(lo, hi)`` numbers shared by the axes, or ``((x0, y0, z0), (x1, y1, z1))``
+            (a ``(2, 3)`` tensor or nested sequence).
+        device, dtype: of the result (default: of ``bounds`` if a tensor, else the default).
+
+    Returns:
+        ``origin (3,)`` and ``spacing (3,)``.
+
+    Example:
+        >>> grid_spacing(5, (-1.0, 1.0))
+        (tensor([-1., -1., -1.]), tensor([0.5000, 0.5000, 0.5000]))
+    """
+    res = _resolution(resolution)
+    b = _bounds(bounds, device, dtype)
+    return b[0].clone(), (b[1] - b[0]) / b.new_tensor([r - 1 for r in res])
+
+
+def grid_points(
+    resolution: int | Sequence[int],
+    bounds=(-1.0, 1.0),
+    indexing: str = "ij",
+    device=None,
+    dtype=None,
+) -> torch.Tensor:
+    """World coordinates of every grid sample, ``(X, Y, Z, 3)`` (``"ij"``).
+
+    Convention:
+        ``grid_points(...)[i, j, k] == origin + spacing * (i, j, k)`` with ``indexing="ij"``
+        (the torchgeo_cg convention). ``indexing="xy"`` swaps the first two axes, as
+        ``torch.meshgrid`` does, giving ``(Y, X, Z, 3)``; it exists for interop only.
+
+    Args:
+        resolution: ``int`` or ``(X, Y, Z)``, each at least 2.
+        bounds: ``(lo, hi)`` or ``((x0, y0, z0), (x1, y1, z1))``.
+        indexing: ``"ij"`` (default) or ``"xy"``.
+        device, dtype: of the result.
+
+    Returns:
+        ``(X, Y, Z, 3)`` points (``(Y, X, Z, 3)`` for ``"xy"``).
+
+    Example:
+        >>> g = grid_points((2, 3, 2), ((0.0, 0.0, 0.0), (1.0, 2.0, 1.0)))
+        >>> g.shape, g[1, 2, 0]
+        (torch.Size([2, 3, 2, 3]), tensor([1., 2., 0.]))
+    """
+    if indexing not in ("ij", "xy"):
+        raise ValueError(f"indexing: expected 'ij' or 'xy', got {indexing!r}")
+    res = _resolution(resolution)
+    b = _bounds(bounds, device, dtype)
+    axes = [torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device, dtype=b.dtype)
+            for a in range(3)]
+    return torch.stack(torch.meshgrid(*axes, indexing=indexing), dim=-1)
+
+
+def index_to_world(
+    indices: torch.Tensor, origin: torch.Tensor, spacing: torch.Tensor
+) -> torch.Tensor:
+    """Grid index ``(i, j, k)`` (integer or fractional) to world ``origin + spacing * ijk``.
+
+    Convention:
+        ``"ij"`` grid convention of this module.
+
+    Args:
+        indices: ``(*, 3)`` integer or float indices.
+        origin: ``(3,)``.
+        spacing: ``(3,)``.
+
+    Returns:
+        ``(*, 3)`` world points, dtype of ``origin``.
+
+    Example:
+        >>> index_to_world(torch.tensor([[1, 2, 3]]), torch.zeros(3), torch.tensor([0.5, 1.0, 2.0]))
+        tensor([[0.5000, 2.0000, 6.0000]])
+    """
+    check_shape(indices, ["*", "3"], "indices")
+    check_shape(origin, ["3"], "origin")
+    check_shape(spacing, ["3"], "spacing")
+    return origin + spacing * indices.to(origin.dtype)
+
+
+def world_to_index(
+    points: torch.Tensor, origin: torch.Tensor, spacing: torch.Tensor
+) -> torch.Tensor:
+    """World points to fractional grid indices ``(p - origin) / spacing`` (inverse of above).
+
+    Convention:
+        ``"ij"`` grid convention; round the result to get the nearest sample.
+
+    Args:
+        points: ``(*, 3)`` float.
+        origin: ``(3,)``.
+        spacing: ``(3,)``, positive.
+
+    Returns:
+        ``(*, 3)`` fractional indices.
+
+    Example:
+        >>> spacing = torch.tensor([0.5, 1.0, 2.0])
+        >>> world_to_index(torch.tensor([[0.5, 2.0, 6.0]]), torch.zeros(3), spacing)
+        tensor([[1., 2., 3.]])
+    """
+    check_float(points, "points")
+    check_shape(points, ["*", "3"], "points")
+    check_shape(origin, ["3"], "origin")
+    check_shape(spacing, ["3"], "spacing")
+    return (points - origin) / spacing
+
+
+def sample_grid(
+    sdf_fn: Callable[[torch.Tensor], torch.Tensor],
+    resolution: int | Sequence[int],
+    bounds=(-1.0, 1.0),
+    chunk: int = 1 << 18,
+    device=None,
+    dtype=None,
+    grad: bool = False,
+) -> Volume:
+    """Evaluate ``sdf_fn`` on the grid, a few x-slabs at a time, in bounded memory.
+
+    The grid is never materialized: each chunk of whole ``x = const`` slabs (about
+    ``chunk`` points) is built from three ``linspace`` axes, evaluated, and written into
+    the preallocated output. Peak memory is the output plus a few chunk-sized buffers.
+
+    Convention:
+        ``values[..., i, j, k] = sdf_fn(origin + spacing * (i, j, k))``, ``indexing="ij"``
+        (module docstring). ``sdf_fn`` gets points ``(M, 3)`` and returns ``(M,)`` for
+        one shape or ``(B, M)`` for a batch of shapes.
+
+    Args:
+        sdf_fn: callable ``(M, 3) -> (M,)`` or ``(B, M)``.
+        resolution: ``int`` or ``(X, Y, Z)``, each at least 2.
+        bounds: ``(lo, hi)`` or ``((x0, y0, z0), (x1, y1, z1))``.
+        chunk: approximate number of points per evaluation (at least one x-slab).
+        device, dtype: of the points passed to ``sdf_fn`` (default: of ``bounds`` if a
+            tensor, else the default dtype on the CPU).
+        grad: keep the autograd graph (memory then grows with the grid); by default the
+            evaluation runs under ``torch.no_grad()``.
+
+    Returns:
+        :class:`Volume` with ``values (X, Y, Z)`` or ``(B, X, Y, Z)``, ``origin (3,)``,
+        ``spacing (3,)``.
+
+    Example:
+        >>> from torchgeo_cg.sdf.primitives import sphere
+        >>> vol = sample_grid(sphere, 3, (-1.0, 1.0))
+        >>> vol.values[1, 1], vol.spacing
+        (tensor([ 0., -1.,  0.]), tensor([1., 1., 1.]))
+    """
+    res = _resolution(resolution)
+    if not isinstance(chunk, int) or chunk < 1:
+        raise ValueError(f"chunk: expected a positive int, got {chunk!r}")
+    origin, spacing = grid_spacing(res, bounds, device, dtype)
+    b = _bounds(bounds, device, dtype)
+    xs, ys, zs = (torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device,
+                                 dtype=b.dtype) for a in range(3))
+    X, Y, Z = res
+    slabs = max(1, chunk // (Y * Z))
+    yz = torch.stack(torch.meshgrid(ys, zs, indexing="ij"), dim=-1)  # (Y, Z, 2)
+    out: torch.Tensor | None = None
+    ctx = torch.enable_grad() if grad else torch.no_grad()
+    pieces = []
+    with ctx:
+        for i0 in range(0, X, slabs):
+            i1 = min(X, i0 + slabs)
+            n = i1 - i0
+            pts = torch.empty(n, Y, Z, 3, device=b.device, dtype=b.dtype)
+            pts[..., 0] = xs[i0:i1, None, None]
+            pts[..., 1:] = yz
+            vals = sdf_fn(pts.reshape(-1, 3))
+            if not isinstance(vals, torch.Tensor) or vals.shape[-1] != n * Y * Z or vals.dim() > 2:
+                got = tuple(vals.shape) if isinstance(vals, torch.Tensor) else type(vals).__name__
+                raise ShapeError(f"sdf_fn: expected output (M,) or (B, M) with M={n * Y * Z}, "
+                                 f"got {got}")
+            vals = vals.reshape(*vals.shape[:-1], n, Y, Z)
+            if grad:
+                pieces.append(vals)
+                continue
+            if out is None:
+                out = vals.new_empty(*vals.shape[:-3], X, Y, Z)
+            out[..., i0:i1, :, :] = vals
+    if grad:
+        out = torch.cat(pieces, dim=-3)
+    return Volume(out, origin, spacing)
+
+
+def grid_interpolate(
+    volume: Volume | torch.Tensor,
+    points: torch.Tensor,
+    origin: torch.Tensor | None = None,
+    spacing: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """Differentiable trilinear lookup of a sampled volume at arbitrary world points.
+
+    Convention:
+        The grid convention of this module; ``grid_sample(..., mode="bilinear",
+        align_corners=True, padding_mode="border")`` on the volume viewed as ``(B, 1, X,
+        Y, Z)``, so sample ``(i, j, k)`` is exactly ``origin + spacing * (i, j, k)`` and
+        points outside the bounds read the nearest border value. Differentiable with
+        respect to both the values and the points.
+
+    Args:
+        volume: a :class:`Volume`, or values ``(X, Y, Z)`` / ``(B, X, Y, Z)`` together
+            with ``origin`` and ``spacing``.
+        points: ``(*, N, 3)`` for an unbatched volume; ``(B, N, 3)`` for a batched one.
+        origin: ``(3,)``; required when ``volume`` is a plain tensor.
+        spacing: ``(3,)``; required when ``volume`` is a plain tensor.
+
+    Returns:
+        ``(*, N)`` (or ``(B, N)``) interpolated values.
+
+    Example:
+        >>> vol = sample_grid(lambda p: p[:, 0] + 2 * p[:, 2], 3, (0.0, 2.0))
+        >>> grid_interpolate(vol, torch.tensor([[0.5, 0.3, 1.5], [1.0, 1.0, 0.25]]))
+        tensor([3.5000, 1.5000])
+    """
+    if isinstance(volume, Volume):
+        values, origin, spacing = volume
+    else:
+        values = volume
+        if origin is None or spacing is None:
+            raise TypeError("grid_interpolate: origin and spacing are required with a plain "
+                            "tensor volume")
+    check_float(values, "volume")
+    check_float(points, "points")
+    check_shape(points, ["*", "N", "3"], "points")
+    check_shape(origin, ["3"], "origin")
+    check_shape(spacing, ["3"], "spacing")
+    if values.dim() not in (3, 4):
+        raise ShapeError(f"volume: expected shape (X, Y, Z) or (B, X, Y, Z), got "
+                         f"{tuple(values.shape)}")
+    res = values.new_tensor(values.shape[-3:])
+    # world -> [-1, 1] with align_corners=True; grid_sample wants (W, H, D) = (z, y, x) order
+    extent = (spacing * (res - 1)).to(points)
+    unit = 2.0 * (points - origin.to(points)) / extent - 1.0
+    grid = unit.flip(-1)
+    if values.dim() == 3:
+        lead = points.shape[:-2]
+        flat = grid.reshape(1, -1, 1, 1, 3)
+        out = F.grid_sample(values[None, None].to(points.dtype), flat, mode="bilinear",
+                            padding_mode="border", align_corners=True)
+        return out.reshape(*lead, points.shape[-2])
+    check_shape(points, [values.shape[0], "N", "3"], "points")
+    flat = grid.reshape(values.shape[0], -1, 1, 1, 3)
+    out = F.grid_sample(values[:, None].to(points.dtype), flat, mode="bilinear",
+                        padding_mode="border", align_corners=True)
+    return out.reshape(values.shape[0], points.shape[-2])
