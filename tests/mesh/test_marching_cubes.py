@@ -1,0 +1,570 @@
+"""Tests for torchgeo_cg.mesh.marching_cubes against scikit-image, brute force and by hand."""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.ndimage import gaussian_filter
+from scipy.spatial import cKDTree
+
+import torchgeo_cg.mesh as mesh_pkg
+from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.mesh import MarchingCubes, MarchingCubesResult, marching_cubes
+from torchgeo_cg.mesh._marching_cubes_tables import (
+    AMBIGUOUS,
+    CORNER_OFFSETS,
+    CUBE_FACES,
+    EDGE_CORNERS,
+    TRIANGLES,
+    face_segments,
+)
+
+skimage_measure = pytest.importorskip("skimage.measure")
+trimesh = pytest.importorskip("trimesh")
+
+
+# ----------------------------------------------------------------------------- fields
+def grid(n: int, lo: float = -1.2, hi: float = 1.2, dtype=torch.float64, device="cpu"):
+    """``(X, Y, Z)`` coordinates (indexing="ij"), their spacing and origin."""
+    x = torch.linspace(lo, hi, n, dtype=dtype, device=device)
+    X, Y, Z = torch.meshgrid(x, x, x, indexing="ij")
+    return X, Y, Z, float(x[1] - x[0]), lo
+
+
+def sphere(X, Y, Z, r=0.8):
+    return (X**2 + Y**2 + Z**2).sqrt() - r
+
+
+def torus(X, Y, Z, R=0.7, r=0.3):
+    return ((X**2 + Y**2).sqrt() - R).hypot(Z) - r
+
+
+def double_torus(X, Y, Z):
+    return torch.minimum(torus(X + 0.55, Y, Z, 0.6, 0.2), torus(X - 0.55, Y, Z, 0.6, 0.2))
+
+
+def gyroid_ball(X, Y, Z):
+    g = (torch.sin(4 * X) * torch.cos(4 * Y) + torch.sin(4 * Y) * torch.cos(4 * Z)
+         + torch.sin(4 * Z) * torch.cos(4 * X)) / 4
+    return torch.maximum(g, sphere(X, Y, Z, 1.0))
+
+
+def noise_ball(n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    noise = gaussian_filter(rng.standard_normal((n, n, n)), sigma=n / 16)
+    noise = torch.from_numpy(noise / noise.std() * 0.3)
+    X, Y, Z, h, lo = grid(n)
+    return torch.maximum(noise, sphere(X, Y, Z, 1.0)), h, lo
+
+
+def pad_outside(vol: torch.Tensor, value: float = 1.0) -> torch.Tensor:
+    """Surround the last three axes with one layer of outside samples (closes the surface)."""
+    return torch.nn.functional.pad(vol, (1, 1, 1, 1, 1, 1), value=value)
+
+
+# ---------------------------------------------------------------------------- helpers
+def to_trimesh(result):
+    return trimesh.Trimesh(
+        result.verts.detach().cpu().double().numpy(), result.faces.cpu().numpy(), process=False
+    )
+
+
+def closed_and_oriented(verts: np.ndarray, faces: np.ndarray) -> tuple[bool, str]:
+    """Merge vertices by exact position; every directed edge once, its reverse once."""
+    if faces.shape[0] == 0:
+        return True, "empty"
+    _, inverse = np.unique(verts, axis=0, return_inverse=True)
+    f = inverse.reshape(-1)[faces]
+    if (f[:, 0] == f[:, 1]).any() or (f[:, 1] == f[:, 2]).any() or (f[:, 0] == f[:, 2]).any():
+        return False, "a face collapsed after merging vertices by position"
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).astype(np.int64)
+    n = int(f.max()) + 1
+    codes = directed[:, 0] * n + directed[:, 1]
+    uniq, counts = np.unique(codes, return_counts=True)
+    if (counts != 1).any():
+        return False, "a directed edge is used twice (non-manifold or flipped face)"
+    missing = int((~np.isin(directed[:, 1] * n + directed[:, 0], uniq)).sum())
+    if missing:
+        return False, f"{missing} edges have one face only (hole)"
+    return True, "ok"
+
+
+def triangle_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    tri = verts[faces]
+    return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+
+
+def signed_volume(verts: np.ndarray, faces: np.ndarray) -> float:
+    tri = verts[faces]
+    return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6)
+
+
+def cell_cases(vol: np.ndarray, iso: float = 0.0) -> np.ndarray:
+    """Brute-force case index of every cell, bit c = corner (dx, dy, dz) inside."""
+    inside = vol < iso
+    X, Y, Z = vol.shape
+    case = np.zeros((X - 1, Y - 1, Z - 1), dtype=np.int64)
+    for c, (dx, dy, dz) in enumerate(CORNER_OFFSETS):
+        case |= inside[dx:X - 1 + dx, dy:Y - 1 + dy, dz:Z - 1 + dz].astype(np.int64) << c
+    return case
+
+
+def face_cells(verts_index: np.ndarray, faces: np.ndarray, shape) -> np.ndarray:
+    """Flat index of the cell holding each face (its centroid, in index coordinates)."""
+    cell = np.floor(verts_index[faces].mean(1)).astype(np.int64)
+    return np.ravel_multi_index(cell.T, tuple(s - 1 for s in shape))
+
+
+# ----------------------------------------------------------------------------- tables
+def test_tables_boundary_of_every_case_is_its_face_segments():
+    for case in range(256):
+        directed = set()
+        for a, b, c in TRIANGLES[case]:
+            directed |= {(a, b), (b, c), (c, a)}
+        boundary = {e for e in directed if (e[1], e[0]) not in directed}
+        segments = {s for face in range(6) for s in face_segments(case, face)}
+        assert boundary == segments, case
+        assert len(directed) == 3 * len(TRIANGLES[case]), case  # no edge used twice
+
+
+def test_tables_shared_faces_close_for_every_pair_of_neighbouring_cases():
+    # Cell A's face (axis, side 1) is cell B's face (axis, side 0): whatever A and B
+    # are, the segments A draws there must be B's segments reversed.
+    def edge_position(e, shift):
+        a, b = EDGE_CORNERS[e]
+        return tuple(
+            (pa + pb) / 2 + s for pa, pb, s in zip(CORNER_OFFSETS[a], CORNER_OFFSETS[b], shift)
+        )
+
+    checked = 0
+    for axis in range(3):
+        high = next(f for f, (ax, side, _) in enumerate(CUBE_FACES) if ax == axis and side == 1)
+        low = next(f for f, (ax, side, _) in enumerate(CUBE_FACES) if ax == axis and side == 0)
+        shift = tuple(1 if k == axis else 0 for k in range(3))
+        for case_a in range(256):
+            shared = [c for c in range(8) if CORNER_OFFSETS[c][axis] == 1]
+            for case_b in range(256):
+                if any(((case_a >> c) & 1) != ((case_b >> (c ^ (4 >> axis))) & 1)
+                       for c in shared):
+                    continue
+                seg_a = {(edge_position(p, (0, 0, 0)), edge_position(q, (0, 0, 0)))
+                         for p, q in face_segments(case_a, high)}
+                seg_b = {(edge_position(q, shift), edge_position(p, shift))
+                         for p, q in face_segments(case_b, low)}
+                assert seg_a == seg_b, (axis, case_a, case_b)
+                checked += 1
+    assert checked == 3 * 256 * 16
+
+
+def test_tables_ambiguity_flags_by_hand():
+    assert not AMBIGUOUS[0] and not AMBIGUOUS[255]
+    assert not AMBIGUOUS[0b00000001]  # one corner
+    assert not AMBIGUOUS[0b00000011]  # an edge (corners 0, 1)
+    assert AMBIGUOUS[0b00001001]  # corners 0 and 3: face diagonal
+    assert AMBIGUOUS[0b10000001]  # corners 0 and 7: body diagonal
+    assert not AMBIGUOUS[0b00001111]  # the face x = 0
+    assert sum(AMBIGUOUS) == 128
+
+
+def test_every_case_alone_in_a_padded_volume_is_closed_and_outward():
+    # all 256 cases in one batched call: corners random in [-1, -0.1] or [0.1, 1]
+    gen = torch.Generator().manual_seed(0)
+    cases = torch.arange(256)
+    bits = (cases[:, None] >> torch.arange(8)) & 1  # (256, 8)
+    mag = 0.1 + 0.9 * torch.rand(256, 8, generator=gen, dtype=torch.float64)
+    values = torch.where(bits == 1, -mag, mag)
+    vol = torch.zeros(256, 2, 2, 2, dtype=torch.float64)
+    for c, (dx, dy, dz) in enumerate(CORNER_OFFSETS):
+        vol[:, dx, dy, dz] = values[:, c]
+    result = marching_cubes(pad_outside(vol))
+    for case, m in enumerate(result.split()):
+        ok, why = closed_and_oriented(m.verts.numpy(), m.faces.numpy())
+        assert ok, (case, why)
+        if m.faces.shape[0]:
+            assert signed_volume(m.verts.numpy(), m.faces.numpy()) > 0, case
+
+
+def test_all_4096_two_cell_configurations_are_closed():
+    configs = torch.arange(4096)
+    bits = ((configs[:, None] >> torch.arange(12)) & 1).reshape(4096, 3, 2, 2)
+    gen = torch.Generator().manual_seed(1)
+    mag = 0.1 + 0.9 * torch.rand(4096, 3, 2, 2, generator=gen, dtype=torch.float64)
+    result = marching_cubes(pad_outside(torch.where(bits == 1, -mag, mag)))
+    # packed check: all meshes at once (vertex ids are unique across the batch)
+    offsets = torch.repeat_interleave(
+        torch.arange(4096) * 1000, result.verts_per_mesh
+    )[:, None].double()  # move meshes apart so merging by position stays per mesh
+    ok, why = closed_and_oriented((result.verts + offsets).numpy(), result.faces.numpy())
+    assert ok, why
+
+
+# ------------------------------------------------------------------ against skimage
+@pytest.mark.parametrize("method", ["lorensen", "lewiner"])
+@pytest.mark.parametrize("shape,n", [("sphere", 64), ("torus", 128)])
+def test_matches_skimage_on_unambiguous_fields(shape, n, method):
+    X, Y, Z, h, lo = grid(n)
+    field = {"sphere": sphere, "torus": torus}[shape](X, Y, Z)
+    assert not np.asarray(AMBIGUOUS)[cell_cases(field.numpy())].any()  # no ambiguous cell
+    ours = marching_cubes(field, origin=(lo, lo, lo), spacing=(h, h, h))
+    sk_v, sk_f, _, _ = skimage_measure.marching_cubes(
+        field.numpy(), 0.0, spacing=(h, h, h), method=method
+    )
+    sk_v = sk_v.astype(np.float64) + lo
+    v = ours.verts.numpy()
+    assert v.shape == sk_v.shape and ours.faces.shape == sk_f.shape
+    d_ours, _ = cKDTree(sk_v).query(v)
+    d_sk, _ = cKDTree(v).query(sk_v)
+    assert d_ours.max() < 1e-5 and d_sk.max() < 1e-5  # same vertex sets (skimage is f32)
+    area, sk_area = triangle_areas(v, ours.faces.numpy()).sum(), triangle_areas(sk_v, sk_f).sum()
+    vol, sk_vol = signed_volume(v, ours.faces.numpy()), abs(signed_volume(sk_v, sk_f))
+    # The same vertices and the same loops per cell; only the diagonal that splits a
+    # non-planar quad or hexagon differs (ours: best triangle quality), an O(h^2)
+    # effect, hence n = 128 for the thinner torus.
+    assert abs(area / sk_area - 1) < 1e-4
+    assert abs(vol / sk_vol - 1) < 1e-4
+
+
+@pytest.mark.parametrize("field_name", ["gyroid", "noise"])
+def test_close_to_skimage_on_ambiguous_fields_and_differences_are_in_ambiguous_cells(
+    field_name,
+):
+    n = 64
+    if field_name == "gyroid":
+        X, Y, Z, h, lo = grid(n)
+        field = gyroid_ball(X, Y, Z)
+    else:
+        field, h, lo = noise_ball(n)
+    cases = cell_cases(field.numpy())
+    ambiguous_cells = np.asarray(AMBIGUOUS)[cases].reshape(-1)
+    assert ambiguous_cells.sum() > 0  # the field does exercise ambiguous cells
+    ours = marching_cubes(field)  # index coordinates, to find each face's cell
+    sk_v, sk_f, _, _ = skimage_measure.marching_cubes(field.numpy(), 0.0)
+    sk_v = sk_v.astype(np.float64)
+    v, f = ours.verts.numpy(), ours.faces.numpy()
+    area, sk_area = triangle_areas(v, f), triangle_areas(sk_v, sk_f)
+    cell, sk_cell = face_cells(v, f, field.shape), face_cells(sk_v, sk_f, field.shape)
+    amb, sk_amb = ambiguous_cells[cell], ambiguous_cells[sk_cell]
+    # Totals within 1e-3 (area, and volume of these closed surfaces).
+    assert abs(area.sum() / sk_area.sum() - 1) < 1e-3
+    vol, sk_vol = signed_volume(v, f), abs(signed_volume(sk_v, sk_f))
+    assert abs(vol / sk_vol - 1) < 1e-3
+    # Outside the ambiguous cells both tools make the same triangles per cell up to
+    # the diagonal splitting a non-planar quad/hexagon: the same number of faces and
+    # the same vertices in every cell.
+    n_cells = ambiguous_cells.shape[0]
+    per_cell = np.bincount(cell[~amb], minlength=n_cells)
+    sk_per_cell = np.bincount(sk_cell[~sk_amb], minlength=n_cells)
+    np.testing.assert_array_equal(per_cell, sk_per_cell)
+
+    def vertex_sum_per_cell(verts, faces, cells, keep):
+        pairs = np.unique(np.stack([np.repeat(cells[keep], 3), faces[keep].reshape(-1)]), axis=1)
+        out = np.zeros((n_cells, 3))
+        np.add.at(out, pairs[0], verts[pairs[1]])
+        return out
+
+    np.testing.assert_allclose(
+        vertex_sum_per_cell(v, f, cell, ~amb), vertex_sum_per_cell(sk_v, sk_f, sk_cell, ~sk_amb),
+        atol=1e-4,
+    )
+    # The diagonals change the area by O(h^2) only; the remaining difference sits in
+    # the ambiguous cells, where the topology is a choice: ours separates the inside
+    # corners, Lewiner's asymptotic decider may join them.
+    assert abs(area[~amb].sum() / sk_area[~sk_amb].sum() - 1) < 1e-3
+    print(f"{field_name}: {int(ambiguous_cells.sum())} ambiguous cells, area in them "
+          f"{area[amb].sum():.3f} (ours) vs {sk_area[sk_amb].sum():.3f} (skimage)")
+
+
+# ------------------------------------------------------------ watertight, topology
+@pytest.mark.parametrize("name,expected", [("sphere", 2), ("torus", 0), ("double", -2)])
+def test_euler_characteristic_and_watertight(name, expected):
+    X, Y, Z, h, lo = grid(48, -1.5, 1.5)  # the double torus spans x in [-1.35, 1.35]
+    field = {"sphere": sphere, "torus": torus, "double": double_torus}[name](X, Y, Z)
+    result = marching_cubes(field, origin=(lo, lo, lo), spacing=(h, h, h))
+    m = to_trimesh(result)
+    assert m.is_watertight and m.is_winding_consistent
+    assert m.euler_number == expected
+    ok, why = closed_and_oriented(result.verts.numpy(), result.faces.numpy())
+    assert ok, why
+
+
+@pytest.mark.parametrize("field_name", ["gyroid", "noise"])
+def test_smooth_ambiguous_fields_are_closed(field_name):
+    if field_name == "gyroid":
+        X, Y, Z, h, lo = grid(40)
+        field = gyroid_ball(X, Y, Z)
+    else:
+        field, h, lo = noise_ball(40, seed=3)
+    result = marching_cubes(field, spacing=(h, h, h))
+    ok, why = closed_and_oriented(result.verts.numpy(), result.faces.numpy())
+    assert ok, why
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_fields_with_frequent_ambiguity_are_closed(seed):
+    gen = torch.Generator().manual_seed(seed)
+    vol = pad_outside(torch.randn(12, 10, 11, generator=gen, dtype=torch.float64))
+    cases = cell_cases(vol.numpy())
+    assert np.asarray(AMBIGUOUS)[cases].mean() > 0.1
+    result = marching_cubes(vol)
+    ok, why = closed_and_oriented(result.verts.numpy(), result.faces.numpy())
+    assert ok, why
+    assert signed_volume(result.verts.numpy(), result.faces.numpy()) > 0
+
+
+@pytest.mark.parametrize("dtype_", [torch.float32, torch.float64])
+@pytest.mark.parametrize("seed", range(20))
+def test_integer_fields_at_integer_iso_are_closed_without_degenerate_faces(seed, dtype_):
+    gen = torch.Generator().manual_seed(100 + seed)
+    vol = torch.randint(-2, 3, (10, 10, 10), generator=gen).to(dtype_)
+    vol = pad_outside(vol, 3.0)
+    iso = float(seed % 3 - 1)  # -1, 0, 1: exact-iso samples everywhere
+    result = marching_cubes(vol, iso=iso)
+    v, f = result.verts.double().numpy(), result.faces.numpy()
+    assert (vol == iso).any()
+    assert np.unique(v, axis=0).shape[0] == v.shape[0]  # no duplicate positions
+    assert triangle_areas(v, f).min() > 0  # no zero-area face
+    ok, why = closed_and_oriented(v, f)
+    assert ok, why
+
+
+@settings(max_examples=25)
+@given(st.integers(0, 2**31 - 1), st.floats(-0.5, 0.5))
+def test_property_closed_oriented_and_inside_the_bounding_box(seed, iso):
+    gen = torch.Generator().manual_seed(seed)
+    vol = pad_outside(torch.randn(5, 6, 4, generator=gen, dtype=torch.float64), 2.0)
+    result = marching_cubes(vol, iso=iso, origin=(1.0, -2.0, 0.5), spacing=(0.5, 1.0, 2.0))
+    ok, why = closed_and_oriented(result.verts.numpy(), result.faces.numpy())
+    assert ok, why
+    if result.faces.shape[0]:
+        assert signed_volume(result.verts.numpy(), result.faces.numpy()) > 0
+        lo = torch.tensor([1.0, -2.0, 0.5], dtype=torch.float64)
+        last_index = torch.tensor(vol.shape, dtype=torch.float64) - 1
+        hi = lo + torch.tensor([0.5, 1.0, 2.0], dtype=torch.float64) * last_index
+        assert (result.verts >= lo).all() and (result.verts <= hi).all()
+
+
+# ---------------------------------------------------------------- orientation, normals
+def test_orientation_and_normals_agree_with_faces(device, dtype):
+    X, Y, Z, h, lo = grid(32, dtype=dtype, device=device)
+    result = marching_cubes(torus(X, Y, Z), origin=(lo, lo, lo), spacing=(h, h, 2 * h))
+    assert result.verts.dtype == dtype and result.verts.device.type == device.type
+    assert result.faces.dtype == torch.long and result.normals.dtype == dtype
+    v, f = result.verts.cpu().double().numpy(), result.faces.cpu().numpy()
+    assert signed_volume(v, f) > 0
+    tri = v[f]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    vert_n = result.normals.cpu().double().numpy()[f].mean(1)
+    assert (np.einsum("ij,ij->i", face_n, vert_n) > 0).all()
+    np.testing.assert_allclose(np.linalg.norm(result.normals.cpu().numpy(), axis=1), 1, atol=1e-5)
+
+
+def test_normals_of_a_sphere_are_radial():
+    X, Y, Z, h, lo = grid(40)
+    result = marching_cubes(sphere(X, Y, Z), origin=(lo, lo, lo), spacing=(h, h, h))
+    radial = result.verts / result.verts.norm(dim=1, keepdim=True)
+    assert (result.normals * radial).sum(1).min() > 0.999
+
+
+def test_vertices_interpolate_by_hand():
+    # one edge from f = -1 at x = 0 to f = 3 at x = 1: t = (0 - -1) / (3 - -1) = 0.25
+    vol = torch.full((2, 2, 2), 3.0, dtype=torch.float64)
+    vol[0, 0, 0] = -1.0
+    result = marching_cubes(vol, origin=(10.0, 20.0, 30.0), spacing=(2.0, 4.0, 8.0))
+    expected = torch.tensor(
+        [[10.5, 20.0, 30.0], [10.0, 21.0, 30.0], [10.0, 20.0, 32.0]], dtype=torch.float64
+    )
+    torch.testing.assert_close(result.verts, expected)
+    torch.testing.assert_close(result.faces, torch.tensor([[0, 1, 2]]))
+    # face normal (1/2)(v1 - v0) x (v2 - v0) points away from the inside corner
+    v = result.verts
+    assert (torch.linalg.cross(v[1] - v[0], v[2] - v[0]) > 0).all()
+
+
+def test_exact_iso_sample_is_outside_and_clamped():
+    vol = torch.ones(2, 2, 2, dtype=torch.float64)
+    vol[0, 0, 0] = -1.0
+    vol[1, 0, 0] = 0.0  # equal to iso: outside, vertex clamped next to it
+    result = marching_cubes(vol)
+    delta = torch.finfo(torch.float64).eps ** 0.5
+    assert result.faces.shape == (1, 3)
+    torch.testing.assert_close(result.verts[0], torch.tensor([1 - delta, 0.0, 0.0],
+                                                             dtype=torch.float64))
+
+
+# ----------------------------------------------------------------- batching, empties
+def test_batch_equals_separate_calls_and_split():
+    X, Y, Z, h, lo = grid(20)
+    vols = torch.stack([sphere(X, Y, Z), torus(X, Y, Z), torch.ones_like(X), sphere(X, Y, Z, 0.5)])
+    iso = torch.tensor([0.0, 0.05, 0.0, -0.1], dtype=torch.float64)
+    batched = marching_cubes(vols, iso=iso, temperature=0.2)
+    parts = batched.split()
+    assert len(parts) == 4
+    assert batched.verts_per_mesh.tolist() == [p.verts.shape[0] for p in parts]
+    for b, part in enumerate(parts):
+        single = marching_cubes(vols[b], iso=float(iso[b]), temperature=0.2)
+        for got, want in zip(part, single):
+            torch.testing.assert_close(got, want)
+    assert parts[2].faces.shape == (0, 3)
+
+
+def test_no_surface_gives_empty_tensors(device, dtype):
+    vol = torch.ones(4, 5, 6, dtype=dtype, device=device)
+    result = marching_cubes(vol, temperature=0.5)
+    assert isinstance(result, MarchingCubesResult)
+    assert result.verts.shape == (0, 3) and result.verts.dtype == dtype
+    assert result.faces.shape == (0, 3) and result.faces.dtype == torch.long
+    assert result.normals.shape == (0, 3) and result.face_weights.shape == (0,)
+    assert result.verts_per_mesh.tolist() == [0] and result.faces_per_mesh.tolist() == [0]
+    assert result.verts.device.type == device.type
+    assert len(result.split()) == 1
+
+
+def test_open_surface_reaching_the_volume_border():
+    X, Y, Z, h, lo = grid(9)
+    plane = X + 0.3 * Y - 0.2 * Z + 0.05
+    result = marching_cubes(plane, origin=(lo, lo, lo), spacing=(h, h, h))
+    v = result.verts
+    torch.testing.assert_close(v[:, 0] + 0.3 * v[:, 1] - 0.2 * v[:, 2] + 0.05,
+                               torch.zeros_like(v[:, 0]))
+    ok, why = closed_and_oriented(
+        np.concatenate([v.numpy()]), result.faces.numpy()
+    )
+    assert not ok and "hole" in why  # open at the border, but no other defect
+    assert abs(triangle_areas(v.numpy(), result.faces.numpy()).sum()
+               - 2.4**2 * np.sqrt(1 + 0.3**2 + 0.2**2)) < 0.1
+
+
+# ------------------------------------------------------------------------- gradients
+def _small_field(seed=0, n=4):
+    gen = torch.Generator().manual_seed(seed)
+    vol = torch.randn(n, n, n, generator=gen, dtype=torch.float64)
+    vol = torch.where(vol.abs() < 0.05, vol.sign() * 0.05 + vol, vol)  # away from iso
+    return vol
+
+
+def test_gradcheck_verts_normals_weights():
+    vol = _small_field().requires_grad_()
+    iso = torch.tensor(0.01, dtype=torch.float64, requires_grad=True)
+    tau = torch.tensor(0.3, dtype=torch.float64, requires_grad=True)
+
+    def fn(v, i, t):
+        r = marching_cubes(v, iso=i, temperature=t)
+        return r.verts, r.normals, r.face_weights
+
+    assert marching_cubes(vol.detach()).faces.shape[0] > 10
+    assert torch.autograd.gradcheck(fn, (vol, iso, tau), eps=1e-6, atol=1e-6)
+
+
+def test_gradcheck_origin_spacing_batched():
+    vol = torch.stack([_small_field(1, 3), _small_field(2, 3)]).requires_grad_()
+    origin = torch.tensor([0.5, -1.0, 2.0], dtype=torch.float64, requires_grad=True)
+    spacing = torch.tensor([[1.0, 0.5, 2.0], [0.3, 0.4, 0.5]], dtype=torch.float64,
+                           requires_grad=True)
+
+    def fn(v, o, s):
+        r = marching_cubes(v, origin=o, spacing=s)
+        return r.verts, r.normals
+
+    assert (marching_cubes(vol.detach()).faces_per_mesh > 0).all()
+
+    assert torch.autograd.gradcheck(fn, (vol, origin, spacing), eps=1e-6, atol=1e-6)
+
+
+def test_gradients_stay_finite_on_degenerate_data(dtype):
+    gen = torch.Generator().manual_seed(7)
+    vol = pad_outside(torch.randint(-1, 2, (6, 6, 6), generator=gen).to(dtype), 1.0)
+    vol.requires_grad_()
+    iso = torch.zeros((), dtype=dtype, requires_grad=True)
+    r = marching_cubes(vol, iso=iso, temperature=0.01)
+    loss = r.verts.sum() + r.normals.sum() + (r.face_weights * r.verts[r.faces].sum((1, 2))).sum()
+    loss.backward()
+    assert torch.isfinite(vol.grad).all() and torch.isfinite(iso.grad)
+    assert vol.grad.abs().sum() > 0
+
+
+def test_soft_weights_equal_brute_force_product():
+    vol = _small_field(3)
+    iso, tau = 0.1, 0.25
+    r = marching_cubes(vol, iso=iso, temperature=tau)
+    cell = np.floor(r.verts[r.faces].mean(1).numpy()).astype(int)  # spacing 1, origin 0
+    for (i, j, k), w in zip(cell.tolist(), r.face_weights.tolist()):
+        expected = 1.0
+        for dx, dy, dz in CORNER_OFFSETS:
+            f = float(vol[i + dx, j + dy, k + dz])
+            p = 1 / (1 + np.exp(-(iso - f) / tau))  # P(inside)
+            expected *= p if f < iso else 1 - p
+        assert w == pytest.approx(expected, rel=1e-12)
+    hard = marching_cubes(vol, iso=iso)
+    torch.testing.assert_close(hard.face_weights, torch.ones_like(hard.face_weights))
+    torch.testing.assert_close(hard.verts, r.verts)
+
+
+def test_soft_weights_give_gradients_where_topology_is_fixed():
+    X, Y, Z, h, lo = grid(12)
+    vol = sphere(X, Y, Z).requires_grad_()
+    r = marching_cubes(vol, temperature=0.05)
+    r.face_weights.sum().backward()
+    # samples far from the surface get no gradient through verts, but some through weights
+    assert vol.grad.abs().sum() > 0
+    assert (r.face_weights > 0).all() and (r.face_weights <= 1).all()
+
+
+# ---------------------------------------------------------------- module, API, errors
+def test_module_equals_function_and_defaults_match():
+    fn_defaults = {
+        k: p.default for k, p in inspect.signature(marching_cubes).parameters.items()
+        if p.default is not inspect.Parameter.empty
+    }
+    mod_defaults = {
+        k: p.default for k, p in inspect.signature(MarchingCubes.__init__).parameters.items()
+        if p.default is not inspect.Parameter.empty
+    }
+    assert fn_defaults == mod_defaults
+    X, Y, Z, h, lo = grid(10)
+    vol = torus(X, Y, Z)
+    for got, want in zip(MarchingCubes()(vol), marching_cubes(vol)):
+        torch.testing.assert_close(got, want)
+    module = MarchingCubes(iso=torch.tensor(0.1), spacing=torch.tensor([0.5, 0.5, 1.0]),
+                           temperature=0.3).to(torch.float64)
+    assert module.iso.dtype == torch.float64 and "iso" in dict(module.named_buffers())
+    for got, want in zip(module(vol), marching_cubes(vol, 0.1, spacing=(0.5, 0.5, 1.0),
+                                                      temperature=0.3)):
+        torch.testing.assert_close(got, want)
+
+
+def test_public_api():
+    assert {"marching_cubes", "MarchingCubes", "MarchingCubesResult"} <= set(mesh_pkg.__all__)
+    assert MarchingCubesResult._fields == (
+        "verts", "faces", "normals", "face_weights", "verts_per_mesh", "faces_per_mesh"
+    )
+
+
+@pytest.mark.parametrize(
+    "kwargs,error,match",
+    [
+        ({"volume": [[[0.0]]]}, TypeError, "volume"),
+        ({"volume": torch.zeros(3, 3, 3, dtype=torch.long)}, TypeError, "volume"),
+        ({"volume": torch.zeros(3, 3)}, ShapeError, "volume"),
+        ({"volume": torch.zeros(2, 2, 3, 3, 3)}, ShapeError, "volume"),
+        ({"volume": torch.zeros(3, 1, 3)}, ShapeError, ">= 2"),
+        ({"iso": "0"}, TypeError, "iso"),
+        ({"iso": torch.zeros(2, 2)}, ShapeError, "iso"),
+        ({"iso": torch.zeros(3)}, ShapeError, "iso"),
+        ({"iso": torch.zeros((), dtype=torch.long)}, TypeError, "iso"),
+        ({"origin": (0.0, 0.0)}, TypeError, "origin"),
+        ({"origin": torch.zeros(4)}, ShapeError, "origin"),
+        ({"spacing": (1.0, 0.0, 1.0)}, ValueError, "spacing"),
+        ({"spacing": torch.ones(3, 3)}, ShapeError, "spacing"),
+        ({"temperature": 0.0}, ValueError, "temperature"),
+        ({"temperature": torch.tensor(-1.0)}, ValueError, "temperature"),
+    ],
+)
+def test_bad_input_raises(kwargs, error, match):
+    args = {"volume": torch.zeros(3, 3, 3)} | kwargs
+    with pytest.raises(error, match=match):
+        marching_cubes(**args)
