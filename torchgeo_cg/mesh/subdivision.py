@@ -292,17 +292,39 @@ def catmull_clark_operator(
     return SubdivisionOperator(matrix, matrix_t, faces_q4, V0, V1, F0, E0, boundary)
 
 
+_CHUNK_COLUMNS = 24  # dense columns per sparse matmul: keeps the gathered rows in cache
+
+
+def _spmm_batched(matrix: torch.Tensor, x_bvd: torch.Tensor) -> torch.Tensor:
+    """``(R, V)`` sparse times each ``(V, D)`` item of ``(B, V, D)`` -> contiguous ``(B, R, D)``.
+
+    Items are grouped so that each sparse matmul sees about ``_CHUNK_COLUMNS``
+    dense columns (a loop over batch chunks, not elements): one very wide
+    product thrashes the cache, many narrow ones waste the stencil reads.
+    """
+    B, V, D = x_bvd.shape
+    R = matrix.shape[0]
+    if B == 1:
+        return (matrix @ x_bvd[0]).unsqueeze(0)
+    per = max(1, _CHUNK_COLUMNS // max(D, 1))
+    out_brd = x_bvd.new_empty(B, R, D)
+    for b0 in range(0, B, per):  # loop over batch chunks
+        x2d = x_bvd[b0:b0 + per].movedim(1, 0).reshape(V, -1)  # (V, b*D)
+        out_brd[b0:b0 + per] = (matrix @ x2d).view(R, -1, D).movedim(0, 1)
+    return out_brd
+
+
 class _SparseApply(torch.autograd.Function):
     """``S @ X`` with backward ``S^T @ dY`` from the cached transpose (no autograd on S)."""
 
     @staticmethod
-    def forward(ctx, matrix, matrix_t, x2d):
+    def forward(ctx, matrix, matrix_t, x_bvd):
         ctx.matrix_t = matrix_t
-        return matrix @ x2d
+        return _spmm_batched(matrix, x_bvd)
 
     @staticmethod
-    def backward(ctx, grad_y):
-        return None, None, ctx.matrix_t @ grad_y.contiguous()
+    def backward(ctx, grad_brd):
+        return None, None, _spmm_batched(ctx.matrix_t, grad_brd.contiguous())
 
 
 def _apply_matrix(matrix, matrix_t, verts: torch.Tensor) -> torch.Tensor:
@@ -311,9 +333,11 @@ def _apply_matrix(matrix, matrix_t, verts: torch.Tensor) -> torch.Tensor:
     if matrix.dtype != verts.dtype or matrix.device != verts.device:
         matrix = matrix.to(device=verts.device, dtype=verts.dtype)
         matrix_t = matrix_t.to(device=verts.device, dtype=verts.dtype)
-    x2d = verts.movedim(-2, 0).reshape(V0, -1)  # (V0, B*D)
-    y2d = _SparseApply.apply(matrix, matrix_t, x2d)  # (V1, B*D)
-    return y2d.reshape(y2d.shape[0], *batch, D).movedim(0, -2)
+    x_bvd = verts.reshape(-1, V0, D)
+    if not x_bvd.is_contiguous():
+        x_bvd = x_bvd.contiguous()
+    y_brd = _SparseApply.apply(matrix, matrix_t, x_bvd)
+    return y_brd.reshape(*batch, y_brd.shape[1], D)
 
 
 def _check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:

@@ -110,7 +110,10 @@ def make_rabbit() -> tuple[np.ndarray, list[list[int]]]:
     for x, y in ((0.7, 0.45), (0.7, -0.45), (-0.7, 0.45), (-0.7, -0.45)):
         foot = _around(verts, faces, (x, y, -1.0), 1)
         verts = extrude(verts, faces, foot, _shift_scale((0.12, 0.0, -0.22), 0.9))
-    return verts, faces
+    # drop the vertices left inside extruded patches, keeping the order of the rest
+    used = sorted({v for f in faces for v in f})
+    new_index = {old: new for new, old in enumerate(used)}
+    return verts[used], [[new_index[v] for v in f] for f in faces]
 
 
 def main(path: Path = HERE / "rabbit.obj") -> None:

@@ -1,0 +1,155 @@
+"""Catmull-Clark on the icosphere (5 subdivisions: 10,242 vertices, 20,480 triangles).
+
+Targets (issue 6), 1 thread:
+
+- operator build ≤ 50 ms (absolute; ``target_ms`` in the notes);
+- applying levels 1, 2, 3 ≤ 0.02x pymeshlab's ``meshing_surface_subdivision_catmull_clark``
+  at the same level (its weights differ from OpenSubdiv's, but it is the fastest
+  installed peer);
+- a batch of 64 shapes sharing the topology at level 1 ≤ 20 ms (absolute; the peer
+  column is pymeshlab run once, scaled by 64);
+- forward+backward ≤ 3x forward (the "peer" is our own forward);
+- trimesh's ``subdivide_loop`` (a different scheme) reported alongside.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+
+import torch
+
+from benchmarks.harness import Case
+from torchgeo_cg.mesh.subdivision import CatmullClark, apply_operator, catmull_clark_operator
+
+
+def _pymeshlab_cc(verts_np, faces_np, levels):
+    import pymeshlab
+
+    def run():
+        ms = pymeshlab.MeshSet()
+        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=verts_np, face_matrix=faces_np))
+        with contextlib.redirect_stdout(io.StringIO()):  # the filter prints per step
+            ms.meshing_surface_subdivision_catmull_clark(iterations=levels)
+        return ms.current_mesh().vertex_number()
+
+    return run
+
+
+def cases(quick: bool = False) -> list[Case]:
+    from importlib.metadata import version
+
+    import trimesh
+
+    sub = 3 if quick else 5
+    ico = trimesh.creation.icosphere(subdivisions=sub)
+    verts_np, faces_np = ico.vertices.astype("float64"), ico.faces.astype("int32")
+    faces = torch.from_numpy(ico.faces).long()
+    verts = torch.from_numpy(ico.vertices).float()
+    V, F = verts.shape[0], faces.shape[0]
+    tag = f"icosphere({sub}) V={V} F={F} f32"
+    peer_cc = f"pymeshlab {version('pymeshlab')} catmull_clark"
+    max_level = 2 if quick else 3
+    cc = CatmullClark(faces, V, levels=max_level)
+    ops = [cc.operator(level) for level in range(max_level)]
+    out = []
+
+    out.append(
+        Case(
+            f"catmull_clark_operator build, {tag}",
+            lambda: catmull_clark_operator(faces, V),
+            None,
+            target=None,
+            extra={"target_ms": 50, "nnz": ops[0].matrix.values().numel()},
+        )
+    )
+
+    for level in range(1, max_level + 1):
+        def ours(level=level):
+            x = verts
+            for op in ops[:level]:
+                x = apply_operator(op, x)
+            return x
+
+        pm = _pymeshlab_cc(verts_np, faces_np, level)
+        extra = {"V_out": ops[level - 1].num_vertices_out, "peer_V_out": pm()}
+        out.append(Case(f"apply level {level}, {tag}", ours, pm, peer_cc, target=0.02,
+                        extra=extra))
+
+    batch = 16 if quick else 64
+    verts_b = verts.expand(batch, V, 3).contiguous()
+    floor_out = torch.empty(0)
+
+    def alloc_floor():  # the memory floor: allocate and write the (B, V1, 3) output once
+        return torch.empty(batch, ops[0].num_vertices_out, 3).fill_(0.0)
+
+    import time
+
+    t0 = time.perf_counter()
+    for _ in range(5):
+        floor_out = alloc_floor()
+    floor_ms = (time.perf_counter() - t0) / 5 * 1e3
+    del floor_out
+    out.append(
+        Case(
+            f"apply level 1, batch {batch}, {tag}",
+            lambda: apply_operator(ops[0], verts_b),
+            _pymeshlab_cc(verts_np, faces_np, 1),
+            f"{peer_cc} x{batch}",
+            target=None,
+            peer_scale=float(batch),
+            extra={"target_ms": 20, "output_MB": batch * ops[0].num_vertices_out * 12 / 2**20,
+                   "alloc_and_fill_output_ms": floor_ms},
+        )
+    )
+
+    verts_g = verts.clone().requires_grad_(True)
+    cc1 = CatmullClark(faces, V, levels=1)
+    grad_out = torch.randn(cc1.num_vertices_out, 3)
+
+    def fwd():
+        with torch.no_grad():
+            return cc1(verts_g)
+
+    def fwd_bwd():
+        verts_g.grad = None
+        cc1(verts_g).backward(grad_out)
+
+    out.append(Case(f"forward+backward level 1 vs forward, {tag}", fwd_bwd, fwd,
+                    "ours forward", target=3.0))
+
+    cc_levels = CatmullClark(faces, V, levels=max_level)
+    verts_lg = verts.clone().requires_grad_(True)
+    grad_l = torch.randn(cc_levels.num_vertices_out, 3)
+
+    def fwd_l():
+        with torch.no_grad():
+            return cc_levels(verts_lg)
+
+    def fwd_bwd_l():
+        verts_lg.grad = None
+        cc_levels(verts_lg).backward(grad_l)
+
+    out.append(Case(f"forward+backward level {max_level} vs forward, {tag}", fwd_bwd_l, fwd_l,
+                    "ours forward", target=3.0))
+
+    vn, fn = ico.vertices, ico.faces
+    out.append(
+        Case(
+            f"reference: ours CC level 1 vs trimesh subdivide_loop level 1, {tag}",
+            lambda: apply_operator(ops[0], verts),
+            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
+            f"trimesh {trimesh.__version__} subdivide_loop",
+            target=None,
+        )
+    )
+    out.append(
+        Case(
+            f"reference: ours CC build+apply level 1 vs trimesh subdivide_loop, {tag}",
+            lambda: apply_operator(catmull_clark_operator(faces, V), verts),
+            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
+            f"trimesh {trimesh.__version__} subdivide_loop",
+            target=None,
+        )
+    )
+    return out
