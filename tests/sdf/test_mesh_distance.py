@@ -1,0 +1,207 @@
+"""mesh_sdf against a brute-force reference written here, winding numbers and trimesh."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+
+from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.sdf import mesh_distance as M
+
+
+def _mesh(m: trimesh.Trimesh, dtype=torch.float64):
+    return torch.tensor(m.vertices, dtype=dtype), torch.tensor(m.faces)
+
+
+def _brute_force(vertices, faces, points):
+    """Exact unsigned distance by checking every face with a dense barycentric scan."""
+    tri = vertices[faces]  # (F, 3, 3)
+    p = points[:, None, :]
+    a, b, c = tri[None, :, 0], tri[None, :, 1], tri[None, :, 2]
+    # closest point on each triangle from the three edges and the clamped plane projection
+    n = torch.cross(b - a, c - a, dim=-1)
+    n = n / n.norm(dim=-1, keepdim=True)
+    proj = p - ((p - a) * n).sum(-1, keepdim=True) * n
+
+    def inside(q):
+        s1 = (torch.cross(b - a, q - a, dim=-1) * n).sum(-1)
+        s2 = (torch.cross(c - b, q - b, dim=-1) * n).sum(-1)
+        s3 = (torch.cross(a - c, q - c, dim=-1) * n).sum(-1)
+        return (s1 >= 0) & (s2 >= 0) & (s3 >= 0)
+
+    def seg(u, v):
+        t = (((p - u) * (v - u)).sum(-1) / ((v - u) ** 2).sum(-1)).clamp(0, 1)
+        return (p - (u + t[..., None] * (v - u))).norm(dim=-1)
+
+    d = torch.minimum(torch.minimum(seg(a, b), seg(b, c)), seg(c, a))
+    d_plane = (p - proj).norm(dim=-1)
+    d = torch.where(inside(proj), torch.minimum(d, d_plane), d)
+    return d.min(1).values
+
+
+def _points(m: trimesh.Trimesh, n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    surf = m.sample(n, seed=seed) if "seed" in m.sample.__code__.co_varnames else m.sample(n)
+    near = surf + rng.normal(scale=0.05, size=surf.shape)
+    lo, hi = m.bounds
+    uni = rng.uniform(lo - 0.3, hi + 0.3, size=(n // 4, 3))
+    return torch.tensor(np.concatenate([near, uni]))
+
+
+MESHES = {
+    "icosphere": lambda: trimesh.creation.icosphere(subdivisions=2),
+    "box": lambda: trimesh.creation.box(extents=(1.0, 0.6, 0.3)),
+    "torus": lambda: trimesh.creation.torus(1.0, 0.3, major_sections=24, minor_sections=12),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MESHES))
+def test_against_brute_force_and_winding_signs(name):
+    m = MESHES[name]()
+    V, F = _mesh(m)
+    p = _points(m, 300)
+    r = M.mesh_sdf(V, F, p, return_closest=True)
+    ref = _brute_force(V, F, p)
+    assert_close(r.sdf.abs(), ref, atol=1e-12, rtol=0)
+    # 0 sign errors against the (brute force) winding number on a watertight mesh
+    w = M.winding_number(V, F, p)
+    assert_close(w.round(), (w > 0.5).double(), atol=1e-6, rtol=0)  # closed: w is 0 or 1
+    assert torch.equal(r.sdf < 0, w > 0.5)
+    # closest points lie on the returned faces at the returned distance
+    assert_close((p - r.closest_points).norm(dim=-1), r.sdf.abs())
+    tri = V[F[r.face_ids]]
+    q = M.closest_point_on_triangle(p, tri[:, 0], tri[:, 1], tri[:, 2]).points
+    assert_close(q, r.closest_points)
+    # both sign methods agree on a watertight mesh
+    assert torch.equal(M.mesh_sdf(V, F, p, sign="winding").sdf, r.sdf)
+    assert_close(M.mesh_sdf(V, F, p, sign="none").sdf, r.sdf.abs())
+
+
+def test_against_trimesh():
+    m = MESHES["torus"]()
+    V, F = _mesh(m)
+    p = _points(m, 150, seed=3)
+    ours = M.mesh_sdf(V, F, p).sdf.numpy()
+    theirs = trimesh.proximity.signed_distance(m, p.numpy())  # positive inside
+    np.testing.assert_allclose(ours, -theirs, atol=1e-9)
+
+
+def test_signs_next_to_sharp_edges_and_corners():
+    """Points just off a cube's edges and corners, where face normals alone fail."""
+    V, F = _mesh(trimesh.creation.box(extents=(2.0, 2.0, 2.0)))
+    dirs = torch.tensor([[1, 1, 0], [1, 0, 1], [0, 1, 1], [1, 1, 1], [-1, 1, 1], [1, -1, -1]],
+                        dtype=torch.float64)
+    base = dirs  # edge midpoints and corners of the cube [-1, 1]^3
+    eps = torch.tensor([1e-3, -1e-3, 1e-6, -1e-6], dtype=torch.float64)
+    p = (base[:, None] * (1 + eps[None, :, None])).reshape(-1, 3)
+    sdf = M.mesh_sdf(V, F, p).sdf
+    from torchgeo_cg.sdf.primitives import box
+
+    ref = box(p)
+    assert torch.equal(sdf < 0, ref < 0)
+    assert_close(sdf, ref, atol=1e-12, rtol=0)
+
+
+def test_closest_point_on_triangle_features():
+    a = torch.tensor([0.0, 0.0, 0.0])
+    b = torch.tensor([1.0, 0.0, 0.0])
+    c = torch.tensor([0.0, 1.0, 0.0])
+    p = torch.tensor([[0.2, 0.2, 1.0], [0.5, -1.0, 0.0], [1.0, 1.0, 0.0], [-0.5, 0.5, 2.0],
+                      [-1.0, -1.0, 0.0], [2.0, -0.1, 0.0], [-0.1, 3.0, 0.0]])
+    r = M.closest_point_on_triangle(p, a, b, c)
+    assert r.feature.tolist() == [0, 1, 2, 3, 4, 5, 6]
+    assert_close(r.points, torch.tensor([[0.2, 0.2, 0.0], [0.5, 0.0, 0.0], [0.5, 0.5, 0.0],
+                                         [0.0, 0.5, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0],
+                                         [0.0, 1.0, 0.0]]))
+
+
+def test_degenerate_faces_are_harmless():
+    m = MESHES["icosphere"]()
+    V, F = _mesh(m)
+    p = _points(m, 100)
+    clean = M.mesh_sdf(V, F, p).sdf
+    # a zero-area face (repeated vertex) and a collinear sliver along an existing edge
+    e0, e1 = F[0, 0], F[0, 1]
+    mid = (V[e0] + V[e1]) / 2
+    V2 = torch.cat([V, mid[None]])
+    F2 = torch.cat([F, torch.tensor([[e0, e0, e1], [e0, V.shape[0], e1]])])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = M.mesh_sdf(V2, F2, p, sign="pseudonormal")
+    assert torch.isfinite(r.sdf).all()
+    assert_close(r.sdf, clean)
+    pts = p.clone().requires_grad_(True)
+    M.mesh_sdf(V2, F2, pts, sign="pseudonormal").sdf.sum().backward()
+    assert torch.isfinite(pts.grad).all()
+
+
+def test_open_mesh_warns_and_uses_winding_numbers():
+    m = MESHES["icosphere"]()
+    V, F = _mesh(m)
+    F_open = F[3:]  # three holes
+    assert M.is_watertight(F) and not M.is_watertight(F_open)
+    p = torch.tensor([[0.0, 0.0, 0.0], [0.1, 0.2, -0.1], [2.0, 0.0, 0.0], [0.0, -1.5, 0.3]],
+                     dtype=torch.float64)
+    with pytest.warns(RuntimeWarning, match="watertight"):
+        r = M.mesh_sdf(V, F_open, p)
+    assert (r.sdf[:2] < 0).all() and (r.sdf[2:] > 0).all()
+    assert_close(r.sdf, M.mesh_sdf(V, F_open, p, sign="winding").sdf)
+    w = M.winding_number(V, F_open, p)
+    assert (w[:2] > 0.5).all() and (w[:2] < 1.0).all()  # fractional near holes
+
+
+def test_batched_points_dtype_and_gradcheck():
+    m = trimesh.creation.icosphere(subdivisions=1)
+    V, F = _mesh(m)
+    p = _points(m, 24).reshape(2, -1, 3)
+    r = M.mesh_sdf(V, F, p, return_closest=True)
+    assert r.sdf.shape == p.shape[:-1] and r.closest_points.shape == p.shape
+    assert r.face_ids.shape == p.shape[:-1]
+    assert_close(r.sdf[1], M.mesh_sdf(V, F, p[1]).sdf)
+    r32 = M.mesh_sdf(V.float(), F, p.float())
+    assert r32.sdf.dtype == torch.float32
+    assert_close(r32.sdf, r.sdf.float())
+    q = (torch.tensor([[0.3, 0.1, 0.2], [1.5, 0.2, -0.4]], dtype=torch.float64)
+         .requires_grad_(True))
+    Vg = V.clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(lambda a, b: M.mesh_sdf(b, F, a).sdf, (q, Vg))
+
+
+def test_device_dtype(device, dtype):
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1), dtype)
+    V, F = V.to(device), F.to(device)
+    p = torch.tensor([[0.0, 0.0, 0.0], [0.0, 0.0, 2.0]], device=device, dtype=dtype)
+    out = M.mesh_sdf(V, F, p).sdf
+    assert out.device == p.device and out.dtype == dtype
+    assert out[0] < -0.9 and abs(float(out[1]) - 1.0) < 1e-6
+
+
+def test_bad_input():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=0))
+    p = torch.zeros(2, 3, dtype=torch.float64)
+    bad = V.clone()
+    bad[0, 0] = math.nan
+    with pytest.raises(ValueError, match="finite"):
+        M.mesh_sdf(bad, F, p)
+    with pytest.raises(ValueError, match="indices"):
+        M.mesh_sdf(V, F + 100, p)
+    with pytest.raises(ValueError, match="indices"):
+        M.mesh_sdf(V, F - 1, p)
+    with pytest.raises(ValueError, match="non-empty"):
+        M.mesh_sdf(V, F[:0], p)
+    with pytest.raises(ValueError, match="non-empty"):
+        M.mesh_sdf(V[:0], F[:0], p)
+    with pytest.raises(ShapeError, match="points"):
+        M.mesh_sdf(V, F, torch.zeros(2, 2, dtype=torch.float64))
+    with pytest.raises(ShapeError, match="faces"):
+        M.mesh_sdf(V, F[:, :2], p)
+    with pytest.raises(TypeError, match="integer"):
+        M.mesh_sdf(V, F.double(), p)
+    with pytest.raises(ValueError, match="sign"):
+        M.mesh_sdf(V, F, p, sign="rays")
