@@ -215,3 +215,16 @@ def test_io_bad_input(tmp_path):
     if torch.cuda.is_available():
         with pytest.raises(ValueError, match="same device"):
             to_trimesh(v.cuda(), torch.tensor([[0, 1, 2]]))
+
+
+def test_package_exports_io_and_subdivision():
+    import torchgeo_cg.mesh as mesh
+
+    names = {
+        "Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh", "pad_faces",
+        "face_sizes", "check_faces", "triangulate_faces", "unpad_faces", "SubdivisionOperator",
+        "catmull_clark_operator", "apply_operator", "catmull_clark", "CatmullClark",
+        "limit_positions",
+    }
+    assert names <= set(mesh.__all__)
+    assert all(hasattr(mesh, n) for n in names)

@@ -1,5 +1,31 @@
 """torchgeo_cg.mesh (being built)."""
 
+from torchgeo_cg.mesh.faces import (
+    check_faces,
+    face_sizes,
+    pad_faces,
+    triangulate_faces,
+    unpad_faces,
+)
+from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
 from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
+from torchgeo_cg.mesh.subdivision import (
+    CatmullClark,
+    SubdivisionOperator,
+    apply_operator,
+    catmull_clark,
+    catmull_clark_operator,
+    limit_positions,
+)
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
+__all__ += ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
+__all__ += ["pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces"]
+__all__ += [
+    "SubdivisionOperator",
+    "catmull_clark_operator",
+    "apply_operator",
+    "catmull_clark",
+    "CatmullClark",
+    "limit_positions",
+]
