@@ -1,0 +1,422 @@
+"""Tests for torchgeo_cg.transforms.estimation: DLT and closed-form solvers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given
+from hypothesis import strategies as st
+
+import torchgeo_cg.transforms.estimation as est
+from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.transforms import (
+    find_affine,
+    find_euclidean,
+    find_homography_dlt,
+    find_similarity,
+    find_translation,
+    hartley_normalize,
+    report_shapes,
+    reprojection_error,
+    transform_points,
+)
+
+
+def random_homographies(batch, gen, dtype=torch.float64, scale=200.0):
+    """Well-conditioned random homographies for points in [0, scale]^2."""
+    h = torch.eye(3, dtype=dtype) + 0.1 * torch.randn(batch, 3, 3, generator=gen, dtype=dtype)
+    h[:, 2, :2] *= 0.6 / scale  # |perspective| up to ~10% of w over the points
+    h[:, :2, 2] *= scale / 2
+    return h / h[:, 2:, 2:]
+
+
+def random_problem(batch, n, gen, noise=0.0, dtype=torch.float64):
+    src = torch.rand(batch, n, 2, generator=gen, dtype=dtype) * 200
+    h = random_homographies(batch, gen, dtype)
+    dst = transform_points(h, src)
+    if noise:
+        dst = dst + noise * torch.randn(dst.shape, generator=gen, dtype=dtype)
+    return src, dst, h
+
+
+def rel_err(a, b):
+    return (a - b).flatten(-2).norm(dim=-1) / b.flatten(-2).norm(dim=-1)
+
+
+def test_public_surface():
+    assert set(est.__all__) == {
+        "HartleyNormalization", "HomographyFit", "hartley_normalize", "find_homography_dlt",
+        "find_affine", "find_similarity", "find_euclidean", "find_translation",
+        "reprojection_error",
+    }
+
+
+# ------------------------------------------------------------------ DLT, noise free
+
+
+@pytest.mark.parametrize("n", [4, 5, 8, 30])
+def test_dlt_recovers_random_homographies_exactly(n):
+    gen = torch.Generator().manual_seed(n)
+    src, dst, h = random_problem(512, n, gen)
+    fit = find_homography_dlt(src, dst)
+    assert fit.rank_ok.all()
+    # random 4-point sets can be nearly collinear; the error grows like eps * condition²
+    good = fit.condition < 300
+    assert good.float().mean() > 0.85
+    err = rel_err(fit.matrix, h)
+    assert err[good].max() < 1e-10
+    assert (err <= 1e-14 * fit.condition**2).all()
+
+
+def test_dlt_recovers_report_h_exactly():
+    shapes = report_shapes(dtype=torch.float64)
+    fit = find_homography_dlt(shapes.start, shapes.targets[7])
+    assert fit.rank_ok
+    hand = torch.tensor([[0.27, 0, -0.85], [-0.25, -0.2, 5.65], [-0.02, -0.09, 1]],
+                        dtype=torch.float64)
+    assert_close(fit.matrix, hand, rtol=0, atol=1e-12)
+    # every Table 3 transform, batched
+    fits = find_homography_dlt(shapes.start.expand(8, -1, -1), shapes.targets)
+    assert_close(fits.matrix, shapes.matrices, rtol=0, atol=1e-11)
+
+
+def test_dlt_batch_shapes_dtype_device(device, dtype):
+    gen = torch.Generator().manual_seed(0)
+    src, dst, h = random_problem(6, 9, gen)
+    src, dst = src.reshape(2, 3, 9, 2), dst.reshape(2, 3, 9, 2)
+    fit = find_homography_dlt(src.to(device, dtype), dst.to(device, dtype))
+    assert fit.matrix.shape == (2, 3, 3, 3) and fit.rank_ok.shape == (2, 3)
+    assert fit.condition.shape == (2, 3)
+    assert fit.matrix.dtype == dtype and fit.matrix.device.type == device.type
+    tol = 1e-9 if dtype == torch.float64 else 1e-4  # float64 inside, rounded to dtype
+    assert rel_err(fit.matrix.cpu().double().reshape(6, 3, 3), h).max() < tol
+
+
+def test_dlt_single_precision_inside_when_asked():
+    gen = torch.Generator().manual_seed(1)
+    src, dst, h = random_problem(64, 8, gen, dtype=torch.float32)
+    fit64 = find_homography_dlt(src, dst)
+    fit32 = find_homography_dlt(src, dst, double=False)
+    assert rel_err(fit64.matrix, h).max() < 1e-4  # the float32 data themselves are rounded
+    assert rel_err(fit32.matrix, h).max() < 1e-2
+    assert fit32.matrix.dtype == torch.float32
+
+
+# ------------------------------------------------------------------ DLT with noise vs peers
+
+
+def test_dlt_matches_kornia_live():
+    kornia_h = pytest.importorskip("kornia.geometry.homography")
+    gen = torch.Generator().manual_seed(2)
+    src, dst, _ = random_problem(256, 8, gen, noise=0.5)
+    ours = find_homography_dlt(src, dst).matrix
+    # kornia's svd solver solves the same algebraic problem: same matrix
+    k_svd = kornia_h.find_homography_dlt(src, dst, solver="svd")
+    assert_close(ours, k_svd, rtol=0, atol=1e-8)
+    # its default (lu, h33 = 1) is a different least-squares problem: errors within 1%
+    k_lu = kornia_h.find_homography_dlt(src, dst)
+    e_ours, e_lu = reprojection_error(ours, src, dst), reprojection_error(k_lu, src, dst)
+    assert abs(e_ours.mean() / e_lu.mean() - 1) < 0.01
+    assert ((e_ours / e_lu - 1).abs() < 0.01).float().mean() >= 0.99
+
+
+def test_dlt_weights_match_kornia_live():
+    kornia_h = pytest.importorskip("kornia.geometry.homography")
+    gen = torch.Generator().manual_seed(3)
+    src, dst, _ = random_problem(64, 10, gen, noise=0.5)
+    w = torch.rand(64, 10, generator=gen, dtype=torch.float64) + 0.1
+    ours = find_homography_dlt(src, dst, weights=w).matrix
+    theirs = kornia_h.find_homography_dlt(src, dst, weights=w, solver="svd")
+    assert_close(ours, theirs, rtol=0, atol=1e-8)
+    # a zero weight removes the point
+    w0 = w.clone()
+    w0[:, 3] = 0
+    keep = [i for i in range(10) if i != 3]
+    assert_close(find_homography_dlt(src, dst, weights=w0).matrix,
+                 find_homography_dlt(src[:, keep], dst[:, keep], weights=w[:, keep]).matrix)
+
+
+def test_dlt_matches_opencv_live():
+    cv2 = pytest.importorskip("cv2")
+    gen = torch.Generator().manual_seed(4)
+    src, dst, _ = random_problem(128, 8, gen, noise=0.5)
+    ours = reprojection_error(find_homography_dlt(src, dst).matrix, src, dst)
+    cv = torch.stack([
+        torch.from_numpy(cv2.findHomography(s.numpy(), d.numpy(), 0)[0])
+        for s, d in zip(src, dst)
+    ])
+    theirs = reprojection_error(cv, src, dst)
+    # OpenCV refines the DLT with LM: its error is at most ours, and within 1%
+    assert abs(ours.mean() / theirs.mean() - 1) < 0.01
+    assert (ours >= theirs * (1 - 1e-6)).float().mean() > 0.95
+
+
+# ------------------------------------------------------------------ degenerate input
+
+
+def degenerate_batch(dtype=torch.float64):
+    gen = torch.Generator().manual_seed(5)
+    src, dst, _ = random_problem(5, 6, gen, dtype=dtype)
+    src = src.clone()
+    src[1, :, 1] = 0.5 * src[1, :, 0] + 3.0  # all collinear
+    src[2] = src[2, :1]  # all coincident
+    src[3, 3:] = src[3, :3]  # only 3 distinct correspondences
+    dst = dst.clone()
+    dst[3, 3:] = dst[3, :3]
+    dst[1] = dst[1, :, :1] * torch.tensor([1.0, -2.0], dtype=dtype) + 1  # collinear too
+    return src, dst
+
+
+def test_degenerate_problems_are_flagged_without_nan():
+    src, dst = degenerate_batch()
+    src.requires_grad_(True)
+    dst.requires_grad_(True)
+    fit = find_homography_dlt(src, dst)
+    assert fit.rank_ok.tolist() == [True, False, False, False, True]
+    assert torch.isfinite(fit.matrix).all() and torch.isfinite(fit.condition).all()
+    assert (fit.condition[[1, 2, 3]] > 1e6).all() and (fit.condition[[0, 4]] < 1e4).all()
+    fit.matrix.sum().backward()
+    assert torch.isfinite(src.grad).all() and torch.isfinite(dst.grad).all()
+    # the good problems of the batch are unaffected
+    alone = find_homography_dlt(src[[0, 4]].detach(), dst[[0, 4]].detach()).matrix
+    assert_close(fit.matrix[[0, 4]].detach(), alone)
+
+
+def test_too_few_points_and_zero_weights_are_flagged():
+    gen = torch.Generator().manual_seed(6)
+    src, dst, _ = random_problem(1, 3, gen)
+    fit = find_homography_dlt(src, dst)
+    assert not fit.rank_ok.any() and torch.isfinite(fit.matrix).all()
+    src, dst, _ = random_problem(2, 6, gen)
+    w = torch.ones(2, 6, dtype=torch.float64)
+    w[0, 3:] = 0
+    assert find_homography_dlt(src, dst, weights=w).rank_ok.tolist() == [False, True]
+    w[1] = 0  # all-zero weights count every point, but no point is "effective"
+    fit = find_homography_dlt(src, dst, weights=w)
+    assert not fit.rank_ok[1] and torch.isfinite(fit.matrix).all()
+
+
+def test_dlt_gradcheck():
+    gen = torch.Generator().manual_seed(7)
+    src, dst, _ = random_problem(2, 6, gen, noise=0.3)
+    src.requires_grad_(True)
+    dst.requires_grad_(True)
+    w = (torch.rand(2, 6, generator=gen, dtype=torch.float64) + 0.5).requires_grad_(True)
+
+    def fn(s, d, w_):
+        return find_homography_dlt(s, d, weights=w_, iters=20).matrix
+
+    assert torch.autograd.gradcheck(fn, (src, dst, w), eps=1e-6, atol=1e-6, rtol=1e-4)
+
+
+def test_dlt_gradient_matches_kornia_svd():
+    kornia_h = pytest.importorskip("kornia.geometry.homography")
+    gen = torch.Generator().manual_seed(8)
+    src, dst, _ = random_problem(4, 8, gen, noise=0.5)
+    dst1 = dst.clone().requires_grad_(True)
+    dst2 = dst.clone().requires_grad_(True)
+    find_homography_dlt(src, dst1).matrix.square().sum().backward()
+    kornia_h.find_homography_dlt(src, dst2, solver="svd").square().sum().backward()
+    assert_close(dst1.grad, dst2.grad, rtol=1e-6, atol=1e-8)
+
+
+# ------------------------------------------------------------------ hartley
+
+
+def test_hartley_normalize(dtype):
+    gen = torch.Generator().manual_seed(9)
+    pts = (torch.rand(3, 7, 2, generator=gen, dtype=torch.float64) * 50 + 10).to(dtype)
+    out = hartley_normalize(pts)
+    assert_close(out.points.mean(-2), torch.zeros(3, 2), atol=1e-5, rtol=0)
+    assert_close(out.points.norm(dim=-1).mean(-1), torch.full((3,), 2**0.5, dtype=torch.float64),
+                 scale=10)
+    assert_close(transform_points(out.transform, pts), out.points, scale=10)
+    # coincident points: scale 1, finite gradient
+    same = torch.ones(1, 4, 2, dtype=dtype, requires_grad=True)
+    res = hartley_normalize(same)
+    assert res.scale.item() == 1.0
+    res.points.sum().backward()
+    assert torch.isfinite(same.grad).all()
+
+
+# ------------------------------------------------------------------ closed forms vs peers
+
+
+def random_affine(batch, gen):
+    lin = torch.eye(2, dtype=torch.float64) + 0.3 * torch.randn(batch, 2, 2, generator=gen,
+                                                                  dtype=torch.float64)
+    t = 10 * torch.randn(batch, 2, generator=gen, dtype=torch.float64)
+    return est._affine_from(lin, t)
+
+
+@pytest.mark.filterwarnings("ignore::FutureWarning")  # skimage 0.26 deprecates estimate()
+def test_find_affine_exact_and_vs_lstsq_and_skimage():
+    transform = pytest.importorskip("skimage.transform")
+    gen = torch.Generator().manual_seed(10)
+    src = torch.rand(16, 9, 2, generator=gen, dtype=torch.float64) * 100
+    m = random_affine(16, gen)
+    exact = transform_points(m, src)
+    assert_close(find_affine(src, exact), m)
+    dst = exact + torch.randn(16, 9, 2, generator=gen, dtype=torch.float64)
+    ours = find_affine(src, dst)
+    design = torch.cat([src, torch.ones(16, 9, 1, dtype=torch.float64)], -1)  # (16, 9, 3)
+    for i in range(16):
+        # least squares written out: [x, y, 1] @ Mᵀ[:, :2] = dst
+        sol = np.linalg.lstsq(design[i].numpy(), dst[i].numpy(), rcond=None)[0]  # (3, 2)
+        assert_close(ours[i, :2], sol.T, rtol=1e-9, atol=1e-9)
+        # skimage solves the same problem exactly on noise-free data
+        peer = transform.AffineTransform()
+        peer.estimate(src[i].numpy(), exact[i].numpy())
+        assert_close(find_affine(src[i], exact[i]), peer.params, rtol=1e-8, atol=1e-8)
+
+
+def umeyama_reference(src: np.ndarray, dst: np.ndarray, with_scale: bool) -> np.ndarray:
+    """Umeyama (1991) with an SVD, written out for the test."""
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    s, d = src - mu_s, dst - mu_d
+    cov = d.T @ s / len(src)
+    u, sig, vt = np.linalg.svd(cov)
+    e = np.diag([1.0, np.sign(np.linalg.det(u @ vt))])
+    r = u @ e @ vt
+    c = (sig * np.diag(e)).sum() / (s**2).sum(1).mean() if with_scale else 1.0
+    out = np.eye(3)
+    out[:2, :2] = c * r
+    out[:2, 2] = mu_d - c * r @ mu_s
+    return out
+
+
+@pytest.mark.filterwarnings("ignore::FutureWarning")
+@pytest.mark.parametrize("with_scale", [True, False])
+def test_similarity_and_euclidean_vs_umeyama_and_skimage(with_scale):
+    transform = pytest.importorskip("skimage.transform")
+    gen = torch.Generator().manual_seed(11)
+    src = torch.rand(32, 7, 2, generator=gen, dtype=torch.float64) * 100
+    dst = torch.rand(32, 7, 2, generator=gen, dtype=torch.float64) * 100  # arbitrary pairs
+    ours = (find_similarity if with_scale else find_euclidean)(src, dst)
+    cls = transform.SimilarityTransform if with_scale else transform.EuclideanTransform
+    for i in range(32):
+        ref = umeyama_reference(src[i].numpy(), dst[i].numpy(), with_scale)
+        assert_close(ours[i], ref, rtol=1e-9, atol=1e-9)
+        peer = cls()
+        peer.estimate(src[i].numpy(), dst[i].numpy())
+        assert_close(ours[i], peer.params, rtol=1e-9, atol=1e-9)
+
+
+def test_closed_forms_recover_their_class(device, dtype, tol):
+    gen = torch.Generator().manual_seed(12)
+    src = (torch.rand(4, 6, 2, generator=gen, dtype=torch.float64) * 10).to(device, dtype)
+    angle = torch.tensor([10.0, -100.0, 170.0, 45.0], dtype=torch.float64).deg2rad()
+    c, s = angle.cos(), angle.sin()
+    rot = torch.stack([c, -s, s, c], -1).unflatten(-1, (2, 2))
+    t = torch.tensor([[1.0, 2.0], [-3.0, 0.5], [0.0, 0.0], [7.0, -7.0]], dtype=torch.float64)
+    eu = est._affine_from(rot, t).to(device, dtype)
+    sim = est._affine_from(rot * 2.5, t).to(device, dtype)
+    tr = est._affine_from(torch.eye(2, dtype=torch.float64).expand(4, 2, 2), t).to(device, dtype)
+    assert_close(find_euclidean(src, transform_points(eu, src)), eu, scale=100)
+    assert_close(find_similarity(src, transform_points(sim, src)), sim, scale=100)
+    assert_close(find_translation(src, transform_points(tr, src)), tr, scale=100)
+    assert_close(find_affine(src, transform_points(sim, src)), sim, scale=1000)
+    assert find_affine(src, src).dtype == dtype
+
+
+def test_translation_weighted_mean():
+    src = torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    dst = src + torch.tensor([[1.0, 0.0], [3.0, 0.0], [5.0, 3.0]])
+    w = torch.tensor([1.0, 1.0, 2.0])
+    # hand-derived: (1 + 3 + 2*5) / 4 = 3.5, (0 + 0 + 2*3) / 4 = 1.5
+    assert_close(find_translation(src, dst, weights=w)[:2, 2], torch.tensor([3.5, 1.5]))
+
+
+def test_affine_degenerate_is_minimum_norm_and_finite():
+    src = torch.tensor([[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]], dtype=torch.float64,
+                       requires_grad=True)
+    dst = torch.tensor([[[0.0, 1.0], [2.0, 1.0], [4.0, 1.0], [6.0, 1.0]]], dtype=torch.float64)
+    m = find_affine(src, dst)
+    assert torch.isfinite(m).all()
+    # residual-free on the line, and the minimum-norm linear part: A = [[1, 1], [0, 0]]
+    assert_close(transform_points(m, src), dst)
+    assert_close(m[0, :2, :2], torch.tensor([[1.0, 1.0], [0.0, 0.0]], dtype=torch.float64))
+    m.sum().backward()
+    assert torch.isfinite(src.grad).all()
+    same = torch.ones(1, 3, 2, dtype=torch.float64, requires_grad=True)
+    for fn in (find_affine, find_similarity, find_euclidean, find_translation):
+        out = fn(same, same + 1)
+        assert torch.isfinite(out).all()
+        out.sum().backward()
+        assert torch.isfinite(same.grad).all()
+
+
+def test_closed_forms_gradcheck():
+    gen = torch.Generator().manual_seed(13)
+    src = torch.rand(2, 5, 2, generator=gen, dtype=torch.float64).requires_grad_(True)
+    dst = torch.rand(2, 5, 2, generator=gen, dtype=torch.float64).requires_grad_(True)
+    w = (torch.rand(2, 5, generator=gen, dtype=torch.float64) + 0.5).requires_grad_(True)
+    for fn in (find_affine, find_similarity, find_euclidean, find_translation):
+        assert torch.autograd.gradcheck(lambda s, d, w_, f=fn: f(s, d, weights=w_),
+                                        (src, dst, w))
+
+
+def test_reprojection_error_brute_force():
+    gen = torch.Generator().manual_seed(14)
+    src, dst, h = random_problem(3, 5, gen, noise=1.0)
+    w = torch.rand(3, 5, generator=gen, dtype=torch.float64)
+    got = reprojection_error(h, src, dst, weights=w, symmetric=True)
+    for b in range(3):
+        fwd = bwd = 0.0
+        hinv = torch.linalg.inv(h[b])
+        for i in range(5):
+            p = h[b] @ torch.cat([src[b, i], torch.ones(1, dtype=torch.float64)])
+            fwd += w[b, i] * ((p[:2] / p[2] - dst[b, i]) ** 2).sum()
+            q = hinv @ torch.cat([dst[b, i], torch.ones(1, dtype=torch.float64)])
+            bwd += w[b, i] * ((q[:2] / q[2] - src[b, i]) ** 2).sum()
+        assert_close(got[b], (fwd + bwd) / w[b].sum())
+
+
+@given(
+    st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6),
+    st.floats(-2e-3, 2e-3),
+    st.floats(-2e-3, 2e-3),
+    st.integers(4, 12),
+    st.integers(0, 2**16),
+)
+def test_property_dlt_recovers_m(lin, g, h, n, seed):
+    gen = torch.Generator().manual_seed(seed)
+    # a well-spread point set: the 4 corners (jittered) plus random points
+    corners = torch.tensor([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]],
+                           dtype=torch.float64)
+    m = torch.tensor([[1 + lin[0], lin[1], 50 * lin[2]], [lin[3], 1 + lin[4], 50 * lin[5]],
+                      [g, h, 1.0]], dtype=torch.float64)
+    src = torch.rand(n, 2, generator=gen, dtype=torch.float64) * 100
+    src[:4] = corners + 10 * torch.rand(4, 2, generator=gen, dtype=torch.float64)
+    fit = find_homography_dlt(src, transform_points(m, src))
+    assert fit.rank_ok
+    assert rel_err(fit.matrix, m) < 1e-9
+
+
+# ------------------------------------------------------------------ errors
+
+
+def test_errors_name_the_argument():
+    pts = torch.rand(5, 2)
+    with pytest.raises(ShapeError, match="src"):
+        find_homography_dlt(torch.rand(5, 3), pts)
+    with pytest.raises(ShapeError, match="dst"):
+        find_homography_dlt(pts, torch.rand(4, 2))
+    with pytest.raises(ShapeError, match="dst"):
+        find_affine(torch.rand(2, 5, 2), pts)
+    with pytest.raises(TypeError, match="src"):
+        find_similarity(torch.ones(5, 2, dtype=torch.long), pts)
+    with pytest.raises(TypeError, match="dst"):
+        find_euclidean(pts, pts.double())
+    with pytest.raises(ShapeError, match="weights"):
+        find_translation(pts, pts, weights=torch.ones(4))
+    with pytest.raises(TypeError, match="weights"):
+        find_homography_dlt(pts, pts, weights=torch.ones(5, dtype=torch.long))
+    with pytest.raises(ShapeError, match="points"):
+        hartley_normalize(torch.rand(5))
+    with pytest.raises(ShapeError, match="matrix"):
+        reprojection_error(torch.eye(2), pts, pts)
+    with pytest.raises(TypeError, match="src"):
+        find_affine([[0.0, 0.0]], pts)
