@@ -313,6 +313,9 @@ def save_samples(path: str | Path, samples: SDFSamples) -> None:
         path: file path (``.npz`` is appended by NumPy if missing).
         samples: :class:`SDFSamples` with ``points (N, 3)`` and ``sdf (N,)``.
 
+    Returns:
+        ``None``; writes the file.
+
     Example:
         >>> import tempfile, os
         >>> s = SDFSamples(torch.tensor([[0.0, 0, 0], [2, 0, 0]]), torch.tensor([-1.0, 1.0]))
@@ -341,7 +344,13 @@ def load_samples(path: str | Path, device=None, dtype=None) -> SDFSamples:
         :class:`SDFSamples` ``(points (N, 3), sdf (N,))``, positive rows first.
 
     Example:
-        >>> # see save_samples
+        >>> import tempfile, os
+        >>> rows = np.array([[0.0, 0.0, 2.0, 1.0], [0.0, 0.0, 0.5, -0.5]])
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     np.savez(os.path.join(d, "deepsdf.npz"), pos=rows[:1], neg=rows[1:])
+        ...     load_samples(os.path.join(d, "deepsdf.npz"), dtype=torch.float32)
+        SDFSamples(points=tensor([[0.0000, 0.0000, 2.0000],
+                [0.0000, 0.0000, 0.5000]]), sdf=tensor([ 1.0000, -0.5000]))
     """
     with np.load(path) as data:
         if "pos" not in data or "neg" not in data:

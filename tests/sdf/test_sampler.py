@@ -1,0 +1,115 @@
+"""The DeepSDF sampler: distribution checked statistically, balance, clamp, seeds, .npz I/O."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from scipy import stats
+
+from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.sdf.mesh_distance import mesh_sdf
+from torchgeo_cg.sdf.primitives import Torus, sphere, torus
+from torchgeo_cg.sdf.sampler import SDFSampler, SDFSamples, load_samples, sample_mesh_surface
+
+
+def test_distribution_of_an_analytic_source():
+    n = 20000
+    s = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=torch.float64).sample(n)
+    assert s.points.shape == (n, 3) and s.sdf.dtype == torch.float64
+    n_uni = round(0.06 * n)
+    per = (n - n_uni) // 2
+    near1, near2, uni = s.sdf[:per], s.sdf[per:2 * per], s.points[2 * per:]
+    # the SDF of a surface point of a sphere of radius R moved by N(0, var I) is
+    # |R n + e| - R ~ e_n + |e_t|^2 / 2R: standard deviation sqrt(var), mean var / R
+    for block, var in ((near1, 0.005), (near2, 0.0005)):
+        assert abs(float(block.std()) - math.sqrt(var)) < 0.05 * math.sqrt(var)
+        assert abs(float(block.mean()) - var / 0.5) < 4 * math.sqrt(var / per) + 0.1 * var / 0.5
+    # uniform block: in the bounds and uniform per axis (Kolmogorov-Smirnov)
+    assert uni.shape[0] == n_uni
+    for axis in range(3):
+        assert stats.kstest(uni[:, axis].numpy(), "uniform", args=(-1, 2)).pvalue > 1e-3
+    assert_close(s.sdf, sphere(s.points, 0.5))
+
+
+def test_mesh_source_surface_and_values():
+    m = trimesh.creation.icosphere(subdivisions=2)
+    sampler = SDFSampler(m, seed=1)
+    surf = sampler.surface_points(500)
+    V, F = torch.tensor(m.vertices), torch.tensor(m.faces)
+    assert mesh_sdf(V, F, surf).sdf.abs().max() < 1e-12
+    s = SDFSampler(m, seed=1).sample(400)
+    assert s.sdf.dtype == torch.float64
+    assert_close(s.sdf, mesh_sdf(V, F, s.points).sdf)
+    lo, hi = V.amin(0), V.amax(0)
+    pad = 0.1 * (hi - lo)
+    assert (s.points[-24:] >= lo - pad - 1e-12).all() and (s.points[-24:] <= hi + pad + 1e-12).all()
+    # (vertices, faces) tuples work the same
+    s2 = SDFSampler((V, F), seed=1).sample(400)
+    assert_close(s2.points, s.points)
+
+
+def test_surface_sampling_is_area_weighted():
+    # two triangles with areas 1/2 and 3 get points in that ratio (binomial test)
+    V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [3, 0, 1], [0, 2, 1]])
+    F = torch.tensor([[0, 1, 2], [3, 4, 5]])
+    p = sample_mesh_surface(V, F, 4000, torch.Generator().manual_seed(0))
+    k = int((p[:, 2] == 0).sum())
+    assert stats.binomtest(k, 4000, 0.5 / 3.5).pvalue > 1e-3
+
+
+def test_analytic_surface_points_lie_on_the_surface():
+    s = SDFSampler(Torus(1.0, 0.25), bounds=(-1.5, 1.5), seed=2)
+    surf = s.surface_points(300)
+    assert torus(surf, 1.0, 0.25).abs().max() < 1e-5
+
+
+def test_balanced_clamped_and_reproducible():
+    a = SDFSampler(torus, balanced=True, clamp=0.05, seed=7).sample(301)
+    assert int((a.sdf < 0).sum()) == 150 and int((a.sdf >= 0).sum()) == 151
+    assert float(a.sdf.abs().max()) <= 0.05 + 1e-7
+    b = SDFSampler(torus, balanced=True, clamp=0.05, seed=7).sample(301)
+    assert torch.equal(a.points, b.points)
+    c = SDFSampler(torus, balanced=True, clamp=0.05, seed=8).sample(301)
+    assert not torch.equal(a.points, c.points)
+    # configurable fractions
+    only_uniform = SDFSampler(sphere, uniform_fraction=1.0, seed=0).sample(50)
+    assert (only_uniform.points.abs() <= 1).all()
+
+
+def test_save_load_round_trip(tmp_path):
+    s = SDFSampler(sphere, seed=3, dtype=torch.float64).sample(200)
+    path = tmp_path / "samples.npz"
+    SDFSampler(sphere).save(path, s)
+    with np.load(path) as data:
+        assert data["pos"].shape[1] == 4 and (data["neg"][:, 3] < 0).all()
+    back = SDFSampler.load(path)
+    assert isinstance(back, SDFSamples) and back.points.shape == (200, 3)
+    order = torch.cat([torch.nonzero(s.sdf >= 0), torch.nonzero(s.sdf < 0)]).squeeze(1)
+    assert_close(back.points, s.points[order])
+    assert_close(back.sdf, s.sdf[order])
+    np.savez(tmp_path / "bad.npz", x=np.zeros(3))
+    with pytest.raises(ValueError, match="pos"):
+        load_samples(tmp_path / "bad.npz")
+
+
+def test_bad_input():
+    with pytest.raises(TypeError, match="source"):
+        SDFSampler(42)
+    with pytest.raises(ValueError, match="variances"):
+        SDFSampler(sphere, variances=(0.01, -1.0))
+    with pytest.raises(ValueError, match="uniform_fraction"):
+        SDFSampler(sphere, uniform_fraction=1.5)
+    with pytest.raises(ValueError, match="clamp"):
+        SDFSampler(sphere, clamp=0.0)
+    with pytest.raises(ValueError, match="n"):
+        SDFSampler(sphere).sample(0)
+    with pytest.raises(ValueError, match="finite"):
+        SDFSampler((torch.full((3, 3), math.nan), torch.tensor([[0, 1, 2]])))
+    with pytest.raises(RuntimeError, match="balance"):
+        SDFSampler(lambda p: p[:, 0] * 0 + 1.0, balanced=True, uniform_fraction=1.0).sample(10)
+    with pytest.raises(RuntimeError, match="surface points"):
+        SDFSampler(lambda p: sphere(p, 5.0), seed=0).sample(10)
