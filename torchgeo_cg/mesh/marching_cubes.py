@@ -172,45 +172,54 @@ def _nonzero_sparse(mask: torch.Tensor) -> torch.Tensor:
 def _active_cells(vol: torch.Tensor, iso_b: torch.Tensor, slab: int):
     """Classify every sample and return the mixed cells of the padded cell grid.
 
-    The cell grid is padded by one cell on the far side of each axis (samples
-    replicated), so that every grid edge is the *lower* edge (from corner 0) of
-    exactly one cell; padded cells own vertices but never make triangles.
+    The batch is stacked along x, ``(B*X, Y, Z)``, and the cell grid is padded by
+    one cell on the far side of each axis of each volume (samples replicated), so
+    that every grid edge is the *lower* edge (from corner 0) of exactly one cell,
+    and a cell's flat index equals the flat sample index of its corner 0. Padded
+    cells own vertices but never make triangles.
 
     Args:
-        vol: ``(B, X, Y, Z)`` samples.
+        vol: ``(B, X, Y, Z)`` contiguous samples.
         iso_b: ``(B,)`` levels (detached).
-        slab: cell layers (along x) per slab.
+        slab: cell layers (along the stacked x) per slab.
 
     Returns:
-        ``(cell_id (A,), case (A,))`` long: ``cell_id`` is the flat index in the
-        padded cell grid laid out ``(X, B, Y, Z)`` (x-major), sorted; ``case`` has
-        bit ``c`` set when corner ``c = 4*dx + 2*dy + dz`` is inside (``f < iso``).
+        ``(cell_id (A,), case (A,))`` long: ``cell_id`` is the flat index in
+        ``(B*X, Y, Z)``, sorted; ``case`` has bit ``c`` set when corner
+        ``c = 4*dx + 2*dy + dz`` is inside (``f < iso``).
     """
     B, X, Y, Z = vol.shape
-    vol_x = vol.transpose(0, 1)  # (X, B, Y, Z) view
-    iso_view = iso_b.view(1, B, 1, 1)
+    layers = B * X
+    stacked = vol.view(layers, Y, Z)
+    iso_layer = iso_b.repeat_interleave(X).view(layers, 1, 1)  # (B*X, 1, 1)
     ids, cases = [], []
-    for start in range(0, X, slab):  # loop over slabs of cell layers, not over cells
-        stop = min(start + slab, X)
-        n_samples = min(stop + 1, X) - start
-        inside = torch.empty(stop + 1 - start, B, Y + 1, Z + 1, dtype=torch.bool,
-                             device=vol.device)  # (L, B, Y+1, Z+1)
-        torch.lt(vol_x[start:start + n_samples], iso_view, out=inside[:n_samples, :, :Y, :Z])
-        inside[:n_samples, :, Y, :Z] = inside[:n_samples, :, Y - 1, :Z]
-        inside[:n_samples, :, :, Z] = inside[:n_samples, :, :, Z - 1]
+    for start in range(0, layers, slab):  # loop over slabs of cell layers, not over cells
+        stop = min(start + slab, layers)
+        n_samples = min(stop + 1, layers) - start
+        inside = torch.empty(stop + 1 - start, Y + 1, Z + 1, dtype=torch.bool,
+                             device=vol.device)  # (L, Y+1, Z+1)
+        torch.lt(stacked[start:start + n_samples], iso_layer[start:start + n_samples],
+                 out=inside[:n_samples, :Y, :Z])
+        inside[:n_samples, Y, :Z] = inside[:n_samples, Y - 1, :Z]
+        inside[:n_samples, :, Z] = inside[:n_samples, :, Z - 1]
         if n_samples < inside.shape[0]:
             inside[n_samples] = inside[n_samples - 1]
         bits = inside.view(torch.uint8)
         case = bits[..., 1:] << 1
-        case += bits[..., :-1]  # (L, B, Y+1, Z), bits dz
-        case_yz = case[:, :, 1:] << 2
-        case_yz += case[:, :, :-1]  # (L, B, Y, Z)
+        case += bits[..., :-1]  # (L, Y+1, Z), bits dz
+        case_yz = case[:, 1:] << 2
+        case_yz += case[:, :-1]  # (L, Y, Z)
         case = case_yz[1:] << 4
-        case += case_yz[:-1]  # (L-1, B, Y, Z) uint8
+        case += case_yz[:-1]  # (L-1, Y, Z) uint8
+        # layers x = X-1 are padded cells: their dx = 1 corners replicate dx = 0 (and
+        # must not reach into the next volume of the batch)
+        for layer in range(start + (X - 1 - start) % X, stop, X):  # loop over layers
+            low = case[layer - start] & 15
+            case[layer - start] = low | (low << 4)
         case = case.view(-1)
         case -= 1  # 0 and 255 become 255 and 254
         active = _nonzero_sparse(case < 254)
-        ids.append(active + start * (B * Y * Z))
+        ids.append(active + start * (Y * Z))
         cases.append(case[active].long() + 1)
     return torch.cat(ids), torch.cat(cases)
 
@@ -326,18 +335,17 @@ def marching_cubes(
             raise ValueError(f"temperature: expected > 0, got {tau_b.detach().tolist()}")
 
     tri_table, num_tris, edge_dir, edge_off, corner_off = table_tensors(device)
-    XYZ, BYZ = X * Y * Z, B * Y * Z
-    strides = torch.tensor([Y * Z, Z, 1], device=device)  # sample strides in vol
-    slab = max(1, _SLAB_CELLS // BYZ)
+    YZ = Y * Z
+    strides = torch.tensor([YZ, Z, 1], device=device)  # sample (and cell) strides
+    slab = max(1, _SLAB_CELLS // YZ)
 
     with torch.no_grad():
         # 1.-2. classify once, pack corner bits, keep mixed cells of the padded grid.
         cell_id, cases_a = _active_cells(vol.detach(), iso_b.detach(), slab)  # (A,), (A,)
         k_a = cell_id % Z
         j_a = (cell_id // Z) % Y
-        b_a = (cell_id // (Y * Z)) % B
-        i_a = cell_id // BYZ
-        corner0 = b_a * XYZ + i_a * (Y * Z) + j_a * Z + k_a  # (A,) flat sample of corner 0
+        layer_a = cell_id // YZ
+        b_a, i_a = layer_a // X, layer_a % X  # (A,) volume and x index
 
         # 3. one vertex per crossing grid edge = crossing lower edge of a cell
         #    (corner 0 against corners 4, 2, 1 for x, y, z).
@@ -354,7 +362,7 @@ def marching_cubes(
         #    lower edge (direction edge_dir[e]) of the cell c + edge_off[e], i.e. has the
         #    key 3 * c + key_delta[e].
         real = (i_a < X - 1) & (j_a < Y - 1) & (k_a < Z - 1)  # (A,)
-        key_delta = (edge_off * torch.tensor([BYZ, Z, 1], device=device)).sum(-1) * 3 + edge_dir
+        key_delta = (edge_off * strides).sum(-1) * 3 + edge_dir  # (12,)
         tri_delta = torch.where(tri_table >= 0, key_delta[tri_table.clamp_min(0)], -1)
         n_tri = torch.where(real, num_tris[cases_a], 0)  # (A,)
         cell_of_face = torch.repeat_interleave(n_tri)  # (F,) sorted
@@ -365,39 +373,30 @@ def marching_cubes(
         face_key = face_cell3[:, None] + tri_rows  # (F, 3)
         faces = torch.empty_like(face_key)
         # key -> vertex id through a dense map over one slab (+1 layer) at a time.
-        map_slab = max(1, _MAP_CELLS // BYZ)
-        layer_bounds = torch.arange(0, X + map_slab, map_slab, device=device).clamp_max(X)
-        layer_bounds = layer_bounds * (3 * BYZ)  # key bounds of the map slabs
+        map_slab = max(1, _MAP_CELLS // YZ)
+        layer_bounds = torch.arange(0, B * X + map_slab, map_slab, device=device)
+        layer_bounds = layer_bounds.clamp_max(B * X) * (3 * YZ)  # key bounds of the slabs
         face_bounds = torch.searchsorted(face_cell3, layer_bounds).tolist()
         vert_lo = torch.searchsorted(vert_key, layer_bounds).tolist()
         vert_hi = torch.searchsorted(
-            vert_key, (layer_bounds + 3 * BYZ).clamp_max(3 * X * BYZ)
+            vert_key, (layer_bounds + 3 * YZ).clamp_max(3 * B * X * YZ)
         ).tolist()
         id_dtype = torch.int32 if n_verts < 2**31 else torch.long
-        id_map = torch.empty((map_slab + 1) * BYZ * 3, dtype=id_dtype, device=device)
+        id_map = torch.empty((map_slab + 1) * YZ * 3, dtype=id_dtype, device=device)
         for n in range(len(layer_bounds) - 1):  # loop over slabs, not over cells
             f0, f1 = face_bounds[n], face_bounds[n + 1]
             if f0 == f1:
                 continue
             v0, v1 = vert_lo[n], vert_hi[n + 1]  # vertices of the slab and one more layer
-            base = n * map_slab * BYZ * 3
+            base = n * map_slab * YZ * 3
             id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
             faces[f0:f1] = id_map[face_key[f0:f1] - base].long()
         b_face = b_a[cell_of_face]
 
-        lower = corner0[vert_cell]  # (V,) flat sample at the edge's lower end
+        lower = cell_id[vert_cell]  # (V,) flat sample at the edge's lower end
         upper = lower + strides[d_v]
         b_v = b_a[vert_cell]
         corner_ijk = torch.stack([i_a[vert_cell], j_a[vert_cell], k_a[vert_cell]], dim=1)
-        if B > 1:  # vertices and faces come x-major: group them by volume
-            order_v = torch.sort(b_v, stable=True).indices
-            new_id = torch.empty_like(order_v)
-            new_id[order_v] = torch.arange(n_verts, device=device)
-            order_f = torch.sort(b_face, stable=True).indices
-            faces = new_id[faces[order_f]]
-            cell_of_face, b_face = cell_of_face[order_f], b_face[order_f]
-            lower, upper, b_v, d_v = lower[order_v], upper[order_v], b_v[order_v], d_v[order_v]
-            corner_ijk = corner_ijk[order_v]
         unit = torch.nn.functional.one_hot(d_v, 3)  # (V, 3)
         verts_per_mesh = torch.bincount(b_v, minlength=B)
         faces_per_mesh = torch.bincount(b_face, minlength=B)
@@ -425,7 +424,7 @@ def marching_cubes(
         face_cells = torch.unique_consecutive(cell_of_face, return_inverse=True)
         cells, face_to_cell = face_cells[0], face_cells[1]  # real active cells with faces
         corner_delta = (corner_off * strides).sum(-1)  # (8,)
-        f_corners = flat_vol[corner0[cells][:, None] + corner_delta]  # (C, 8)
+        f_corners = flat_vol[cell_id[cells][:, None] + corner_delta]  # (C, 8)
         inside_bits = (cases_a[cells][:, None] >> torch.arange(8, device=device)) & 1
         sign = (2 * inside_bits - 1).to(dtype)  # (C, 8): +1 inside, -1 outside
         b_c = b_a[cells]

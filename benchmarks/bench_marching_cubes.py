@@ -1,0 +1,133 @@
+"""Marching cubes against scikit-image and PyMCubes (issue 5 targets).
+
+Targets (ratio ours / peer, torch at 1 thread against single-threaded peers):
+- torus SDF 128^3 and 256^3, float32: <= 0.7x ``skimage.measure.marching_cubes``;
+  PyMCubes reported alongside;
+- forward+backward at 128^3: <= 2.0x our forward;
+- a batch of 8 volumes at 64^3 in one call: <= 0.5x looping scikit-image;
+- peak memory at 256^3: reported (extra memory above the input, in a fresh process).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import torch
+
+from benchmarks.harness import Case
+from torchgeo_cg.mesh import marching_cubes
+
+_PEAK_SCRIPT = r"""
+import json, resource, sys, numpy as np, torch
+n, tool = int(sys.argv[1]), sys.argv[2]
+x = torch.linspace(-1.2, 1.2, n)
+X, Y, Z = torch.meshgrid(x, x, x, indexing="ij")
+f = (((X**2 + Y**2).sqrt() - 0.7).hypot(Z) - 0.3).contiguous()
+del X, Y, Z
+fn = f.numpy()
+if tool == "skimage":
+    from skimage.measure import marching_cubes as sk
+    sk(fn[:8, :8, :8], 0.0)
+else:
+    from torchgeo_cg.mesh import marching_cubes
+    marching_cubes(f[:8, :8, :8])
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+if tool == "skimage":
+    sk(fn, 0.0)
+else:
+    marching_cubes(f)
+after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(json.dumps((after - before) / 1024))
+"""
+
+
+def torus_volume(n: int, batch: int | None = None, dtype=torch.float32) -> torch.Tensor:
+    """Torus SDF (R = 0.7, r = 0.3) on ``[-1.2, 1.2]^3``, ``(n, n, n)`` or ``(batch, n, n, n)``."""
+    x = torch.linspace(-1.2, 1.2, n, dtype=dtype)
+    X, Y, Z = torch.meshgrid(x, x, x, indexing="ij")
+    f = ((X**2 + Y**2).sqrt() - 0.7).hypot(Z) - 0.3
+    if batch is None:
+        return f.contiguous()
+    radii = torch.linspace(0.0, 0.1, batch, dtype=dtype)  # 8 slightly different tori
+    return (f[None] - radii[:, None, None, None]).contiguous()
+
+
+def peak_extra_mb(n: int, tool: str) -> float | None:
+    """Peak resident memory above the input for one call at ``n^3``, in a fresh process."""
+    try:
+        out = subprocess.run(
+            [sys.executable, "-c", _PEAK_SCRIPT, str(n), tool],
+            capture_output=True, text=True, timeout=300, check=True,
+        )
+        return float(json.loads(out.stdout.strip().splitlines()[-1]))
+    except Exception:  # noqa: BLE001 - reported as missing, never fails the run
+        return None
+
+
+def cases(quick: bool) -> list[Case]:
+    from skimage.measure import marching_cubes as sk_marching_cubes
+
+    try:
+        import mcubes
+    except ImportError:  # pragma: no cover - optional peer
+        mcubes = None
+    import skimage
+
+    sk_name = f"skimage {skimage.__version__} (lewiner)"
+    out: list[Case] = []
+    sizes = (64, 128) if quick else (128, 256)
+    for n in sizes:
+        vol = torus_volume(n)
+        vol_np = vol.numpy()
+        extra = {}
+        if n == sizes[-1]:
+            extra = {
+                "peak_extra_MB_ours": peak_extra_mb(n, "ours"),
+                "peak_extra_MB_skimage": peak_extra_mb(n, "skimage"),
+            }
+        out.append(Case(
+            name=f"marching_cubes torus {n}^3 f32 fwd",
+            ours=lambda v=vol: marching_cubes(v),
+            peer=lambda v=vol_np: sk_marching_cubes(v, 0.0),
+            peer_name=sk_name,
+            target=0.7,
+            extra=extra,
+        ))
+        if mcubes is not None:
+            out.append(Case(
+                name=f"marching_cubes torus {n}^3 f32 fwd (vs PyMCubes)",
+                ours=lambda v=vol: marching_cubes(v),
+                peer=lambda v=vol_np: mcubes.marching_cubes(v, 0.0),
+                peer_name="PyMCubes",
+            ))
+
+    n = 64 if quick else 128
+    vol = torus_volume(n)
+    vol_grad = vol.clone().requires_grad_()
+
+    def fwd_bwd():
+        r = marching_cubes(vol_grad)
+        (r.verts.sum() + r.normals.sum()).backward()
+        vol_grad.grad = None
+
+    out.append(Case(
+        name=f"marching_cubes torus {n}^3 f32 fwd+bwd (verts, normals)",
+        ours=fwd_bwd,
+        peer=lambda: marching_cubes(vol),
+        peer_name="ours fwd",
+        target=2.0,
+    ))
+
+    n, batch = (32, 8) if quick else (64, 8)
+    vols = torus_volume(n, batch)
+    vols_np = [v.numpy() for v in vols]
+    out.append(Case(
+        name=f"marching_cubes batch {batch}x{n}^3 f32 one call",
+        ours=lambda: marching_cubes(vols),
+        peer=lambda: [sk_marching_cubes(v, 0.0) for v in vols_np],
+        peer_name=f"{sk_name} loop",
+        target=0.5,
+    ))
+    return out
