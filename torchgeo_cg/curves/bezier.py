@@ -19,6 +19,7 @@ Convention:
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -435,30 +436,72 @@ def _gl_nodes(n: int, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
             torch.as_tensor(w, dtype=like.dtype, device=like.device))
 
 
-def _speed_integral(hodograph: torch.Tensor, a: torch.Tensor, b: torch.Tensor,
+#: Intervals that fail the error test split into this many children.
+_CHILDREN = 2
+
+#: Up to this many hodograph control points (quartic curves) the squared speed is
+#: expanded in the power basis and evaluated by Horner's rule; the expansion loses
+#: about ``16^m`` ulps, so higher degrees use the Bernstein recurrence instead.
+_POWER_BASIS_MAX = 4
+
+
+def _speed_coefficients(hodograph: torch.Tensor) -> torch.Tensor:
+    """What :func:`_speed_integral` needs to evaluate ``|B'(t)|`` fast.
+
+    For ``m <= _POWER_BASIS_MAX`` hodograph points ``(I, m, D)``: the power-basis
+    coefficients ``(I, 2m - 1)`` of ``|B'(t)|^2 = sum_k q_k t^k``, from
+    ``a_j = sum_{k<=j} C(m-1, j) C(j, k) (-1)^(j-k) H_k`` and ``q = sum_d a_d * a_d``
+    (a polynomial product). Otherwise the hodograph itself, unchanged.
+    """
+    m = hodograph.shape[-2]
+    if m > _POWER_BASIS_MAX:
+        return hodograph
+    to_power = [[math.comb(m - 1, j) * math.comb(j, k) * (-1) ** (j - k) if k <= j else 0
+                 for k in range(m)] for j in range(m)]
+    matrix = torch.tensor(to_power, dtype=hodograph.dtype, device=hodograph.device)
+    power = torch.matmul(matrix, hodograph)  # (I, m, D)
+    terms = [hodograph.new_zeros(hodograph.shape[:-2]) for _ in range(2 * m - 1)]
+    for i in range(m):
+        for j in range(m):
+            terms[i + j] = terms[i + j] + (power[..., i, :] * power[..., j, :]).sum(-1)
+    return torch.stack(terms, dim=-1)  # (I, 2m - 1)
+
+
+def _speed_integral(coefficients: torch.Tensor, a: torch.Tensor, b: torch.Tensor,
                     nodes: tuple[torch.Tensor, torch.Tensor]) -> torch.Tensor:
     """Gauss-Legendre integral of ``|B'|`` over ``[a, b]``.
 
-    Shapes: hodograph ``(I, n, D)``, ``a`` and ``b`` ``(I,)``; returns ``(I,)``.
+    Shapes: coefficients ``(I, 2m - 1)`` or ``(I, m, D)`` from
+    :func:`_speed_coefficients`, ``a`` and ``b`` ``(I,)``; returns ``(I,)``.
     """
     x, w = nodes
-    t = a[:, None] + (b - a)[:, None] * x  # (I, G)
-    velocity = torch.matmul(bernstein_basis(t, hodograph.shape[-2] - 1), hodograph)  # (I, G, D)
-    speed = safe_norm(velocity, dim=-1)  # (I, G)
-    return (speed * w).sum(-1) * (b - a)
+    width = b - a
+    t = torch.addcmul(a[:, None], width[:, None], x)  # (I, G)
+    if coefficients.dim() == 3:
+        basis = bernstein_basis(t, coefficients.shape[-2] - 1)  # (I, G, m)
+        velocity = (basis[..., None] * coefficients[:, None]).sum(-2)  # (I, G, D)
+        speed = safe_norm(velocity, dim=-1)  # (I, G)
+    else:  # Horner on the squared speed
+        squared = coefficients[:, -1:].expand_as(t)
+        for k in range(coefficients.shape[-1] - 2, -1, -1):
+            squared = torch.addcmul(coefficients[:, k : k + 1], squared, t)
+        speed = safe_sqrt(squared, eps=0.0)
+    return torch.mv(speed, w) * width
 
 
 def bezier_length(
     control_points: torch.Tensor,
     rtol: float | None = None,
-    max_depth: int = 40,
+    max_depth: int = 24,
     nodes: int = 8,
 ) -> torch.Tensor:
     """Arc length ``int_0^1 |B'(t)| dt`` by adaptive Gauss-Legendre quadrature.
 
-    Every interval is integrated whole and as two halves; an interval is accepted
-    when the two estimates agree to ``rtol * L * width`` (``L`` the curve's current
-    length estimate), else both halves are refined. All curves and intervals are
+    Every interval is integrated whole and as two halves (Gauss-Legendre on the
+    squared speed expanded in the power basis, Horner's rule, for degree <= 4;
+    the Bernstein recurrence above); an interval is accepted when the two
+    estimates agree to ``rtol * L * width`` (``L`` the curve's current length
+    estimate), else both halves are refined. All curves and intervals are
     processed together; the loop runs over refinement levels only. Near-cusp
     curves (speed almost 0, ``|B'|`` with a kink) simply refine more around the
     kink. The partition is chosen without gradients; the final sum is recomputed
@@ -470,9 +513,12 @@ def bezier_length(
 
     Args:
         control_points: ``(*, n + 1, D)``.
-        rtol: relative tolerance; default ``1e-10`` in float64 and ``1e-6`` in
-            float32 (rounding limits float32 to about ``1e-7``).
-        max_depth: the most bisection levels; intervals still open then are accepted.
+        rtol: relative tolerance of the error estimate (the accepted refined sums
+            are far more accurate); default ``1e-9`` for float64 and ``1e-7`` for
+            lower precisions; clamped to at least ``1e-13``. The quadrature runs
+            in float64 whatever the input dtype; the result has the input dtype.
+        max_depth: the most bisection levels; intervals still open then are
+            accepted (also when more than ``256`` intervals per curve are open).
         nodes: Gauss-Legendre nodes per interval.
 
     Returns:
@@ -488,50 +534,64 @@ def bezier_length(
     """
     _check_points(control_points)
     batch = control_points.shape[:-2]
-    hodograph = bezier_derivative(control_points).flatten(0, -3) if batch else \
-        bezier_derivative(control_points)[None]  # (B, n, D)
+    dtype = control_points.dtype
+    # Quadrature runs in float64 at least: the squared-speed expansion needs the digits.
+    work = torch.promote_types(dtype, torch.float64)
+    hodograph = bezier_derivative(control_points.to(work))
+    hodograph = hodograph.reshape(-1, *hodograph.shape[-2:])  # (B, n, D)
     count = hodograph.shape[0]
     if rtol is None:
-        rtol = 1e-10 if control_points.dtype == torch.float64 else 1e-6
-    rtol = max(rtol, 8 * torch.finfo(control_points.dtype).eps)
+        rtol = 1e-9 if dtype == torch.float64 else 1e-7
+    rtol = max(rtol, 1e-13)
     gl = _gl_nodes(nodes, hodograph)
+    coefficients = _speed_coefficients(hodograph)  # (B, 2n - 1) or (B, n, D)
+    track = torch.is_grad_enabled() and coefficients.requires_grad
     with torch.no_grad():
-        hodo = hodograph.detach()
+        hodo = coefficients.detach()
         curve = torch.arange(count, device=hodo.device)
         a = hodo.new_zeros(count)
         b = hodo.new_ones(count)
         whole = _speed_integral(hodo, a, b, gl)
         estimate = whole.clone()  # (B,) current length estimates
+        total = torch.zeros_like(whole)  # (B,) accepted pieces (used without autograd)
+        floor = torch.finfo(hodo.dtype).tiny
+        budget = 256 * count + 4096
         done_curve, done_a, done_b = [curve[:0]], [a[:0]], [b[:0]]
+        fractions = torch.linspace(0, 1, _CHILDREN + 1, dtype=hodo.dtype, device=hodo.device)
         for depth in range(max_depth + 1):
             if curve.numel() == 0:
                 break
-            mid = (a + b) / 2
-            h = hodo[curve]
-            left = _speed_integral(h, a, mid, gl)
-            right = _speed_integral(h, mid, b, gl)
-            refined = left + right
-            error = (refined - whole).abs()
+            edges = a[:, None] + (b - a)[:, None] * fractions  # (I, k + 1)
+            child_a, child_b = edges[:, :-1].reshape(-1), edges[:, 1:].reshape(-1)
+            children = _speed_integral(hodo[curve].repeat_interleave(_CHILDREN, 0), child_a,
+                                       child_b, gl).reshape(-1, _CHILDREN)  # (I, k)
+            refined = children.sum(-1)
             estimate.index_add_(0, curve, refined - whole)
-            floor = torch.finfo(hodo.dtype).tiny
+            error = (refined - whole).abs()
             accept = error <= rtol * estimate[curve].abs() * (b - a) + floor
-            if depth == max_depth:
+            if depth == max_depth or curve.numel() > budget:  # never blow up memory
                 accept = torch.ones_like(accept)
             done_curve.append(curve[accept])
             done_a.append(a[accept])
             done_b.append(b[accept])
+            if not track:
+                total.index_add_(0, curve[accept], refined[accept])
             keep = ~accept
-            curve = torch.cat([curve[keep], curve[keep]])
-            a, b = torch.cat([a[keep], mid[keep]]), torch.cat([mid[keep], b[keep]])
-            whole = torch.cat([left[keep], right[keep]])
+            curve = curve[keep].repeat_interleave(_CHILDREN)
+            a = edges[keep, :-1].reshape(-1)
+            b = edges[keep, 1:].reshape(-1)
+            whole = children[keep].reshape(-1)
         done_curve = torch.cat(done_curve)
         done_a, done_b = torch.cat(done_a), torch.cat(done_b)
-        done_mid = (done_a + done_b) / 2
-    # Final pass with gradients on the accepted halves.
-    h = hodograph[done_curve]
-    pieces = _speed_integral(h, done_a, done_mid, gl) + _speed_integral(h, done_mid, done_b, gl)
-    length = hodograph.new_zeros(count).index_add(0, done_curve, pieces)
-    return length.reshape(batch)
+        edges = done_a[:, None] + (done_b - done_a)[:, None] * fractions
+    if not track:
+        return total.reshape(batch).to(dtype)
+    # Final pass with gradients on the accepted children.
+    h = coefficients[done_curve].repeat_interleave(_CHILDREN, 0)
+    pieces = _speed_integral(h, edges[:, :-1].reshape(-1), edges[:, 1:].reshape(-1), gl)
+    length = hodograph.new_zeros(count).index_add(
+        0, done_curve.repeat_interleave(_CHILDREN), pieces)
+    return length.reshape(batch).to(dtype)
 
 
 def bezier_arclength_params(
@@ -570,7 +630,7 @@ def bezier_arclength_params(
     batch = control_points.shape[:-2]
     with torch.no_grad():
         hodo = bezier_derivative(control_points.detach())
-        hodo = hodo.reshape(-1, *hodo.shape[-2:])  # (B, m, D)
+        hodo = _speed_coefficients(hodo.reshape(-1, *hodo.shape[-2:]))  # (B, m, D)
         count = hodo.shape[0]
         gl = _gl_nodes(8, hodo)
         grid = torch.linspace(0, 1, segments + 1, dtype=hodo.dtype, device=hodo.device)
@@ -591,10 +651,10 @@ def bezier_arclength_params(
         t = t_lo + local * h
         rows_n = torch.arange(count, device=hodo.device).repeat_interleave(n)
         h_rows = hodo[rows_n]
+        zero, one = hodo.new_zeros(1), hodo.new_ones(1)  # one node at a, weight 1: |B'(a)|
         for _ in range(newton_steps):
             s = lo.reshape(-1) + _speed_integral(h_rows, t_lo.reshape(-1), t.reshape(-1), gl)
-            velocity = torch.matmul(bernstein_basis(t.reshape(-1, 1), hodo.shape[-2] - 1), h_rows)
-            speed = safe_norm(velocity.squeeze(-2), dim=-1)
+            speed = _speed_integral(h_rows, t.reshape(-1), t.reshape(-1) + 1, (zero, one))
             update = safe_div(s - target.reshape(-1), speed)
             t = torch.minimum(torch.maximum(t - update.reshape(count, n), t_lo), t_lo + h)
         t[:, 0], t[:, -1] = 0.0, 1.0
