@@ -87,6 +87,7 @@ class _Topology(NamedTuple):
     """Corner/edge/vertex tables of a padded polygon mesh (all 1-D, long or bool)."""
 
     face_c: torch.Tensor  # (C,) face of each corner, corners in face-major order
+    pos_c: torch.Tensor  # (C,) position of the corner in its face
     vert_c: torch.Tensor  # (C,) vertex at the corner
     next_c: torch.Tensor  # (C,) next vertex in the face (half-edge vert_c -> next_c)
     prev_corner_c: torch.Tensor  # (C,) index of the previous corner of the same face
@@ -111,7 +112,12 @@ def _topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str) -> _Topo
     V = num_vertices
     valid_fk = faces_fk >= 0
     size_f = valid_fk.sum(1)
-    face_c, pos_c = torch.nonzero(valid_fk, as_tuple=True)  # face-major, then position
+    F, K = faces_fk.shape
+    if bool(valid_fk.all()):  # no padding (pure triangles or quads): skip nonzero
+        face_c = torch.arange(F, device=faces_fk.device).repeat_interleave(K)
+        pos_c = torch.arange(K, device=faces_fk.device).repeat(F)
+    else:
+        face_c, pos_c = torch.nonzero(valid_fk, as_tuple=True)  # face-major, then position
     size_c = size_f[face_c]
     start_c = (torch.cumsum(size_f, 0) - size_f)[face_c]
     vert_c = faces_fk[face_c, pos_c]
@@ -133,7 +139,7 @@ def _topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str) -> _Topo
     kind_v[sharp_v > 2] = 3
     kind_v[valence_v == 0] = 0
     return _Topology(
-        face_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
+        face_c, pos_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
         sharp_e, valence_v, num_faces_v, kind_v,
     )
 
@@ -146,9 +152,14 @@ def _sparse_csr(rows, cols, weights, shape) -> tuple[torch.Tensor, torch.Tensor]
     """
     n_rows, n_cols = shape
     keep = weights != 0
-    rows, cols, weights = rows[keep], cols[keep], weights[keep]
-    key_u, inverse = torch.unique(rows * n_cols + cols, return_inverse=True)  # sorted
-    values_u = weights.new_zeros(key_u.numel()).index_add_(0, inverse, weights)
+    if not bool(keep.all()):
+        rows, cols, weights = rows[keep], cols[keep], weights[keep]
+    key_s, perm = torch.sort(rows * n_cols + cols)
+    first = torch.ones_like(key_s, dtype=torch.bool)
+    first[1:] = key_s[1:] != key_s[:-1]
+    segment = torch.cumsum(first, 0) - 1  # index of the unique key of each sorted entry
+    key_u = key_s[first]
+    values_u = weights.new_zeros(key_u.numel()).index_add_(0, segment, weights[perm])
     rows_u, cols_u = key_u // n_cols, key_u % n_cols
     crow = rows_u.new_zeros(n_rows + 1)
     crow[1:] = torch.cumsum(torch.bincount(rows_u, minlength=n_rows), 0)
@@ -164,12 +175,6 @@ def _sparse_csr(rows, cols, weights, shape) -> tuple[torch.Tensor, torch.Tensor]
             crow_t, rows_u[order_t], values_u[order_t], (n_cols, n_rows), check_invariants=False
         )
     return matrix, matrix_t
-
-
-def _corner_grid(faces_fk: torch.Tensor, face_x: torch.Tensor):
-    """For items living on faces ``face_x`` (X,), the ``(X, K)`` vertex grid and its mask."""
-    cols_xk = faces_fk[face_x]
-    return cols_xk, cols_xk >= 0
 
 
 def catmull_clark_operator(
@@ -227,55 +232,80 @@ def catmull_clark_operator(
         V1 = V0 + F0 + E0
         row_face, row_edge = V0, V0 + F0
         w = lambda x: x.to(wdtype)  # noqa: E731
+        face_c, edge_c, size_c, v_c = topo.face_c, topo.edge_c, topo.size_c, topo.vert_c
+        K = faces_fk.shape[1]
+        lo_side_c = v_c == topo.edge_lo_e[edge_c]  # is the corner's vertex the edge's lo end?
+        prev_edge_c = edge_c[topo.prev_corner_c]
+        lo_side_prev_c = v_c == topo.edge_lo_e[prev_edge_c]
+
+        def others(first: int, last_from_end: int):
+            """(row-corner, vertex) pairs for the face vertices at offsets
+            ``first .. size - last_from_end`` from each corner (loop over degree only)."""
+            corner, vert = [], []
+            for d in range(first, K - last_from_end + 1):
+                ok_c = d <= size_c - last_from_end
+                c_idx = torch.nonzero(ok_c).flatten()
+                u = faces_fk[face_c[c_idx], (topo.pos_c[c_idx] + d) % size_c[c_idx]]
+                corner.append(c_idx)
+                vert.append(u)
+            if not corner:
+                empty = faces_fk.new_zeros(0)
+                return empty, empty
+            return torch.cat(corner), torch.cat(vert)
+
         rows, cols, vals = [], [], []
 
         # Face points: mean of the face's vertices.
-        rows.append(row_face + topo.face_c)
-        cols.append(topo.vert_c)
-        vals.append(1.0 / w(topo.size_c))
+        rows.append(row_face + face_c)
+        cols.append(v_c)
+        vals.append(1.0 / w(size_c))
 
-        # Edge points: sharp 1/2 (v0 + v1); smooth 1/4 (v0 + v1) + 1/4 (f0 + f1).
+        # Edge points: sharp 1/2 (v0 + v1); smooth 1/4 (v0 + v1) + 1/4 (f0 + f1), the face
+        # points spread over their vertices: the two ends get 1/(4 size) from each face
+        # (accumulated per edge, no duplicate entries), the other vertices one entry each.
+        smooth_c = ~topo.sharp_e[edge_c]
+        end_e = torch.where(topo.sharp_e, 0.5, 0.25).to(wdtype)
+        end_e = end_e.index_add(0, edge_c, smooth_c / (4.0 * w(size_c)))
         e_all = torch.arange(E0, device=dev)
-        w_end_e = 0.25 + 0.25 * w(topo.sharp_e)  # 1/2 sharp, 1/4 smooth
         rows += [row_edge + e_all, row_edge + e_all]
         cols += [topo.edge_lo_e, topo.edge_hi_e]
-        vals += [w_end_e, w_end_e]
-        # face-point part: each half-edge of a smooth edge adds 1/4 of its face point
-        cols_ck, mask_ck = _corner_grid(faces_fk, topo.face_c)
-        smooth_c = ~topo.sharp_e[topo.edge_c]
-        w_ck = (mask_ck & smooth_c[:, None]) / (4.0 * w(topo.size_c))[:, None]
-        rows.append((row_edge + topo.edge_c)[:, None].expand_as(cols_ck).reshape(-1))
-        cols.append(cols_ck.reshape(-1))
-        vals.append(w_ck.reshape(-1))
+        vals += [end_e, end_e]
+        oc, ou = others(2, 1)  # offsets 2 .. size-1: every vertex but the edge's two ends
+        rows.append(row_edge + edge_c[oc])
+        cols.append(ou)
+        vals.append(smooth_c[oc] / (4.0 * w(size_c[oc])))
 
-        # Vertex points.
+        # Vertex points. Smooth: ((n-2) V + mean(edge nbrs) + mean(face points)) / n, the
+        # face points spread over their vertices: V itself and its two face neighbours are
+        # accumulated (self / per-edge-side weights), the remaining vertices one entry each.
         kind_v = topo.kind_v
         n_v = w(topo.valence_v).clamp(min=1)  # isolated vertices have kind 0 anyway
         m_v = w(topo.num_faces_v).clamp(min=1)
         smooth_v, crease_v = kind_v == 1, kind_v == 2
+        face_w_c = torch.where(smooth_v[v_c], 1.0 / (n_v[v_c] * m_v[v_c] * w(size_c)), 0.0)
         self_v = torch.where(smooth_v, (n_v - 2) / n_v, 1.0 - 0.25 * w(crease_v))
+        self_v = self_v.index_add(0, v_c, face_w_c)
         rows.append(torch.arange(V0, device=dev))
         cols.append(torch.arange(V0, device=dev))
-        vals.append(self_v.to(wdtype))
-        # edge neighbours: smooth 1/n^2 each; crease 1/8 for the two sharp neighbours
-        v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
-        nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
-        sharp_side = torch.cat([topo.sharp_e, topo.sharp_e])
-        kind_side = kind_v[v_side]
-        w_side = torch.where(
-            kind_side == 1,
-            1.0 / (n_v[v_side] * n_v[v_side]),
-            0.125 * w((kind_side == 2) & sharp_side),
-        )
-        rows.append(v_side)
-        cols.append(nbr_side)
-        vals.append(w_side.to(wdtype))
-        # face points of smooth vertices: 1/(n m) each, spread over the face's vertices
-        v_c = topo.vert_c
-        w_c = torch.where(smooth_v[v_c], 1.0 / (n_v[v_c] * m_v[v_c] * w(topo.size_c)), 0.0)
-        rows.append(v_c[:, None].expand_as(cols_ck).reshape(-1))
-        cols.append(cols_ck.reshape(-1))
-        vals.append((mask_ck * w_c[:, None]).reshape(-1).to(wdtype))
+        vals.append(self_v)
+        # per-edge side weights: row lo / col hi, and row hi / col lo
+        sharp_e = topo.sharp_e
+        lo_kind, hi_kind = kind_v[topo.edge_lo_e], kind_v[topo.edge_hi_e]
+        n_lo, n_hi = n_v[topo.edge_lo_e], n_v[topo.edge_hi_e]
+        crease_lo, crease_hi = w((lo_kind == 2) & sharp_e), w((hi_kind == 2) & sharp_e)
+        side_lo = torch.where(lo_kind == 1, 1.0 / (n_lo * n_lo), 0.125 * crease_lo)
+        side_hi = torch.where(hi_kind == 1, 1.0 / (n_hi * n_hi), 0.125 * crease_hi)
+        side_lo = side_lo.index_add(0, edge_c, face_w_c * lo_side_c)
+        side_hi = side_hi.index_add(0, edge_c, face_w_c * ~lo_side_c)
+        side_lo = side_lo.index_add(0, prev_edge_c, face_w_c * lo_side_prev_c)
+        side_hi = side_hi.index_add(0, prev_edge_c, face_w_c * ~lo_side_prev_c)
+        rows += [topo.edge_lo_e, topo.edge_hi_e]
+        cols += [topo.edge_hi_e, topo.edge_lo_e]
+        vals += [side_lo, side_hi]
+        oc, ou = others(2, 2)  # offsets 2 .. size-2: every vertex but V and its neighbours
+        rows.append(v_c[oc])
+        cols.append(ou)
+        vals.append(face_w_c[oc])
 
         matrix, matrix_t = _sparse_csr(
             torch.cat(rows), torch.cat(cols), torch.cat(vals), (V1, V0)
