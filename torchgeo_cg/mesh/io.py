@@ -32,6 +32,11 @@ class Mesh(NamedTuple):
     Attributes:
         verts: ``(V, 3)`` float vertex positions.
         faces: ``(F, K)`` long vertex indices, padded with ``-1``.
+
+    Example:
+        >>> m = Mesh(torch.zeros(4, 3), torch.tensor([[0, 1, 2, 3]]))
+        >>> m.verts.shape, m.faces.shape
+        (torch.Size([4, 3]), torch.Size([1, 4]))
     """
 
     verts: torch.Tensor

@@ -71,6 +71,11 @@ class SubdivisionOperator(NamedTuple):
         num_faces_in: ``F0`` (face points start at row ``V0``).
         num_edges_in: ``E0`` (edge points start at row ``V0 + F0``).
         boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+
+    Example:
+        >>> op = catmull_clark_operator([[0, 1, 2]], 3)  # rows: 3 vertex, 1 face, 3 edge points
+        >>> op.matrix.shape, op.faces.tolist()
+        (torch.Size([7, 3]), [[0, 4, 3, 5], [1, 6, 3, 4], [2, 5, 3, 6]])
     """
 
     matrix: torch.Tensor
@@ -322,7 +327,7 @@ def catmull_clark_operator(
     return SubdivisionOperator(matrix, matrix_t, faces_q4, V0, V1, F0, E0, boundary)
 
 
-_CHUNK_COLUMNS = 24  # dense columns per sparse matmul: keeps the gathered rows in cache
+_CHUNK_COLUMNS = 12  # dense columns per sparse matmul: keeps the gathered rows in cache
 
 
 def _spmm_batched(matrix: torch.Tensor, x_bvd: torch.Tensor) -> torch.Tensor:
