@@ -86,11 +86,23 @@ def _check_t(t: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
 
 
 def _apply_basis(basis: torch.Tensor, control_points: torch.Tensor) -> torch.Tensor:
-    """``(T, K)`` or ``(*, T, K)`` basis times ``(*, K, D)`` points -> ``(*, T, D)``."""
+    """``(T, K)`` or ``(*, T, K)`` basis times ``(*, K, D)`` points -> ``(*, T, D)``.
+
+    With a shared basis ``(T, K)`` and a batch of curves, the product is one GEMM
+    ``(B, K D) @ (K D, T D)`` against ``kron(basis^T, I_D)``: contiguous output, no
+    batched small matmuls (for ``D <= 4``, where the zeros it multiplies are cheap).
+    """
     control_points = control_points.to(basis.dtype)
     if basis.numel() == 0 or control_points.numel() == 0:
         shape = torch.broadcast_shapes(basis.shape[:-2], control_points.shape[:-2])
         return basis.new_zeros(*shape, basis.shape[-2], control_points.shape[-1])
+    k, d = control_points.shape[-2:]
+    if basis.dim() == 2 and control_points.dim() > 2 and d <= 4:
+        eye = torch.eye(d, dtype=basis.dtype, device=basis.device)
+        # weights[k D + i, t D + j] = basis[t, k] * (i == j)
+        weights = (basis.t()[:, None, :, None] * eye[None, :, None, :]).reshape(k * d, -1)
+        flat = control_points.reshape(-1, k * d) @ weights  # (B, T D)
+        return flat.reshape(*control_points.shape[:-2], basis.shape[0], d)
     return torch.matmul(basis, control_points)
 
 
