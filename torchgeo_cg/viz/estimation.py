@@ -30,13 +30,14 @@ def plot_report_fits(fit: ShapeFit, path: str | Path) -> None:
     shapes = fit.shapes
     start = shapes.start.detach().cpu().double()
     fitted = transform_points(fit.homography.detach().cpu().double(), start.expand(8, -1, -1))
-    fig, axes = plt.subplots(2, 4, figsize=(15, 7.5))
+    fig, axes = plt.subplots(2, 4, figsize=(15, 8.5), constrained_layout=True)
     for i, ax in enumerate(axes.flat):
         ax.fill(*closed(start.numpy()).T, color="0.85", label="start")
         ax.plot(*closed(shapes.targets[i].detach().cpu().numpy()).T, "k-", lw=3, alpha=0.35,
                 label="target")
         ax.plot(*closed(fitted[i].numpy()).T, "r--", lw=1.5, label="fitted")
-        ax.set_title(f"{shapes.names[i]}: {shapes.formulas[i]}", fontsize=7.5)
+        title = shapes.formulas[i] if i < 7 else "homography (Table 3)"
+        ax.set_title(f"{shapes.names[i]}: {title}", fontsize=7.5)
         ax.set_xlabel(f"fit: {format_transform(fit.homography[i])}\n"
                       f"max entry error {float(fit.error_homography[i]):.1e}", fontsize=7)
         ax.set_aspect("equal")
@@ -106,7 +107,7 @@ def _convergence(path: Path) -> None:
         opt.zero_grad()
         m = torch.cat([theta + eye, torch.ones(256, 1, dtype=torch.float64)], -1)
         loss = reprojection_error(m.unflatten(-1, (3, 3)), src, dst)
-        raw.append(float((loss / dlt).mean()))
+        raw.append(float((loss.detach() / dlt).mean()))
         loss.sum().backward()
         opt.step()
     ax2.semilogy(raw, "C3-")
