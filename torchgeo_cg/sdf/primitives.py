@@ -12,7 +12,8 @@ Convention:
       (``|grad f| = 1`` almost everywhere). :func:`gyroid` and ``torus(exact=False)``
       (the report's algebraic torus, eq. 13) are *not* exact distances.
     - Every function is differentiable in the points and the parameters, with finite
-      gradients everywhere (norms use :func:`~torchgeo_cg.core.numerics.safe_norm`).
+      gradients everywhere: square roots are taken of sums clamped at 1e-30, so a norm
+      of the zero vector is 1e-15 with a zero gradient (no inf, no NaN).
     - :func:`sphere`, :func:`box`, :func:`capsule` and :func:`plane` work in 2D and 3D;
       :func:`circle`, :func:`rectangle` and :func:`annulus` are the named 2D counterparts.
 """
@@ -47,6 +48,24 @@ __all__ = [
 ]
 
 Number = float | int
+
+
+def _sumsq(v: torch.Tensor) -> torch.Tensor:
+    """``(v * v).sum(-1)`` written per component: much faster for a last dim of 2 or 3."""
+    parts = v.unbind(-1)
+    out = parts[0] * parts[0]
+    for c in parts[1:]:
+        out = out + c * c
+    return out
+
+
+def _root(sq: torch.Tensor) -> torch.Tensor:
+    """``sqrt`` of a sum of squares, clamped below at 1e-30 (the value is then 1e-15).
+
+    ``clamp_min`` passes a zero gradient below the bound, so neither the value nor the
+    gradient can be inf or NaN at a zero vector (the cheap cousin of ``safe_norm``).
+    """
+    return sq.clamp_min(1e-30).sqrt()
 
 
 def _points(points: torch.Tensor, dims: tuple[int, ...] = (2, 3)) -> int:
@@ -105,7 +124,7 @@ def sphere(
     _points(points)
     r = _scalar(radius, "radius", points)
     c = _vector(center, "center", points)
-    return safe_norm(points - c) - r
+    return _root(_sumsq(points - c)) - r
 
 
 def circle(
@@ -166,7 +185,7 @@ def box(
     r = _scalar(radius, "radius", points)
     c = _vector(center, "center", points)
     q = (points - c).abs() - b + r.unsqueeze(-1)
-    outside = safe_norm(q.clamp_min(0.0))
+    outside = _root(_sumsq(q.clamp_min(0.0)))
     inside = q.amax(dim=-1).clamp_max(0.0)
     return outside + inside - r
 
@@ -236,7 +255,7 @@ def capsule(
     safe_den = torch.where(den > 0, den, torch.ones_like(den))
     t = torch.where(den > 0, (pa * ba).sum(-1, keepdim=True) / safe_den, torch.zeros_like(den))
     t = t.clamp(0.0, 1.0)
-    return safe_norm(pa - t * ba) - r
+    return _root(_sumsq(pa - t * ba)) - r
 
 
 def plane(
@@ -306,10 +325,10 @@ def torus(
     _points(points, (3,))
     big = _scalar(major_radius, "major_radius", points)
     small = _scalar(minor_radius, "minor_radius", points)
-    rho = safe_norm(points[..., :2]) - big
-    z = points[..., 2]
+    x, y, z = points.unbind(-1)
+    rho = _root(x * x + y * y) - big
     if exact:
-        return safe_norm(torch.stack([rho, z], dim=-1)) - small
+        return _root(rho * rho + z * z) - small
     return rho * rho + z * z - small * small
 
 
@@ -339,7 +358,7 @@ def annulus(
     _points(points, (2,))
     big = _scalar(major_radius, "major_radius", points)
     small = _scalar(minor_radius, "minor_radius", points)
-    return (safe_norm(points) - big).abs() - small
+    return (_root(_sumsq(points)) - big).abs() - small
 
 
 def gyroid(
