@@ -582,3 +582,17 @@ def test_slab_seams_do_not_change_the_result(monkeypatch):
     got = marching_cubes(vols, temperature=0.3)
     for a, b in zip(got, want):
         torch.testing.assert_close(a, b)
+
+
+def test_to_trimesh_gives_a_watertight_sphere_and_round_trips():
+    from torchgeo_cg.mesh import from_trimesh
+    from torchgeo_cg.mesh import to_trimesh as export
+
+    X, Y, Z, h, lo = grid(24)
+    result = marching_cubes(sphere(X, Y, Z), origin=(lo, lo, lo), spacing=(h, h, h))
+    tm = export(result)
+    assert tm.is_watertight and tm.is_winding_consistent and tm.volume > 0
+    assert tm.euler_number == 2
+    back = from_trimesh(tm, dtype=torch.float64)
+    torch.testing.assert_close(back.verts, result.verts)
+    torch.testing.assert_close(back.faces, result.faces)
