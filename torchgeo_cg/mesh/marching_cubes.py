@@ -151,6 +151,11 @@ _SLAB_CELLS = 1 << 19
 _MAP_CELLS = 1 << 17
 
 
+def _take(source: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """``source[index]`` along dim 0 (``index_select``: much faster than advanced indexing)."""
+    return torch.index_select(source, 0, index)
+
+
 def _nonzero_sparse(mask: torch.Tensor) -> torch.Tensor:
     """``mask.nonzero()`` for a sparse flat bool mask: scan 8 bytes at a time, then refine.
 
@@ -163,7 +168,7 @@ def _nonzero_sparse(mask: torch.Tensor) -> torch.Tensor:
     n8 = mask.shape[0] // 8 * 8
     words = mask[:n8].view(torch.int64).nonzero().squeeze(1)  # (W,) words with a True
     cand = (words[:, None] * 8 + torch.arange(8, device=mask.device)).view(-1)
-    found = cand[mask[cand]]
+    found = cand[_take(mask, cand)]
     if n8 == mask.shape[0]:
         return found
     return torch.cat([found, n8 + mask[n8:].nonzero().squeeze(1)])
@@ -220,7 +225,7 @@ def _active_cells(vol: torch.Tensor, iso_b: torch.Tensor, slab: int):
         case -= 1  # 0 and 255 become 255 and 254
         active = _nonzero_sparse(case < 254)
         ids.append(active + start * (Y * Z))
-        cases.append(case[active].long() + 1)
+        cases.append(_take(case, active).long() + 1)
     return torch.cat(ids), torch.cat(cases)
 
 
@@ -229,26 +234,28 @@ def _vertex_gradient(flat_vol, lower, upper, corner_ijk, d_v, t, f1, f2, sizes, 
 
     Along the edge direction ``d`` it is the slope of the interpolant,
     ``(f2 - f1) / spacing_d``; across it, central differences (one-sided on the
-    border) at both edge ends, blended with ``t``.
+    border) at both edge ends, blended with ``t``. ``spacing_v`` is ``(V, 3)`` or
+    ``(1, 3)``.
     """
     X, Y, Z = sizes
-    size_t = torch.tensor(sizes, device=lower.device)
-    stride_t = torch.tensor([Y * Z, Z, 1], device=lower.device)
-    arange_v = torch.arange(d_v.shape[0], device=lower.device)
-    grad = torch.zeros_like(spacing_v)  # (V, 3)
-    grad = grad.index_put((arange_v, d_v), (f2 - f1) / spacing_v[arange_v, d_v])
+    device = lower.device
+    last = torch.tensor([X - 1, Y - 1, Z - 1], device=device)
+    stride_t = torch.tensor([Y * Z, Z, 1], device=device)
+    one_hot = torch.eye(3, dtype=flat_vol.dtype, device=device)
+    grad_index = _take(one_hot, d_v) * (f2 - f1)[:, None]  # (V, 3), index units
     for shift in (1, 2):  # the two axes across the edge
-        a = (d_v + shift) % 3
-        c = corner_ijk[arange_v, a]
-        up = (c < size_t[a] - 1).long()
+        a = (d_v + shift) % 3  # (V,)
+        c = corner_ijk.gather(1, a[:, None]).squeeze(1)
+        up = (c < _take(last, a)).long()
         down = (c > 0).long()
-        stride = stride_t[a]
+        stride = _take(stride_t, a)
         step_up, step_down = up * stride, down * stride
-        h = (up + down).to(flat_vol.dtype) * spacing_v[arange_v, a]
-        g_lower = (flat_vol[lower + step_up] - flat_vol[lower - step_down]) / h
-        g_upper = (flat_vol[upper + step_up] - flat_vol[upper - step_down]) / h
-        grad = grad.index_put((arange_v, a), g_lower + t * (g_upper - g_lower))
-    return grad
+        h = (up + down).to(flat_vol.dtype)
+        g_lower = _take(flat_vol, lower + step_up) - _take(flat_vol, lower - step_down)
+        g_upper = _take(flat_vol, upper + step_up) - _take(flat_vol, upper - step_down)
+        g = (g_lower + t * (g_upper - g_lower)) / h
+        grad_index = grad_index + _take(one_hot, a) * g[:, None]
+    return grad_index / spacing_v
 
 
 def marching_cubes(
@@ -356,7 +363,8 @@ def marching_cubes(
         )  # (A, 3)
         vert_cell, d_v = crosses.nonzero().unbind(1)  # (V,), (V,) sorted by (cell, d)
         n_verts = d_v.shape[0]
-        vert_key = cell_id[vert_cell] * 3 + d_v  # (V,) sorted: 3 * owner cell + d
+        lower = _take(cell_id, vert_cell)  # (V,) flat sample at the edge's lower end
+        vert_key = lower * 3 + d_v  # (V,) sorted: 3 * owner cell + d
 
         # 4. triangles of the real (unpadded) active cells; local edge e of cell c is the
         #    lower edge (direction edge_dir[e]) of the cell c + edge_off[e], i.e. has the
@@ -364,12 +372,12 @@ def marching_cubes(
         real = (i_a < X - 1) & (j_a < Y - 1) & (k_a < Z - 1)  # (A,)
         key_delta = (edge_off * strides).sum(-1) * 3 + edge_dir  # (12,)
         tri_delta = torch.where(tri_table >= 0, key_delta[tri_table.clamp_min(0)], -1)
-        n_tri = torch.where(real, num_tris[cases_a], 0)  # (A,)
+        n_tri = torch.where(real, _take(num_tris, cases_a), 0)  # (A,)
         cell_of_face = torch.repeat_interleave(n_tri)  # (F,) sorted
         first_face = n_tri.cumsum(0).sub_(n_tri)  # (A,)
-        slot = torch.arange(cell_of_face.shape[0], device=device) - first_face[cell_of_face]
-        tri_rows = tri_delta.view(-1, 3)[cases_a[cell_of_face] * MAX_TRIANGLES + slot]  # (F, 3)
-        face_cell3 = cell_id[cell_of_face] * 3  # (F,) sorted
+        slot = torch.arange(cell_of_face.shape[0], device=device) - _take(first_face, cell_of_face)
+        tri_rows = _take(tri_delta.view(-1, 3), _take(cases_a, cell_of_face) * MAX_TRIANGLES + slot)
+        face_cell3 = _take(cell_id, cell_of_face) * 3  # (F,) sorted
         face_key = face_cell3[:, None] + tri_rows  # (F, 3)
         faces = torch.empty_like(face_key)
         # key -> vertex id through a dense map over one slab (+1 layer) at a time.
@@ -390,27 +398,31 @@ def marching_cubes(
             v0, v1 = vert_lo[n], vert_hi[n + 1]  # vertices of the slab and one more layer
             base = n * map_slab * YZ * 3
             id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
-            faces[f0:f1] = id_map[face_key[f0:f1] - base].long()
-        b_face = b_a[cell_of_face]
+            faces[f0:f1] = _take(id_map, (face_key[f0:f1] - base).view(-1)).view(-1, 3)
+        b_face = _take(b_a, cell_of_face) if B > 1 else None
 
-        lower = cell_id[vert_cell]  # (V,) flat sample at the edge's lower end
-        upper = lower + strides[d_v]
-        b_v = b_a[vert_cell]
-        corner_ijk = torch.stack([i_a[vert_cell], j_a[vert_cell], k_a[vert_cell]], dim=1)
+        upper = lower + _take(strides, d_v)
+        b_v = _take(b_a, vert_cell) if B > 1 else None
+        corner_ijk = _take(torch.stack([i_a, j_a, k_a], dim=1), vert_cell)  # (V, 3)
         unit = torch.nn.functional.one_hot(d_v, 3)  # (V, 3)
-        verts_per_mesh = torch.bincount(b_v, minlength=B)
-        faces_per_mesh = torch.bincount(b_face, minlength=B)
+        if B == 1:
+            verts_per_mesh = torch.tensor([n_verts], device=device)
+            faces_per_mesh = torch.tensor([faces.shape[0]], device=device)
+        else:
+            verts_per_mesh = torch.bincount(b_v, minlength=B)
+            faces_per_mesh = torch.bincount(b_face, minlength=B)
 
     # Differentiable part: interpolation t = (iso - f1) / (f2 - f1) (report 1.4).
     flat_vol = vol.reshape(-1)
-    f1, f2 = flat_vol[lower], flat_vol[upper]  # (V,)
-    iso_v = iso_b[b_v]
+    f1, f2 = _take(flat_vol, lower), _take(flat_vol, upper)  # (V,)
+    iso_v = iso_b if B == 1 else _take(iso_b, b_v)
     eps = torch.finfo(dtype).eps
     delta = math.sqrt(eps)
     t = safe_div(iso_v - f1, f2 - f1, eps=eps).clamp(delta, 1.0 - delta)  # (V,)
     index_pos = corner_ijk.to(dtype) + unit.to(dtype) * t[:, None]  # (V, 3) index space
-    spacing_v = spacing_b[b_v]
-    verts = origin_b[b_v] + spacing_v * index_pos
+    spacing_v = spacing_b if B == 1 else _take(spacing_b, b_v)  # (V, 3) or (1, 3)
+    origin_v = origin_b if B == 1 else _take(origin_b, b_v)
+    verts = origin_v + spacing_v * index_pos
 
     # Normals: the unit field gradient at the vertices (outward: increasing values).
     grad = _vertex_gradient(
@@ -424,14 +436,15 @@ def marching_cubes(
         face_cells = torch.unique_consecutive(cell_of_face, return_inverse=True)
         cells, face_to_cell = face_cells[0], face_cells[1]  # real active cells with faces
         corner_delta = (corner_off * strides).sum(-1)  # (8,)
-        f_corners = flat_vol[cell_id[cells][:, None] + corner_delta]  # (C, 8)
-        inside_bits = (cases_a[cells][:, None] >> torch.arange(8, device=device)) & 1
+        f_corners = _take(flat_vol, (_take(cell_id, cells)[:, None] + corner_delta).view(-1))
+        f_corners = f_corners.view(-1, 8)  # (C, 8)
+        inside_bits = (_take(cases_a, cells)[:, None] >> torch.arange(8, device=device)) & 1
         sign = (2 * inside_bits - 1).to(dtype)  # (C, 8): +1 inside, -1 outside
-        b_c = b_a[cells]
-        logits = sign * (iso_b[b_c][:, None] - f_corners) / tau_b[b_c][:, None]
+        b_c = _take(b_a, cells)
+        logits = sign * (_take(iso_b, b_c)[:, None] - f_corners) / _take(tau_b, b_c)[:, None]
         # probability of the configuration: prod_c p_c^inside (1 - p_c)^outside
         cell_weight = torch.nn.functional.logsigmoid(logits).sum(-1).exp()  # (C,)
-        face_weights = cell_weight[face_to_cell]
+        face_weights = _take(cell_weight, face_to_cell)
     return MarchingCubesResult(verts, faces, normals, face_weights, verts_per_mesh, faces_per_mesh)
 
 
