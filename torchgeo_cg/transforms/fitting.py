@@ -30,8 +30,9 @@ from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.transforms.estimation import (
+    _M_INDEX,
+    _M_SIGN,
     _check_pair,
-    _dlt_normal_matrix,
     _effective_weights,
     _hartley,
     _similarity_matrix,
@@ -263,19 +264,21 @@ def matrix_to_parameters(
 
 
 def _project(h: torch.Tensor, p: torch.Tensor):
-    """π(H p) entrywise (no tiny bmm): h (B, 3, 3), p (B, N, 2) -> x', y', w (B, N) each."""
-    x, y = p[..., 0], p[..., 1]
-    e = h[..., None]  # (B, 3, 3, 1): e[:, i, j] broadcasts over N
-    w = e[:, 2, 0] * x + e[:, 2, 1] * y + e[:, 2, 2]
+    """π(H p) entrywise: h (B, 3, 3), batch-last points p (2, N, B) -> x', y', w (N, B) each.
+
+    Batch-last keeps every reduction over N off the innermost axis (fast on CPU).
+    """
+    x, y = p[0], p[1]
+    e = h.permute(1, 2, 0)  # (3, 3, B): e[i, j] broadcasts over N
+    w = e[2, 0] * x + e[2, 1] * y + e[2, 2]
     w = torch.where(w.abs() > 1e-12, w, torch.full_like(w, 1e-12))  # guard before dividing
-    return (e[:, 0, 0] * x + e[:, 0, 1] * y + e[:, 0, 2]) / w, (
-        e[:, 1, 0] * x + e[:, 1, 1] * y + e[:, 1, 2]) / w, w
+    return (e[0, 0] * x + e[0, 1] * y + e[0, 2]) / w, (e[1, 0] * x + e[1, 1] * y + e[1, 2]) / w, w
 
 
 def _transfer(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor, wn: torch.Tensor):
-    """Weighted mean squared transfer error (B,); ``wn`` (B, N) sums to 1."""
+    """Weighted mean squared transfer error (B,); p, q (2, N, B), ``wn`` (N, B) sums to 1."""
     xp, yp, _ = _project(h, p)
-    return (((xp - q[..., 0]).square() + (yp - q[..., 1]).square()) * wn).sum(-1)
+    return (((xp - q[0]).square() + (yp - q[1]).square()) * wn).sum(0)
 
 
 def _normal_equations(h, p, q, wn):
@@ -285,18 +288,24 @@ def _normal_equations(h, p, q, wn):
     ``jy = [0, P, -y' P] / w`` with ``P = (x, y, 1)``, so ``JᵀJ`` has the block
     structure of the DLT matrix, ``[[S0, 0, -Sx], [0, S0, -Sy], [-Sx, -Sy, Sxy]]``
     with ``S_c = Σ wn c P Pᵀ / w²``: it is built from 24 moments, not from ``J``.
+    Points p, q are batch-last (2, N, B), ``wn`` is (N, B).
     """
-    x, y = p[..., 0], p[..., 1]
+    x, y = p[0], p[1]
     xp, yp, w = _project(h, p)
-    rx, ry = xp - q[..., 0], yp - q[..., 1]
-    a = wn / w.square()  # (B, N)
-    pp = torch.stack([x * x, x * y, x, y * y, y, torch.ones_like(x)], dim=-1)  # (B, N, 6)
-    coef = torch.stack([a, a * xp, a * yp, a * (xp * xp + yp * yp)], dim=-1)  # (B, N, 4)
+    rx, ry = xp - q[0], yp - q[1]
+    a = wn / w.square()  # (N, B)
     b = wn / w
-    c = torch.stack([b * rx, b * ry, -b * (xp * rx + yp * ry)], dim=-1)  # (B, N, 3)
-    moments = pp.mT @ torch.cat([coef, c], dim=-1)  # (B, 6, 7), one bmm for both
-    jtj = _dlt_normal_matrix(moments[..., :4])  # (B, 9, 9)
-    jtr = moments[:, [2, 4, 5], 4:].mT.flatten(-2)  # rows x, y, 1 of pp are P: Σ c_i P_j
+    one = torch.ones_like(x)
+    pp = torch.stack([x * x, x * y, x, y * y, y, one])  # (6, N, B)
+    coef = torch.stack([a, a * xp, a * yp, a * (xp * xp + yp * yp)])  # (4, N, B)
+    moments = (pp[:, None] * coef[None]).sum(2).flatten(0, 1)  # (24, B)
+    moments = torch.cat([moments, torch.zeros_like(moments[:1])])  # (25, B)
+    index = torch.tensor(_M_INDEX, device=x.device)
+    sign = torch.tensor(_M_SIGN, dtype=x.dtype, device=x.device)
+    jtj = (torch.index_select(moments, 0, index) * sign[:, None]).T.unflatten(-1, (9, 9))
+    c = torch.stack([b * rx, b * ry, -b * (xp * rx + yp * ry)])  # (3, N, B)
+    ph = torch.stack([x, y, one])  # (3, N, B)
+    jtr = (c[:, None] * ph[None]).sum(2).flatten(0, 1).T  # (B, 9): Σ c_i P_j
     return jtj, jtr
 
 
@@ -314,9 +323,9 @@ def _system(hn, prob, symmetric: bool):
 
 
 class _Problem(NamedTuple):
-    p: torch.Tensor  # (B, N, 2) normalized src
-    q: torch.Tensor  # (B, N, 2) normalized dst
-    wn: torch.Tensor  # (B, N) weights / Σ weights
+    p: torch.Tensor  # (2, N, B) normalized src, batch last
+    q: torch.Tensor  # (2, N, B) normalized dst
+    wn: torch.Tensor  # (N, B) weights / Σ weights
     t_src: torch.Tensor  # (B, 3, 3)
     t_dst: torch.Tensor
     scale_src: torch.Tensor  # (B,)
@@ -325,15 +334,20 @@ class _Problem(NamedTuple):
 
 def _normalize(src, dst, w, model: str) -> _Problem:
     ns, nd = _hartley(src, w), _hartley(dst, w)
-    wn = w / w.sum(-1, keepdim=True)
+    wn = (w / w.sum(-1, keepdim=True)).T.contiguous()  # (N, B)
+
+    def last(points):  # (B, N, 2) -> (2, N, B)
+        return points.permute(2, 1, 0).contiguous()
+
     if model in ("homography", "affine"):
-        return _Problem(ns.points, nd.points, wn, ns.transform, nd.transform, ns.scale, nd.scale)
+        return _Problem(last(ns.points), last(nd.points), wn, ns.transform, nd.transform,
+                        ns.scale, nd.scale)
     # one shared scale keeps similarity/euclidean/translation/trs in their class
     scale = 2.0 / (1.0 / ns.scale + 1.0 / nd.scale)
     t_src, t_dst = _similarity_matrix(scale, ns.centroid), _similarity_matrix(scale, nd.centroid)
     p = (src - ns.centroid[..., None, :]) * scale[..., None, None]
     q = (dst - nd.centroid[..., None, :]) * scale[..., None, None]
-    return _Problem(p, q, wn, t_src, t_dst, scale, scale)
+    return _Problem(last(p), last(q), wn, t_src, t_dst, scale, scale)
 
 
 def _loss_terms(hn, prob: _Problem, symmetric: bool):
@@ -347,8 +361,17 @@ def _loss_terms(hn, prob: _Problem, symmetric: bool):
 
 
 def _denormalize(hn: torch.Tensor, prob: _Problem) -> torch.Tensor:
-    """M = T_dst⁻¹ Ĥ T_src, scaled to ``m33 = 1`` where possible."""
-    h = inverse(prob.t_dst) @ hn @ prob.t_src
+    """M = T_dst⁻¹ Ĥ T_src, scaled to ``m33 = 1`` where possible (entrywise, no tiny bmm)."""
+    # T = [[s, 0, -s cx], [0, s, -s cy], [0, 0, 1]]: Ĥ T_src scales the first two columns
+    # and shifts the third; T_dst⁻¹ = [[1/s, 0, cx], [0, 1/s, cy], [0, 0, 1]] acts on rows.
+    ss, sd = prob.t_src[:, 0, 0, None], prob.t_dst[:, 0, 0, None]  # (B, 1)
+    cs = -prob.t_src[:, :2, 2] / ss  # (B, 2) centroids
+    cd = -prob.t_dst[:, :2, 2] / sd
+    c0, c1 = hn[..., 0] * ss, hn[..., 1] * ss  # (B, 3) columns of Ĥ T_src
+    c2 = hn[..., 2] - c0 * cs[:, :1] - c1 * cs[:, 1:]
+    cols = torch.stack([c0, c1, c2], dim=-1)  # (B, 3, 3)
+    h = torch.stack([cols[:, 0] / sd + cd[:, :1] * cols[:, 2],
+                     cols[:, 1] / sd + cd[:, 1:] * cols[:, 2], cols[:, 2]], dim=1)
     h33 = h[..., 2, 2]
     ok = h33.abs() > 1e-12
     return h / torch.where(ok, h33, torch.ones_like(h33))[..., None, None]
