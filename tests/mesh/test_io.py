@@ -228,3 +228,20 @@ def test_package_exports_io_and_subdivision():
     }
     assert names <= set(mesh.__all__)
     assert all(hasattr(mesh, n) for n in names)
+
+
+def test_ply_error_paths(tmp_path):
+    big = torch.zeros(300, 3)
+    with pytest.raises(ValueError, match="255"):
+        save_mesh(tmp_path / "big.ply", big, [list(range(300))])
+    (tmp_path / "fmt.ply").write_text(
+        "ply\nformat binary_middle_endian 1.0\nelement vertex 0\nproperty float x\nend_header\n"
+    )
+    with pytest.raises(ValueError, match="unsupported PLY format"):
+        load_mesh(tmp_path / "fmt.ply")
+    (tmp_path / "lists.ply").write_bytes(
+        b"ply\nformat binary_little_endian 1.0\nelement edge 1\n"
+        b"property list uchar int vertex_indices\nend_header\n" + bytes([2, 0, 0, 0, 0, 1, 0, 0, 0])
+    )
+    with pytest.raises(ValueError, match="unsupported PLY element 'edge'"):
+        load_mesh(tmp_path / "lists.ply")
