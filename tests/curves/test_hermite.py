@@ -235,3 +235,18 @@ def test_modules_equal_functions_and_defaults():
     moved = PchipInterpolator(x.float(), y.float()).to(torch.float64)
     assert moved.knots.dtype == torch.float64 and moved._table.dtype == torch.float64
     assert inspect.signature(cardinal_tangents).parameters["tension"].default == 0.0
+
+
+def test_pchip_no_grad_fast_path_equals_autograd_path():
+    x, y = _random_series(16, 30, 5)
+    X = torch.tensor(x)
+    Y = torch.tensor(y)
+    XQ = torch.linspace(x[0] - 0.5, x[-1] + 0.5, 77, dtype=torch.float64)
+    fast = PchipInterpolator(X, Y)  # in-place table build
+    slow = PchipInterpolator(X, Y.clone().requires_grad_(True))  # autograd path
+    assert_close(fast.tangents, slow.tangents.detach(), rtol=0, atol=0)
+    assert_close(fast(XQ), slow(XQ).detach(), rtol=0, atol=0)
+    for knots in (2, 3):
+        few = PchipInterpolator(X[:knots], Y[:, :knots])
+        ref = ScipyPchip(x[:knots], y[:, :knots], axis=1)
+        np.testing.assert_allclose(few.tangents.numpy(), ref.derivative()(x[:knots]), atol=1e-12)

@@ -444,6 +444,32 @@ def _pchip_knots_first(h: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
     return torch.cat([first, inner, last], dim=0)
 
 
+def _pchip_knots_first_into(h: torch.Tensor, y: torch.Tensor, out: torch.Tensor) -> None:
+    """:func:`_pchip_knots_first` without autograd, writing into ``out (K, B)``.
+
+    Same operations in the same order (so the same rounding as scipy), but with
+    two float temporaries instead of about twelve: large fresh allocations cost
+    page faults that dominate this memory-bound step.
+    """
+    slope = torch.sub(y[1:], y[:-1]).div_(h)  # (K-1, B)
+    if y.shape[0] == 2:
+        out.copy_(slope.expand(2, -1))
+        return
+    negative = torch.signbit(slope)
+    flat = negative[1:] != negative[:-1]
+    flat |= slope[1:] == 0
+    flat |= slope[:-1] == 0
+    w1 = 2 * h[1:] + h[:-1]
+    w2 = h[1:] + 2 * h[:-1]
+    out[:1] = _edge_tangent(h[:1], h[1:2], slope[:1], slope[1:2])
+    out[-1:] = _edge_tangent(h[-1:], h[-2:-1], slope[-1:], slope[-2:-1])
+    inner = out[1:-1]
+    # Flat entries are overwritten with 0 below; give them a safe slope of 1 first.
+    torch.div(w1, slope[:-1].masked_fill(flat, 1.0), out=inner)
+    inner.add_(torch.div(w2, slope[1:].masked_fill_(flat, 1.0)))
+    inner.div_(w1 + w2).reciprocal_().masked_fill_(flat, 0.0)
+
+
 def pchip_tangents(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
     """Shape-preserving PCHIP derivatives (Fritsch-Butland), exactly scipy's rule.
 
@@ -540,12 +566,22 @@ class PchipInterpolator(nn.Module):
         self._batch = batch
         self.register_buffer("knots", x, persistent=False)
         self.register_buffer("values", y, persistent=False)
-        y_kf = y.expand(*batch, k).reshape(-1, k).t().contiguous()  # (K, B)
-        if x.dim() == 1:
+        y_flat = y.expand(*batch, k).reshape(-1, k)  # (B, K)
+        needs_grad = torch.is_grad_enabled() and (x.requires_grad or y.requires_grad)
+        if x.dim() == 1 and not needs_grad:
+            # Shared knots, no autograd: build the knots-first table in place.
+            table = y.new_empty(2 * k, y_flat.shape[0])  # (2K, B): values, then tangents
+            table[:k] = y_flat.t()
+            _pchip_knots_first_into((x[1:] - x[:-1])[:, None], table[:k], table[k:])
+            self.register_buffer("_table", table, persistent=False)
+            tangents_kf = table[k:]
+        elif x.dim() == 1:
+            y_kf = y_flat.t().contiguous()  # (K, B)
             tangents_kf = _pchip_knots_first((x[1:] - x[:-1])[:, None], y_kf)
             # Shared knots: keep the knots-first table for the fused evaluation.
             self.register_buffer("_table", torch.cat([y_kf, tangents_kf], 0), persistent=False)
         else:
+            y_kf = y_flat.t().contiguous()
             x_kf = x.expand(*batch, k).reshape(-1, k).t()
             tangents_kf = _pchip_knots_first(x_kf[1:] - x_kf[:-1], y_kf)
             self._table = None
