@@ -376,10 +376,10 @@ def marching_cubes(
         cell_of_face = torch.repeat_interleave(n_tri)  # (F,) sorted
         first_face = n_tri.cumsum(0).sub_(n_tri)  # (A,)
         slot = torch.arange(cell_of_face.shape[0], device=device) - _take(first_face, cell_of_face)
-        tri_rows = _take(tri_delta.view(-1, 3), _take(cases_a, cell_of_face) * MAX_TRIANGLES + slot)
+        tri_row = _take(cases_a, cell_of_face) * MAX_TRIANGLES + slot  # (F,) table rows
+        tri_delta = tri_delta.view(-1, 3)  # (256 * MAX_TRIANGLES, 3)
         face_cell3 = _take(cell_id, cell_of_face) * 3  # (F,) sorted
-        face_key = face_cell3[:, None] + tri_rows  # (F, 3)
-        faces = torch.empty_like(face_key)
+        faces = torch.empty(face_cell3.shape[0], 3, dtype=torch.long, device=device)
         # key -> vertex id through a dense map over one slab (+1 layer) at a time.
         map_slab = max(1, _MAP_CELLS // YZ)
         layer_bounds = torch.arange(0, B * X + map_slab, map_slab, device=device)
@@ -398,7 +398,9 @@ def marching_cubes(
             v0, v1 = vert_lo[n], vert_hi[n + 1]  # vertices of the slab and one more layer
             base = n * map_slab * YZ * 3
             id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
-            faces[f0:f1] = _take(id_map, (face_key[f0:f1] - base).view(-1)).view(-1, 3)
+            # keys of the slab's face corners, (f1 - f0, 3): cell key + table delta
+            face_key = _take(tri_delta, tri_row[f0:f1]).add_((face_cell3[f0:f1] - base)[:, None])
+            faces[f0:f1] = _take(id_map, face_key.view(-1)).view(-1, 3)
         b_face = _take(b_a, cell_of_face) if B > 1 else None
 
         upper = lower + _take(strides, d_v)
