@@ -24,6 +24,15 @@ from torchgeo_cg.transforms import (
 )
 
 
+@pytest.fixture(autouse=True)
+def one_thread():
+    """Small batched ops: one thread is faster and avoids oversubscribing shared CI cores."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)
+
+
 def random_homographies(batch, gen, dtype=torch.float64, scale=200.0):
     """Well-conditioned random homographies for points in [0, scale]^2."""
     h = torch.eye(3, dtype=dtype) + 0.1 * torch.randn(batch, 3, 3, generator=gen, dtype=dtype)
