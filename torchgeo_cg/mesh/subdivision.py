@@ -455,7 +455,80 @@ def catmull_clark(
     return module(verts), module.faces
 
 
-class CatmullClark(nn.Module):
+class _SubdivisionModule(nn.Module):
+    """Shared machinery: one cached operator per level, applied by sparse matmuls."""
+
+    @staticmethod
+    def _build_operator(faces, num_vertices, boundary, dtype=None) -> SubdivisionOperator:
+        raise NotImplementedError
+
+    def __init__(
+        self,
+        faces: torch.Tensor | Sequence[Sequence[int]],
+        num_vertices: int,
+        levels: int = 1,
+        boundary: str = "edge_only",
+        device: torch.device | str | None = None,
+        dtype: torch.dtype | None = None,
+    ) -> None:
+        super().__init__()
+        if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
+            raise ValueError(f"levels: expected an int >= 0, got {levels!r}")
+        _check_boundary(boundary)
+        self.levels, self.boundary = levels, boundary
+        self.num_vertices_in = num_vertices
+        faces_fk = check_faces(faces, num_vertices)
+        if device is not None:
+            faces_fk = faces_fk.to(device)
+        self.register_buffer("faces_0", faces_fk, persistent=False)
+        count = num_vertices
+        self.sizes: list[tuple[int, int, int, int]] = []  # (V_in, V_out, F_in, E_in)
+        for level in range(levels):  # loop over levels only
+            op = self._build_operator(faces_fk, count, boundary, dtype=dtype)
+            self.register_buffer(f"matrix_{level}", op.matrix, persistent=False)
+            self.register_buffer(f"matrix_t_{level}", op.matrix_t, persistent=False)
+            self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
+            self.sizes.append(
+                (op.num_vertices_in, op.num_vertices_out, op.num_faces_in, op.num_edges_in)
+            )
+            faces_fk, count = op.faces, op.num_vertices_out
+        self.num_vertices_out = count
+
+    @property
+    def faces(self) -> torch.Tensor:
+        """``(F_L, 4)`` (Loop: ``(F_L, 3)``) long faces of the last level (input faces,
+        padded, when ``levels = 0``)."""
+        return getattr(self, f"faces_{self.levels}")
+
+    def operator(self, level: int) -> SubdivisionOperator:
+        """The cached :class:`SubdivisionOperator` of step ``level`` (0-based)."""
+        if not 0 <= level < self.levels:
+            raise IndexError(f"level: expected 0 <= level < {self.levels}, got {level}")
+        v_in, v_out, f_in, e_in = self.sizes[level]
+        return SubdivisionOperator(
+            getattr(self, f"matrix_{level}"),
+            getattr(self, f"matrix_t_{level}"),
+            getattr(self, f"faces_{level + 1}"),
+            v_in, v_out, f_in, e_in, self.boundary,
+        )
+
+    def forward(self, verts: torch.Tensor) -> torch.Tensor:
+        _check_verts(verts, self.num_vertices_in)
+        for level in range(self.levels):
+            verts = _apply_matrix(
+                getattr(self, f"matrix_{level}"), getattr(self, f"matrix_t_{level}"), verts
+            )
+        return verts
+
+    def extra_repr(self) -> str:
+        return (
+            f"levels={self.levels}, boundary={self.boundary!r}, "
+            f"num_vertices={self.num_vertices_in} -> {self.num_vertices_out}"
+        )
+
+
+
+class CatmullClark(_SubdivisionModule):
     """Catmull-Clark subdivision, ``levels`` steps, operators built once and cached.
 
     Convention:
@@ -483,66 +556,7 @@ class CatmullClark(nn.Module):
         (torch.Size([5, 25, 3]), torch.Size([16, 4]), 25)
     """
 
-    def __init__(
-        self,
-        faces: torch.Tensor | Sequence[Sequence[int]],
-        num_vertices: int,
-        levels: int = 1,
-        boundary: str = "edge_only",
-        device: torch.device | str | None = None,
-        dtype: torch.dtype | None = None,
-    ) -> None:
-        super().__init__()
-        if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
-            raise ValueError(f"levels: expected an int >= 0, got {levels!r}")
-        _check_boundary(boundary)
-        self.levels, self.boundary = levels, boundary
-        self.num_vertices_in = num_vertices
-        faces_fk = check_faces(faces, num_vertices)
-        if device is not None:
-            faces_fk = faces_fk.to(device)
-        self.register_buffer("faces_0", faces_fk, persistent=False)
-        count = num_vertices
-        self.sizes: list[tuple[int, int, int]] = []  # (V_in, F_in, E_in) per level
-        for level in range(levels):  # loop over levels only
-            op = catmull_clark_operator(faces_fk, count, boundary, dtype=dtype)
-            self.register_buffer(f"matrix_{level}", op.matrix, persistent=False)
-            self.register_buffer(f"matrix_t_{level}", op.matrix_t, persistent=False)
-            self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
-            self.sizes.append((op.num_vertices_in, op.num_faces_in, op.num_edges_in))
-            faces_fk, count = op.faces, op.num_vertices_out
-        self.num_vertices_out = count
-
-    @property
-    def faces(self) -> torch.Tensor:
-        """``(F_L, 4)`` long faces of the last level (input faces when ``levels = 0``)."""
-        return getattr(self, f"faces_{self.levels}")
-
-    def operator(self, level: int) -> SubdivisionOperator:
-        """The cached :class:`SubdivisionOperator` of step ``level`` (0-based)."""
-        if not 0 <= level < self.levels:
-            raise IndexError(f"level: expected 0 <= level < {self.levels}, got {level}")
-        v_in, f_in, e_in = self.sizes[level]
-        return SubdivisionOperator(
-            getattr(self, f"matrix_{level}"),
-            getattr(self, f"matrix_t_{level}"),
-            getattr(self, f"faces_{level + 1}"),
-            v_in, v_in + f_in + e_in, f_in, e_in, self.boundary,
-        )
-
-    def forward(self, verts: torch.Tensor) -> torch.Tensor:
-        _check_verts(verts, self.num_vertices_in)
-        for level in range(self.levels):
-            verts = _apply_matrix(
-                getattr(self, f"matrix_{level}"), getattr(self, f"matrix_t_{level}"), verts
-            )
-        return verts
-
-    def extra_repr(self) -> str:
-        return (
-            f"levels={self.levels}, boundary={self.boundary!r}, "
-            f"num_vertices={self.num_vertices_in} -> {self.num_vertices_out}"
-        )
+    _build_operator = staticmethod(catmull_clark_operator)
 
 
 def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:

@@ -1,0 +1,176 @@
+"""Loop subdivision: trimesh peer (closed meshes), a loop-based reference, invariants, errors."""
+
+from __future__ import annotations
+
+import inspect
+import math
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from hypothesis import given
+from hypothesis import strategies as st
+
+from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.mesh import loop as loop_mod
+from torchgeo_cg.mesh.io import to_trimesh
+from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
+
+
+def reference_loop(verts, faces, boundary="edge_only"):
+    """Independent dict-and-loop implementation of the rules in the module docstring."""
+    verts = np.asarray(verts, dtype=np.float64)
+    V0 = len(verts)
+    edge_opp: dict[tuple[int, int], list[int]] = {}
+    for f in faces:
+        for k in range(3):
+            a, b, c = f[k], f[(k + 1) % 3], f[(k + 2) % 3]
+            edge_opp.setdefault((min(a, b), max(a, b)), []).append(c)
+    edges = sorted(edge_opp)
+    row = {e: V0 + i for i, e in enumerate(edges)}
+    edge_pts = []
+    for a, b in edges:
+        opp = edge_opp[(a, b)]
+        if len(opp) == 2:
+            edge_pts.append(3 / 8 * (verts[a] + verts[b]) + 1 / 8 * (verts[opp[0]] + verts[opp[1]]))
+        else:
+            edge_pts.append((verts[a] + verts[b]) / 2)
+    vert_pts = []
+    for v in range(V0):
+        inc = [e for e in edges if v in e]
+        sharp = [e for e in inc if len(edge_opp[e]) != 2]
+        nbrs = [e[0] if e[1] == v else e[1] for e in inc]
+        sharp_nbrs = [e[0] if e[1] == v else e[1] for e in sharp]
+        n = len(inc)
+        if n == 0 or len(sharp) > 2 or (
+            len(sharp) == 2 and boundary == "edge_and_corner" and n == 2
+        ):
+            vert_pts.append(verts[v])
+        elif len(sharp) == 2:
+            vert_pts.append(0.75 * verts[v] + 0.125 * verts[sharp_nbrs].sum(0))
+        else:
+            beta = (5 / 8 - (3 / 8 + math.cos(2 * math.pi / n) / 4) ** 2) / n
+            vert_pts.append((1 - n * beta) * verts[v] + beta * verts[nbrs].sum(0))
+    new_faces = []
+    for a, b, c in faces:
+        ab, bc, ca = (row[(min(x, y), max(x, y))] for x, y in ((a, b), (b, c), (c, a)))
+        new_faces += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+    return np.concatenate([np.array(vert_pts), np.array(edge_pts)]), new_faces
+
+
+def tri_grid(n=3):
+    xs, ys = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0), indexing="ij")
+    v = np.c_[xs.ravel(), ys.ravel(), 0.1 * xs.ravel() * ys.ravel()]
+    idx = lambda i, j: i * (n + 1) + j  # noqa: E731
+    faces = []
+    for i in range(n):
+        for j in range(n):
+            faces += [[idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)],
+                      [idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]]
+    return v, faces
+
+
+def tri_fin():  # three triangles sharing edge (0, 1), plus an unused vertex 5
+    v = np.array([[0, 0, 0], [0, 0, 1], [1, 0, 0.5], [-0.5, 0.8, 0.5], [-0.5, -0.8, 0.5],
+                  [7, 7, 7]], dtype=float)
+    return v, [[0, 2, 1], [1, 3, 0], [0, 4, 1]]
+
+
+def ico():
+    m = trimesh.creation.icosphere(subdivisions=1)
+    return m.vertices, m.faces.tolist()
+
+
+MESHES = {"grid": tri_grid, "fin": tri_fin, "icosphere": ico}
+
+
+def test_public_surface():
+    assert set(loop_mod.__all__) == {"loop_operator", "loop_subdivide", "LoopSubdivision"}
+
+
+@pytest.mark.parametrize("name", list(MESHES))
+@pytest.mark.parametrize("boundary", ["edge_only", "edge_and_corner"])
+@pytest.mark.parametrize("levels", [1, 2])
+def test_matches_reference(name, boundary, levels):
+    v0, f0 = MESHES[name]()
+    v_ref, f_ref = v0, f0
+    for _ in range(levels):
+        v_ref, f_ref = reference_loop(v_ref, f_ref, boundary)
+    v, f = loop_subdivide(torch.tensor(v0), f0, levels=levels, boundary=boundary)
+    assert f.tolist() == f_ref
+    np.testing.assert_allclose(v.numpy(), v_ref, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("mesh", [trimesh.creation.icosphere(subdivisions=2),
+                                  trimesh.creation.capsule(count=[6, 6]),
+                                  trimesh.creation.box()], ids=["ico", "capsule", "box"])
+def test_matches_trimesh_on_closed_meshes(mesh):
+    """Live peer: trimesh's subdivide_loop uses the same weights on closed meshes."""
+    v, f = loop_subdivide(torch.tensor(mesh.vertices), torch.from_numpy(mesh.faces), levels=2)
+    tv, tf = trimesh.remesh.subdivide_loop(mesh.vertices, mesh.faces, iterations=2)
+    key = lambda a: a[np.lexsort(np.round(a, 9).T[::-1])]  # noqa: E731
+    np.testing.assert_allclose(key(v.numpy()), key(tv), atol=1e-12)
+    ours, peer = to_trimesh(v, f), trimesh.Trimesh(tv, tf, process=False)
+    assert ours.is_watertight and ours.is_winding_consistent
+    assert np.isclose(ours.volume, peer.volume) and np.isclose(ours.area, peer.area)
+
+
+@given(seed=st.integers(0, 2**16), name=st.sampled_from(list(MESHES)))
+def test_rigid_equivariance_on_open_meshes(seed, name):
+    v0, f0 = MESHES[name]()
+    rng = np.random.default_rng(seed)
+    rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    rot, t = torch.tensor(rot * np.sign(np.linalg.det(rot))), torch.tensor(rng.normal(size=3))
+    loop = LoopSubdivision(f0, len(v0), levels=2, dtype=torch.float64)
+    v = torch.tensor(v0)
+    assert_close(loop(v @ rot.T + t), loop(v) @ rot.T + t, scale=1e3)
+
+
+def test_rows_sum_to_one_counts_and_passthrough():
+    v0, f0 = tri_fin()
+    op = loop_operator(f0, len(v0), dtype=torch.float64)
+    dense = op.matrix.to_dense()
+    assert_close(dense.sum(1), torch.ones(op.num_vertices_out, dtype=torch.float64))
+    assert op.num_vertices_out == len(v0) + op.num_edges_in and op.faces.shape == (12, 3)
+    assert dense[5].tolist() == [0, 0, 0, 0, 0, 1.0]  # unreferenced vertex passes through
+    assert_close(op.matrix_t.to_dense(), dense.T)
+
+
+def test_gradcheck_and_module_defaults():
+    v0, f0 = tri_grid(2)
+    loop = LoopSubdivision(f0, len(v0), levels=2, dtype=torch.float64)
+    assert torch.autograd.gradcheck(loop, (torch.tensor(v0, requires_grad=True),))
+    fn = inspect.signature(loop_subdivide).parameters
+    mod = inspect.signature(LoopSubdivision.__init__).parameters
+    assert all(fn[k].default == mod[k].default for k in ("levels", "boundary"))
+    v = torch.tensor(v0)
+    out, faces = loop_subdivide(v, f0, levels=2)
+    assert_close(loop(v), out)
+    assert torch.equal(loop.faces, faces)
+
+
+def test_device_dtype(device, dtype):
+    v0, f0 = ico()
+    v = torch.tensor(v0, dtype=dtype, device=device)
+    out, faces = loop_subdivide(v, torch.tensor(f0, device=device))
+    assert out.dtype == dtype and out.device.type == device.type
+    assert faces.device.type == device.type
+
+
+def test_errors():
+    with pytest.raises(ShapeError, match="triangles"):
+        loop_operator([[0, 1, 2, 3]], 4)
+    with pytest.raises(ShapeError, match="triangles"):
+        loop_operator([[0, 1, 2], [0, 2, 3, 4]], 5)
+    with pytest.raises(ValueError, match="face 1 has index 9"):
+        loop_operator([[0, 1, 2], [0, 2, 9]], 4)
+    with pytest.raises(ValueError, match="boundary"):
+        loop_operator([[0, 1, 2]], 3, boundary="none")
+    with pytest.raises(ValueError, match="same device"):
+        loop_subdivide(torch.zeros(3, 3), torch.tensor([[0, 1, 2]], device="meta"))
+    with pytest.raises(ShapeError, match="verts"):
+        loop_subdivide(torch.zeros(3), [[0, 1, 2]])
+    with pytest.raises(TypeError, match="verts"):
+        loop_subdivide([[0.0, 0, 0]] * 3, [[0, 1, 2]])
