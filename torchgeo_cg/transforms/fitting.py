@@ -713,7 +713,12 @@ class HomographyModel(nn.Module):
         self.params = nn.Parameter(params.detach().clone())
 
     def matrix(self) -> torch.Tensor:
-        """The current ``(*batch_shape, 3, 3)`` ``dst_from_src``."""
+        """The current ``(*batch_shape, 3, 3)`` ``dst_from_src``.
+
+        Example:
+            >>> HomographyModel(batch_shape=(2,)).matrix().shape
+            torch.Size([2, 3, 3])
+        """
         hn = parameters_to_matrix(self.params, "homography", self.parametrization, self.base)
         h = inverse(self.dst_transform) @ hn @ self.src_transform
         h33 = h[..., 2, 2]

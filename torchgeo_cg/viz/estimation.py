@@ -26,6 +26,13 @@ def plot_report_fits(fit: ShapeFit, path: str | Path) -> None:
     Args:
         fit: the result of :func:`~torchgeo_cg.transforms.fit_report_shapes`.
         path: the image file to write.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> out = pathlib.Path(tempfile.mkdtemp()) / "shapes.png"
+        >>> plot_report_fits(fit_report_shapes(), out)
+        >>> out.stat().st_size > 10_000
+        True
     """
     shapes = fit.shapes
     start = shapes.start.detach().cpu().double()
