@@ -366,3 +366,17 @@ def test_module_learns_and_moves():
     # Curves derived from a learnable one keep the graph back to its parameters.
     curve.split(0.5)[0].length().backward()
     assert curve.control_points.grad is not None
+
+
+def test_gauss_kronrod_rule_is_generated_correctly():
+    import sys
+
+    nodes, kronrod, gauss = sys.modules["torchgeo_cg.curves.bezier"]._gauss_kronrod(7)
+    # QUADPACK's GK15 abscissae and weights (on [-1, 1]), first entries.
+    assert abs(2 * nodes[-1] - 1 - 0.991455371120813) < 1e-14
+    assert abs(2 * kronrod[0] - 0.022935322010529) < 1e-14
+    assert abs(2 * gauss[7] - 0.417959183673469) < 1e-14  # 7-point Gauss centre weight
+    for k in range(24):  # exact to degree 23 (Kronrod) and 13 (Gauss) on [0, 1]
+        assert abs((kronrod * nodes**k).sum() - 1 / (k + 1)) < 1e-14
+        if k < 14:
+            assert abs((gauss * nodes**k).sum() - 1 / (k + 1)) < 1e-14
