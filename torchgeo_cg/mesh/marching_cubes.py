@@ -4,14 +4,16 @@ The algorithm of the report, without a Python loop over cells:
 
 1. every sample is classified once (inside when ``f < iso``), and the eight
    corner bits of every cell are packed into a ``uint8`` case index with three
-   shifted sums over the whole volume;
+   shifted sums (done slab by slab along x, so the temporaries stay in cache);
 2. only the cells with ``0 < case < 255`` are kept;
 3. a vertex is made for each grid edge whose two samples are classified
    differently, keyed by (lower grid corner, direction), so the output is welded:
    neighbouring cells share the vertex of their common edge;
 4. each active cell looks its triangles up in the generated 256-case table
    (:mod:`torchgeo_cg.mesh._marching_cubes_tables`) and maps its local edges to
-   the global vertex ids through a dense id map.
+   the global vertex ids through a dense id map (one slab of cells at a time).
+
+The batch is stacked along x, so one call costs one pass over all the volumes.
 
 Positions are interpolated along the crossing edges with
 ``t = (iso - f1) / (f2 - f1)`` (report section 1.4), which is where gradients
@@ -24,7 +26,12 @@ Convention:
       exactly equal to ``iso`` is outside. This one rule classifies degenerate data.
     - Faces are wound counter-clockwise seen from the outside, so the right-hand
       normal ``(v1 - v0) x (v2 - v0)`` points towards increasing field values;
-      ``normals`` (the unit field gradient) point the same way.
+      ``normals`` (the unit field gradient) point the same way: along the edge the
+      slope of the interpolant, across it central differences (one-sided at the
+      border) blended with ``t``, in world units; a zero gradient gives a zero normal.
+    - The ambiguous-case rule differs from scikit-image's Lewiner decider (which may
+      join the inside corners): the two agree exactly outside ambiguous cells, up to
+      the diagonal chosen to split a non-planar quad/hexagon.
     - Ambiguous cube faces separate the inside corners (see the tables module), so
       the surface is closed and edge-manifold wherever it stays inside the volume.
     - Interpolation guard: ``|f2 - f1|`` below ``finfo(dtype).eps`` is clamped to
@@ -229,20 +236,21 @@ def _active_cells(vol: torch.Tensor, iso_b: torch.Tensor, slab: int):
     return torch.cat(ids), torch.cat(cases)
 
 
-def _vertex_gradient(flat_vol, lower, upper, corner_ijk, d_v, t, f1, f2, sizes, spacing_v):
-    """Field gradient at the vertices, in world units: ``(V, 3)``.
+def _sample_stencil(lower, upper, corner_ijk, d_v, sizes):
+    """Flat sample indices needed per vertex, gathered in one go (one backward scatter).
 
-    Along the edge direction ``d`` it is the slope of the interpolant,
-    ``(f2 - f1) / spacing_d``; across it, central differences (one-sided on the
-    border) at both edge ends, blended with ``t``. ``spacing_v`` is ``(V, 3)`` or
-    ``(1, 3)``.
+    Returns:
+        ``(index (10, V), axes (2, V), steps (2, V))``: rows 0-1 of ``index`` are the
+        edge ends; rows ``2 + 4 s .. 5 + 4 s`` are (lower + up, lower - down,
+        upper + up, upper - down) along the ``s``-th axis across the edge, ``axes``;
+        ``steps`` is the index distance covered by those differences (2, or 1 on the
+        border).
     """
     X, Y, Z = sizes
     device = lower.device
     last = torch.tensor([X - 1, Y - 1, Z - 1], device=device)
     stride_t = torch.tensor([Y * Z, Z, 1], device=device)
-    one_hot = torch.eye(3, dtype=flat_vol.dtype, device=device)
-    grad_index = _take(one_hot, d_v) * (f2 - f1)[:, None]  # (V, 3), index units
+    rows, axes, steps = [lower, upper], [], []
     for shift in (1, 2):  # the two axes across the edge
         a = (d_v + shift) % 3  # (V,)
         c = corner_ijk.gather(1, a[:, None]).squeeze(1)
@@ -250,11 +258,27 @@ def _vertex_gradient(flat_vol, lower, upper, corner_ijk, d_v, t, f1, f2, sizes, 
         down = (c > 0).long()
         stride = _take(stride_t, a)
         step_up, step_down = up * stride, down * stride
-        h = (up + down).to(flat_vol.dtype)
-        g_lower = _take(flat_vol, lower + step_up) - _take(flat_vol, lower - step_down)
-        g_upper = _take(flat_vol, upper + step_up) - _take(flat_vol, upper - step_down)
-        g = (g_lower + t * (g_upper - g_lower)) / h
-        grad_index = grad_index + _take(one_hot, a) * g[:, None]
+        rows += [lower + step_up, lower - step_down, upper + step_up, upper - step_down]
+        axes.append(a)
+        steps.append(up + down)
+    return torch.stack(rows), torch.stack(axes), torch.stack(steps)
+
+
+def _vertex_gradient(samples, t, d_v, axes, steps, spacing_v):
+    """Field gradient at the vertices, in world units: ``(V, 3)``.
+
+    Along the edge direction ``d`` it is the slope of the interpolant,
+    ``(f2 - f1) / spacing_d``; across it, central differences (one-sided on the
+    border) at both edge ends, blended with ``t``. ``samples`` is ``(10, V)`` as laid
+    out by :func:`_sample_stencil`; ``spacing_v`` is ``(V, 3)`` or ``(1, 3)``.
+    """
+    one_hot = torch.eye(3, dtype=samples.dtype, device=samples.device)
+    grad_index = _take(one_hot, d_v) * (samples[1] - samples[0])[:, None]  # (V, 3)
+    for s in range(2):
+        g_lower = samples[2 + 4 * s] - samples[3 + 4 * s]
+        g_upper = samples[4 + 4 * s] - samples[5 + 4 * s]
+        g = (g_lower + t * (g_upper - g_lower)) / steps[s].to(samples.dtype)
+        grad_index = grad_index + _take(one_hot, axes[s]) * g[:, None]
     return grad_index / spacing_v
 
 
@@ -407,6 +431,7 @@ def marching_cubes(
         b_v = _take(b_a, vert_cell) if B > 1 else None
         corner_ijk = _take(torch.stack([i_a, j_a, k_a], dim=1), vert_cell)  # (V, 3)
         unit = torch.nn.functional.one_hot(d_v, 3)  # (V, 3)
+        stencil, axes, steps = _sample_stencil(lower, upper, corner_ijk, d_v, (X, Y, Z))
         if B == 1:
             verts_per_mesh = torch.tensor([n_verts], device=device)
             faces_per_mesh = torch.tensor([faces.shape[0]], device=device)
@@ -416,7 +441,8 @@ def marching_cubes(
 
     # Differentiable part: interpolation t = (iso - f1) / (f2 - f1) (report 1.4).
     flat_vol = vol.reshape(-1)
-    f1, f2 = _take(flat_vol, lower), _take(flat_vol, upper)  # (V,)
+    samples = _take(flat_vol, stencil.view(-1)).view(stencil.shape)  # (10, V), one gather
+    f1, f2 = samples[0], samples[1]  # (V,) at the edge ends
     iso_v = iso_b if B == 1 else _take(iso_b, b_v)
     eps = torch.finfo(dtype).eps
     delta = math.sqrt(eps)
@@ -427,9 +453,7 @@ def marching_cubes(
     verts = origin_v + spacing_v * index_pos
 
     # Normals: the unit field gradient at the vertices (outward: increasing values).
-    grad = _vertex_gradient(
-        flat_vol, lower, upper, corner_ijk, d_v, t, f1, f2, (X, Y, Z), spacing_v
-    )  # (V, 3)
+    grad = _vertex_gradient(samples, t, d_v, axes, steps, spacing_v)  # (V, 3)
     normals = grad / safe_norm(grad, keepdim=True).clamp_min(torch.finfo(dtype).tiny)
 
     if tau_b is None:
