@@ -71,9 +71,11 @@ class HomographyFit(NamedTuple):
             (or to unit Frobenius norm where ``|h33|`` is tiny).
         rank_ok: ``(*)`` bool, False for degenerate problems (fewer than 4 points
             with positive weight, collinear/coincident points, or a singular fit).
-        condition: ``(*)`` estimated condition of the normalized DLT system: the
-            largest singular value over the gap above the smallest (within a
-            factor 3). Large means ill-posed; always finite.
+        condition: ``(*)`` estimated condition of the normalized DLT system
+            ``σ_max / σ_8``, the largest singular value of the (trace-normalized)
+            DLT matrix over its second smallest; the estimate lies between 1 and 9
+            times the true ratio. Large means ill-posed (the solution is not
+            unique to working precision); always finite.
     """
 
     matrix: torch.Tensor

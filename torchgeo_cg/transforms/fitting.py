@@ -554,9 +554,10 @@ def fit_transform(
         starts from the identity of the normalized frame (which maps the src
         centroid to the dst centroid). Differentiable with respect to ``src``,
         ``dst`` and ``weights``: ``"lm"`` is unrolled (exact derivative of the
-        result); ``"adam"`` and ``"lbfgs"`` run detached and end with one
-        Gauss-Newton step that carries the implicit-function gradient (exact at
-        a zero-residual optimum).
+        result); ``"adam"`` and ``"lbfgs"`` run detached and, only when an
+        input requires grad, end with one Gauss-Newton step that carries the
+        implicit-function gradient (exact at a zero-residual optimum; the
+        returned value then moves by that one refining step).
 
     Args:
         src: ``(*, N, 2)`` source points.
