@@ -380,3 +380,12 @@ def test_gauss_kronrod_rule_is_generated_correctly():
         assert abs((kronrod * nodes**k).sum() - 1 / (k + 1)) < 1e-14
         if k < 14:
             assert abs((gauss * nodes**k).sum() - 1 / (k + 1)) < 1e-14
+
+
+def test_more_bad_input():
+    with pytest.raises(TypeError, match="control_points: expected a floating-point"):
+        bezier(torch.zeros(4, 2, dtype=torch.long), torch.rand(3))
+    with pytest.raises(ValueError, match="times"):
+        elevate_bezier(torch.zeros(4, 2), -2)
+    with pytest.raises(TypeError, match="order"):
+        bezier_derivative(torch.zeros(4, 2), 1.5)

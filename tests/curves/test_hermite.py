@@ -250,3 +250,22 @@ def test_pchip_no_grad_fast_path_equals_autograd_path():
         few = PchipInterpolator(X[:knots], Y[:, :knots])
         ref = ScipyPchip(x[:knots], y[:, :knots], axis=1)
         np.testing.assert_allclose(few.tangents.numpy(), ref.derivative()(x[:knots]), atol=1e-12)
+
+
+def test_per_series_knots_broadcast_against_queries():
+    x = torch.sort(torch.rand(3, 1, 6, dtype=torch.float64), dim=-1).values
+    x = x + torch.arange(6, dtype=torch.float64)  # strictly increasing per series
+    y = torch.randn(3, 2, 6, dtype=torch.float64)
+    xq = torch.rand(2, 5, dtype=torch.float64) * 5
+    out = hermite_spline(x, y, pchip_tangents(x, y), xq)
+    assert out.shape == (3, 2, 5)
+    for i in range(3):
+        for j in range(2):
+            ref = ScipyPchip(x[i, 0].numpy(), y[i, j].numpy())(xq[j].numpy())
+            np.testing.assert_allclose(out[i, j].numpy(), ref, atol=1e-12)
+
+
+def test_query_dtype_error():
+    interp = PchipInterpolator(torch.arange(4.0), torch.zeros(4))
+    with pytest.raises(TypeError, match="xq: expected a floating-point"):
+        interp(torch.arange(3))

@@ -291,9 +291,12 @@ def _interval(knots: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
 
 
 def _spline_weights(knots, x, idx):
-    """Weights of ``y_i, y_{i+1}, m_i, m_{i+1}`` at queries: each shaped like ``x``."""
-    x0, x1 = knots.gather(-1, idx) if knots.dim() > 1 else knots[idx], None
-    x1 = knots.gather(-1, idx + 1) if knots.dim() > 1 else knots[idx + 1]
+    """Weights of ``y_i, y_{i+1}, m_i, m_{i+1}`` at queries: each shaped like ``idx``."""
+    if knots.dim() == 1:
+        x0, x1 = knots[idx], knots[idx + 1]
+    else:
+        knots = knots.expand(*idx.shape[:-1], knots.shape[-1])
+        x0, x1 = knots.gather(-1, idx), knots.gather(-1, idx + 1)
     h = x1 - x0
     s = (x - x0) / h  # knots strictly increasing: h > 0
     basis = hermite_basis(s)
