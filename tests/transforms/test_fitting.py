@@ -193,6 +193,11 @@ def test_init_is_used():
         fit = fit_transform(src, dst, optimizer="adam", steps=0, init=h, parametrization=par)
         assert_close(fit.matrix, h, rtol=1e-9, atol=1e-9)
         assert fit.history.shape == (1, 2)
+        # from a perturbed start, every parametrization (sl3: Ĥ = base·exp) reaches h
+        start = h.clone()
+        start[:, :2, 2] += 3.0
+        fit = fit_transform(src, dst, optimizer="lm", steps=20, init=start, parametrization=par)
+        assert_close(fit.matrix, h, rtol=1e-8, atol=1e-8)
 
 
 # ------------------------------------------------------------------ gradients
