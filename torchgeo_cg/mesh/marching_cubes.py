@@ -240,7 +240,7 @@ def _sample_stencil(lower, upper, corner_ijk, d_v, sizes):
     """Flat sample indices needed per vertex, gathered in one go (one backward scatter).
 
     Returns:
-        ``(index (10, V), axes (2, V), steps (2, V))``: rows 0-1 of ``index`` are the
+        ``(index (10, V), axes [2 x (V,)], steps [2 x (V,)])``: rows 0-1 of ``index`` are the
         edge ends; rows ``2 + 4 s .. 5 + 4 s`` are (lower + up, lower - down,
         upper + up, upper - down) along the ``s``-th axis across the edge, ``axes``;
         ``steps`` is the index distance covered by those differences (2, or 1 on the
@@ -250,18 +250,23 @@ def _sample_stencil(lower, upper, corner_ijk, d_v, sizes):
     device = lower.device
     last = torch.tensor([X - 1, Y - 1, Z - 1], device=device)
     stride_t = torch.tensor([Y * Z, Z, 1], device=device)
-    rows, axes, steps = [lower, upper], [], []
-    for shift in (1, 2):  # the two axes across the edge
+    index = torch.empty(10, lower.shape[0], dtype=torch.long, device=device)
+    index[0], index[1] = lower, upper
+    axes, steps = [], []
+    for s, shift in enumerate((1, 2)):  # the two axes across the edge
         a = (d_v + shift) % 3  # (V,)
         c = corner_ijk.gather(1, a[:, None]).squeeze(1)
         up = (c < _take(last, a)).long()
         down = (c > 0).long()
         stride = _take(stride_t, a)
         step_up, step_down = up * stride, down * stride
-        rows += [lower + step_up, lower - step_down, upper + step_up, upper - step_down]
+        torch.add(lower, step_up, out=index[2 + 4 * s])
+        torch.sub(lower, step_down, out=index[3 + 4 * s])
+        torch.add(upper, step_up, out=index[4 + 4 * s])
+        torch.sub(upper, step_down, out=index[5 + 4 * s])
         axes.append(a)
         steps.append(up + down)
-    return torch.stack(rows), torch.stack(axes), torch.stack(steps)
+    return index, axes, steps
 
 
 def _vertex_gradient(samples, t, d_v, axes, steps, spacing_v):
