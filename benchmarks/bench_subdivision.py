@@ -9,7 +9,8 @@ Targets (issue 6), 1 thread:
 - a batch of 64 shapes sharing the topology at level 1 ≤ 20 ms (absolute; the peer
   column is pymeshlab run once, scaled by 64);
 - forward+backward ≤ 3x forward (the "peer" is our own forward);
-- trimesh's ``subdivide_loop`` (a different scheme) reported alongside.
+- trimesh's ``subdivide_loop`` (a different scheme) reported alongside, against our
+  Catmull-Clark and against our own Loop operator (same scheme on closed meshes).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import io
 import torch
 
 from benchmarks.harness import Case
+from torchgeo_cg.mesh.loop import loop_operator
 from torchgeo_cg.mesh.subdivision import CatmullClark, apply_operator, catmull_clark_operator
 
 
@@ -147,6 +149,25 @@ def cases(quick: bool = False) -> list[Case]:
         Case(
             f"reference: ours CC build+apply level 1 vs trimesh subdivide_loop, {tag}",
             lambda: apply_operator(catmull_clark_operator(faces, V), verts),
+            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
+            f"trimesh {trimesh.__version__} subdivide_loop",
+            target=None,
+        )
+    )
+    loop_op = loop_operator(faces, V)
+    out.append(
+        Case(
+            f"reference: ours Loop level 1 (prebuilt) vs trimesh subdivide_loop, {tag}",
+            lambda: apply_operator(loop_op, verts),
+            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
+            f"trimesh {trimesh.__version__} subdivide_loop",
+            target=None,
+        )
+    )
+    out.append(
+        Case(
+            f"reference: ours Loop build+apply level 1 vs trimesh subdivide_loop, {tag}",
+            lambda: apply_operator(loop_operator(faces, V), verts),
             lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
             f"trimesh {trimesh.__version__} subdivide_loop",
             target=None,
