@@ -448,8 +448,8 @@ def _gl_nodes(n: int, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
             torch.as_tensor(w, dtype=like.dtype, device=like.device))
 
 
-#: Intervals that fail the error test split into this many children.
-_CHILDREN = 2
+#: Arc length starts from this many equal parameter pieces per curve.
+_FIRST_PIECES = 4
 
 #: Up to this many hodograph control points (quartic curves) the squared speed is
 #: expanded in the power basis and evaluated by Horner's rule; the expansion loses
@@ -550,7 +550,8 @@ def bezier_length(
 ) -> torch.Tensor:
     """Arc length ``int_0^1 |B'(t)| dt`` by adaptive Gauss-Kronrod quadrature.
 
-    Each open interval gets the 15-point Gauss-Kronrod rule (7-point Gauss
+    Each curve starts as 4 equal parameter pieces; each open interval gets the
+    15-point Gauss-Kronrod rule (7-point Gauss
     embedded; the speed comes from the squared speed expanded in the power basis
     by Horner's rule for degree <= 4, from the Bernstein recurrence above) and
     QUADPACK's error estimate ``spread * min(1, (200 |K - G| / spread)^1.5)``.
@@ -608,9 +609,11 @@ def bezier_length(
     floor = torch.finfo(work).tiny
     with torch.no_grad():
         hodo = coefficients.detach()
-        curve = torch.arange(count, device=hodo.device)
-        a = hodo.new_zeros(count)
-        b = hodo.new_ones(count)
+        # Start from _FIRST_PIECES equal pieces per curve (random cubics rarely pass whole).
+        curve = torch.arange(count, device=hodo.device).repeat_interleave(_FIRST_PIECES)
+        start = torch.arange(_FIRST_PIECES, dtype=hodo.dtype, device=hodo.device)
+        a = (start / _FIRST_PIECES).repeat(count)
+        b = ((start + 1) / _FIRST_PIECES).repeat(count)
         total = hodo.new_zeros(count)  # accepted pieces (used without autograd)
         done_curve, done_a, done_b = [curve[:0]], [a[:0]], [b[:0]]
         budget = 256 * count + 4096
