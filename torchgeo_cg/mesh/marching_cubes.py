@@ -225,9 +225,11 @@ def _active_cells(vol: torch.Tensor, iso_b: torch.Tensor, slab: int):
         case += case_yz[:-1]  # (L-1, Y, Z) uint8
         # layers x = X-1 are padded cells: their dx = 1 corners replicate dx = 0 (and
         # must not reach into the next volume of the batch)
-        for layer in range(start + (X - 1 - start) % X, stop, X):  # loop over layers
-            low = case[layer - start] & 15
-            case[layer - start] = low | (low << 4)
+        first_pad = (X - 1 - start) % X
+        if first_pad < stop - start:
+            pad_layers = torch.arange(first_pad, stop - start, X, device=vol.device)
+            low = case[pad_layers] & 15  # (P, Y, Z)
+            case[pad_layers] = low | (low << 4)
         case = case.view(-1)
         case -= 1  # 0 and 255 become 255 and 254
         active = _nonzero_sparse(case < 254)
