@@ -104,8 +104,8 @@ def _cycloid(path: Path) -> None:
     "curves_bezier.png",
     "Cubic and quartic Bezier curves (report Figure 3)",
     "cubic_bezier and quartic_bezier (explicit Appendix A bases) with their control "
-    "polygons; degree + 1 control points each. The hodograph tangent and the curvature sign "
-    "are drawn at t = 0.5.",
+    "polygons; degree + 1 control points each. The arrow is the unit tangent at t = 0.5; "
+    "titles give the arc length (adaptive Gauss-Kronrod).",
 )
 def _bezier(path: Path) -> None:
     cubic = torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0]], dtype=_F64)
@@ -125,7 +125,7 @@ def _bezier(path: Path) -> None:
         length = float(curve.length())
         ax.set_title(f"{name}: {cp.tolist()}\nlength {length:.4f}", fontsize=8)
         ax.set_aspect("equal")
-        ax.legend(loc="lower center", fontsize=8)
+        ax.legend(loc="best", fontsize=8)
     save(fig, path)
 
 
