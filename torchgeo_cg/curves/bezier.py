@@ -53,6 +53,12 @@ class SplitResult(NamedTuple):
     """The two halves of a split: ``left`` covers ``[0, t0]``, ``right`` ``[t0, 1]``.
 
     Both are ``(*, n + 1, D)`` control points of the same degree.
+
+    Example:
+        >>> halves = split_bezier(torch.tensor([[0.0, 0.0], [2.0, 0.0]]), 0.25)
+        >>> halves.right
+        tensor([[0.5000, 0.0000],
+                [2.0000, 0.0000]])
     """
 
     left: torch.Tensor

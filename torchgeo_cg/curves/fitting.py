@@ -35,6 +35,12 @@ class BezierFit(NamedTuple):
         control_points: ``(*, n + 1, D)``.
         t: ``(*, M)`` the parameters used.
         rms: ``(*)`` root-mean-square distance between ``B(t_k)`` and the points.
+
+    Example:
+        >>> fit = fit_bezier(torch.tensor([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]), 1)
+        >>> fit.control_points.round(decimals=6) + 0.0, fit.t
+        (tensor([[0.0000, 0.0000],
+                [2.0000, 2.0000]]), tensor([0.0000, 0.5000, 1.0000]))
     """
 
     control_points: torch.Tensor

@@ -80,7 +80,14 @@ def hermite_basis(t: torch.Tensor) -> torch.Tensor:
 
 
 class HermiteControls(NamedTuple):
-    """End points and end tangents of cubic Hermite segments, each ``(*, D)``."""
+    """End points and end tangents of cubic Hermite segments, each ``(*, D)``.
+
+    Example:
+        >>> line = torch.tensor([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])
+        >>> controls = bezier_to_hermite(line)
+        >>> controls.m0, controls.p1
+        (tensor([3., 0.]), tensor([3., 0.]))
+    """
 
     p0: torch.Tensor
     p1: torch.Tensor

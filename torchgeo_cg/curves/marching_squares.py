@@ -48,6 +48,13 @@ class MarchingSquaresResult(NamedTuple):
         lengths: ``(P,)`` long, vertices per polyline (closed ones include the repeat).
         batch: ``(P,)`` long, the flat index of the field each polyline comes from.
         closed: ``(P,)`` bool, whether the polyline is a closed loop.
+
+    Example:
+        >>> fields = torch.tensor([[[1.0, -1.0], [1.0, -1.0]], [[1.0, 1.0], [1.0, 1.0]]])
+        >>> result = marching_squares(fields)  # the second field has no crossing
+        >>> result.polylines(), result.batch
+        ([tensor([[0.0000, 0.5000],
+                [1.0000, 0.5000]])], tensor([0]))
     """
 
     vertices: torch.Tensor
