@@ -27,15 +27,22 @@ from torchgeo_cg.sdf import grid_points, mesh_sdf, sample_grid, torus, winding_n
 from torchgeo_cg.sdf.mesh_distance import _face_table, _pair_d2
 from torchgeo_cg.sdf.sampler import sample_mesh_surface
 
+# VmHWM (peak resident set) of a fresh process; unlike ru_maxrss it is not inherited
+# from the parent across exec.
 _PEAK_SCRIPT = """
-import resource, sys, torch
+import sys, torch
 from torchgeo_cg.sdf import sample_grid, torus
+def hwm():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
 torch.set_num_threads(1)
 n = int(sys.argv[1])
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+sample_grid(lambda p: torus(p, 1.0, 0.3), 8, (-1.5, 1.5))
+base = hwm()
 vol = sample_grid(lambda p: torus(p, 1.0, 0.3), n, (-1.5, 1.5))
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-print(base / 1024, peak / 1024, vol.values.numel() * vol.values.element_size() / 2**20)
+peak = hwm()
+print(base, peak, vol.values.numel() * vol.values.element_size() / 2**20)
 """
 
 
