@@ -387,11 +387,13 @@ def marching_cubes(
 
         # 3. one vertex per crossing grid edge = crossing lower edge of a cell
         #    (corner 0 against corners 4, 2, 1 for x, y, z).
-        bit0 = cases_a & 1
-        crosses = torch.stack(
-            [bit0 != ((cases_a >> 4) & 1), bit0 != ((cases_a >> 2) & 1),
-             bit0 != ((cases_a >> 1) & 1)], dim=1
-        )  # (A, 3)
+        case_ids = torch.arange(256, device=device)
+        bit0 = case_ids & 1
+        lower_cross = torch.stack(
+            [bit0 != ((case_ids >> 4) & 1), bit0 != ((case_ids >> 2) & 1),
+             bit0 != ((case_ids >> 1) & 1)], dim=1
+        )  # (256, 3): does the case's lower x / y / z edge cross?
+        crosses = _take(lower_cross, cases_a)  # (A, 3)
         vert_cell, d_v = crosses.nonzero().unbind(1)  # (V,), (V,) sorted by (cell, d)
         n_verts = d_v.shape[0]
         lower = _take(cell_id, vert_cell)  # (V,) flat sample at the edge's lower end
