@@ -296,9 +296,15 @@ def _face_table(tri: torch.Tensor) -> torch.Tensor:
     return torch.cat(cols, dim=-1).t().contiguous()
 
 
+def _gather_rows(table: torch.Tensor, index: torch.Tensor, rows) -> list[torch.Tensor]:
+    """``[table[k, index] for k in rows]``: one 1-D gather per row (a fixed handful), about
+    twice as fast as ``index_select`` along dim 1 of the 2-D table."""
+    return [table[k].index_select(0, index) for k in rows]
+
+
 def _pair_d2(table: torch.Tensor, p: torch.Tensor, f: torch.Tensor) -> torch.Tensor:
     """Squared point-triangle distances for pairs ``p (3, M)`` (rows x, y, z), ``f (M,)``."""
-    g = table.index_select(1, f)
+    g = _gather_rows(table, f, range(20))
     wx, wy, wz = p[0] - g[0], p[1] - g[1], p[2] - g[2]
     dot0 = wx * g[3] + wy * g[4] + wz * g[5]
     dot1 = wx * g[6] + wy * g[7] + wz * g[8]
@@ -408,13 +414,13 @@ def _grid_search(grid: _FaceGrid, table: torch.Tensor, p: torch.Tensor, u2: torc
     faces = grid.faces[torch.arange(pair_pt.numel()) + offset]
     # bounding-sphere lower bound |p - c_f| - r_f, then exact distances for the survivors
     ppt = pp.t().contiguous()
-    g = table[20:24].index_select(1, faces)
-    q = ppt.index_select(1, pair_pt)
+    g = _gather_rows(table, faces, range(20, 24))
+    q = _gather_rows(ppt, pair_pt, range(3))
     dx, dy, dz = q[0] - g[0], q[1] - g[1], q[2] - g[2]
     lb = ((dx * dx + dy * dy + dz * dz).sqrt() - g[3]).clamp_min(0.0)
-    keep = lb * lb <= uu2[pair_pt]
-    pair_pt, faces = pair_pt[keep], faces[keep]
-    d2 = _pair_d2(table, q[:, keep], faces)
+    keep = (lb * lb <= uu2[pair_pt]).nonzero().squeeze(1)
+    pair_pt, faces = pair_pt.index_select(0, keep), faces.index_select(0, keep)
+    d2 = _pair_d2(table, torch.stack([c.index_select(0, keep) for c in q]), faces)
     m2 = uu2.clone().scatter_reduce_(0, pair_pt, d2, reduce="amin")
     win = d2 <= m2[pair_pt]
     bf = best_f[rows_pt]
