@@ -16,6 +16,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
+    """Add the ``fit-shapes`` subcommand to the ``torchgeo-cg`` subparsers ``sub``."""
     p = sub.add_parser(
         "fit-shapes",
         help="fit the report's shapes A-H in one batched call and print a Table-3-style summary",

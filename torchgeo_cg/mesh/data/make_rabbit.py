@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+__all__ = ["cube_sphere", "extrude", "make_rabbit", "main"]
+
 HERE = Path(__file__).resolve().parent
 
 
@@ -85,6 +87,7 @@ def _shift_scale(offset, scale):
 
 
 def make_rabbit() -> tuple[np.ndarray, list[list[int]]]:
+    """Build the rabbit control mesh: ``(verts (V,3) float64, faces list of quads)``."""
     verts, faces = cube_sphere(6)
     verts = verts * np.array([1.3, 0.8, 0.85])  # body: x forward, z up
     # head: a 2x2 patch at the front-top, extruded twice (neck, then skull)
@@ -117,6 +120,7 @@ def make_rabbit() -> tuple[np.ndarray, list[list[int]]]:
 
 
 def main(path: Path = HERE / "rabbit.obj") -> None:
+    """Write :func:`make_rabbit` to ``path`` as a Wavefront OBJ (the shipped ``rabbit.obj``)."""
     verts, faces = make_rabbit()
     with open(path, "w") as fh:
         fh.write("# torchgeo_cg low-poly rabbit control mesh (quads), made by make_rabbit.py\n")
