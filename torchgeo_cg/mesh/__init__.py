@@ -1,4 +1,4 @@
-"""torchgeo_cg.mesh (being built)."""
+"""torchgeo_cg.mesh: marching cubes, Catmull-Clark and Loop subdivision operators, mesh I/O."""
 
 from torchgeo_cg.mesh.faces import (
     check_faces,
@@ -8,6 +8,7 @@ from torchgeo_cg.mesh.faces import (
     unpad_faces,
 )
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
+from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
 from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
@@ -29,3 +30,4 @@ __all__ += [
     "CatmullClark",
     "limit_positions",
 ]
+__all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
