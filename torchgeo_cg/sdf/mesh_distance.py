@@ -332,6 +332,7 @@ class _FaceGrid(NamedTuple):
     h: float
     dims: torch.Tensor  # (3,) long
     start: torch.Tensor  # (cells + 1,) long, CSR row pointers
+    count: torch.Tensor  # (cells,) long, faces per cell
     faces: torch.Tensor  # (nnz,) long face ids, grouped by cell
     box_lo: torch.Tensor  # (cells, 3) tight box of the faces' boxes clipped to the cell
     box_hi: torch.Tensor  # (cells, 3)
@@ -365,7 +366,7 @@ def _face_grid(fmin: torch.Tensor, fmax: torch.Tensor, lo: torch.Tensor, h: floa
                                             include_self=False)
     box_hi = center.clone().scatter_reduce_(0, key[:, None].expand(-1, 3), clip_hi, "amax",
                                             include_self=False)
-    return _FaceGrid(lo, h, dims, start, fid[order], box_lo, box_hi)
+    return _FaceGrid(lo, h, dims, start, per_cell, fid[order], box_lo, box_hi)
 
 
 def _cell_coords(key: torch.Tensor, dims: torch.Tensor) -> torch.Tensor:
@@ -394,35 +395,37 @@ def _grid_search(grid: _FaceGrid, table: torch.Tensor, p: torch.Tensor, u2: torc
     if not bool(ok.any()):
         return ok
     rows_pt = ok.nonzero().squeeze(1)
-    a, m, pp, uu2 = a[rows_pt], m[rows_pt], p[rows_pt], u2[rows_pt]
+    a, m, pp, uu2 = (x.index_select(0, rows_pt) for x in (a, m, p, u2))
     r = torch.arange(m_max)
     offs = torch.stack(torch.meshgrid(r, r, r, indexing="ij"), dim=-1).reshape(-1, 3)  # (S, 3)
     cell = torch.minimum(a[:, None] + offs[None], dims - 1)  # (n, S, 3)
     valid = (offs[None] < m[:, None]).all(-1)
-    key = (cell[..., 0] * dims[1] + cell[..., 1]) * dims[2] + cell[..., 2]
-    valid &= grid.start[key + 1] > grid.start[key]
-    pt, slot = valid.nonzero(as_tuple=True)
-    key = key[pt, slot]
+    key = ((cell[..., 0] * dims[1] + cell[..., 1]) * dims[2] + cell[..., 2]).view(-1)
+    count = grid.count.index_select(0, key)
+    flat = (valid.view(-1) & (count > 0)).nonzero().squeeze(1)
+    pt = flat // offs.shape[0]
+    key = key.index_select(0, flat)
     # keep the cells whose clipped face box meets the ball
-    q = pp[pt]
-    gap = (grid.box_lo[key] - q).clamp_min(0.0) + (q - grid.box_hi[key]).clamp_min(0.0)
-    near = torch.einsum("nk,nk->n", gap, gap) <= uu2[pt]
-    pt, key = pt[near], key[near]
-    first, count = grid.start[key], grid.start[key + 1] - grid.start[key]
+    q = pp.index_select(0, pt)
+    gap = ((grid.box_lo.index_select(0, key) - q).clamp_min_(0.0)
+           + (q - grid.box_hi.index_select(0, key)).clamp_min_(0.0))
+    near = (torch.einsum("nk,nk->n", gap, gap) <= uu2.index_select(0, pt)).nonzero().squeeze(1)
+    pt, key = pt.index_select(0, near), key.index_select(0, near)
+    first, count = grid.start.index_select(0, key), grid.count.index_select(0, key)
     pair_pt = torch.repeat_interleave(pt, count)
     offset = torch.repeat_interleave(first - (torch.cumsum(count, 0) - count), count)
-    faces = grid.faces[torch.arange(pair_pt.numel()) + offset]
-    # bounding-sphere lower bound |p - c_f| - r_f, then exact distances for the survivors
+    faces = grid.faces.index_select(0, torch.arange(pair_pt.numel()) + offset)
+    # bounding-sphere test |p - c_f| <= u + r_f, then exact distances for the survivors
     ppt = pp.t().contiguous()
     g = _gather_rows(table, faces, range(20, 24))
     q = _gather_rows(ppt, pair_pt, range(3))
     dx, dy, dz = q[0] - g[0], q[1] - g[1], q[2] - g[2]
-    lb = ((dx * dx + dy * dy + dz * dz).sqrt() - g[3]).clamp_min(0.0)
-    keep = (lb * lb <= uu2[pair_pt]).nonzero().squeeze(1)
+    reach = uu2.sqrt().index_select(0, pair_pt).add_(g[3])  # u + r_f
+    keep = (dx * dx + dy * dy + dz * dz <= reach.square_()).nonzero().squeeze(1)
     pair_pt, faces = pair_pt.index_select(0, keep), faces.index_select(0, keep)
     d2 = _pair_d2(table, torch.stack([c.index_select(0, keep) for c in q]), faces)
     m2 = uu2.clone().scatter_reduce_(0, pair_pt, d2, reduce="amin")
-    win = d2 <= m2[pair_pt]
+    win = d2 <= m2.index_select(0, pair_pt)
     bf = best_f[rows_pt]
     bf[pair_pt[win]] = faces[win]
     u2[rows_pt] = m2
@@ -430,7 +433,7 @@ def _grid_search(grid: _FaceGrid, table: torch.Tensor, p: torch.Tensor, u2: torc
     return ok
 
 
-def _closest_faces(tri64: torch.Tensor, p64: torch.Tensor, block: int = 1 << 16) -> torch.Tensor:
+def _closest_faces(tri64: torch.Tensor, p64: torch.Tensor, block: int = 1 << 13) -> torch.Tensor:
     """Index of the exact closest face of every point (float64 CPU search), ``(N,)``.
 
     1. A KD-tree over face centroids gives each point a nearby face and so an upper
