@@ -390,3 +390,14 @@ def test_more_bad_input():
         elevate_bezier(torch.zeros(4, 2), -2)
     with pytest.raises(TypeError, match="order"):
         bezier_derivative(torch.zeros(4, 2), 1.5)
+
+
+def test_per_curve_t_must_broadcast_with_the_curves():
+    cp = torch.randn(2, 4, 2)
+    assert bezier(cp, torch.rand(2, 5)).shape == (2, 5, 2)  # one row of t per curve
+    assert bezier(cp[0], torch.rand(3, 5)).shape == (3, 5, 2)  # one curve, 3 rows of t
+    clash = r"batch dims do not broadcast: control_points \(2\), t \(3\)"
+    with pytest.raises(ShapeError, match=clash):
+        bezier(cp, torch.rand(3, 5))
+    with pytest.raises(ShapeError, match="control_points"):
+        cubic_bezier(cp, torch.rand(3, 5))

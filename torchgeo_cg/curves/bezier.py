@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_div, safe_norm, safe_sqrt
 from torchgeo_cg.curves.bernstein import _check_degree, bernstein_basis
 
@@ -87,6 +87,8 @@ def _check_fixed_degree(control_points: torch.Tensor, degree: int, name: str) ->
 def _check_t(t: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     check_float(t, "t")
     check_shape(t, ["*", "T"], "t")
+    if t.dim() > 1:  # per-curve parameters: their batch must broadcast with the curves'
+        check_broadcastable({"control_points": like.shape[:-2], "t": t.shape[:-1]})
     dtype = torch.promote_types(t.dtype, like.dtype)
     return t.to(dtype)
 
