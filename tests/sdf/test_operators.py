@@ -117,6 +117,10 @@ def test_bad_input():
         O.smooth_union(a, a, "1")
     with pytest.raises(TypeError, match="floating-point"):
         O.union(a, torch.zeros(3, dtype=torch.long))
+    for op in (O.union, O.intersection, O.difference, O.smooth_union, O.product):
+        with pytest.raises(ValueError, match=r"do not broadcast: sdf\[0\] \(3\), sdf\[1\] \(4\)"):
+            op(a, torch.zeros(4))
+    assert O.union(a, torch.zeros(2, 1)).shape == (2, 3)  # broadcasting stays allowed
     with pytest.raises(ValueError, match="factor"):
         O.scale(P.sphere, -1.0)
     with pytest.raises(ValueError, match="factor"):

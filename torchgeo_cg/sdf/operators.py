@@ -22,7 +22,7 @@ from collections.abc import Callable
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 
 __all__ = [
     "union",
@@ -49,8 +49,10 @@ SDF = Callable[[torch.Tensor], torch.Tensor]
 
 
 def _values(*values: torch.Tensor) -> None:
+    """Check that the fields are float tensors whose shapes broadcast (names ``sdf[i]``)."""
     for i, v in enumerate(values):
         check_float(v, f"sdf[{i}]")
+    check_broadcastable({f"sdf[{i}]": v.shape for i, v in enumerate(values)})
 
 
 def union(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tensor:
