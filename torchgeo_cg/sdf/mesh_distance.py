@@ -15,8 +15,10 @@ Search (exact, no loop over points or faces). A KD-tree over face centroids
 nearby face, hence an upper bound ``u`` on its distance. A pyramid of uniform grids
 bins the faces by bounding box (CSR, built with sort and bincount); each point scans
 only the cells whose content meets its ball of radius ``u``, prunes with each face's
-bounding sphere (``|p - c_f| - r_f <= d(p, f)``), and takes the exact point-triangle
-distance of the survivors, so no face that could be closer is ever skipped. The
+bounding sphere (``|p - c_f| - r_f <= d(p, f)``) and then with the tighter bound of its
+bounding disc in the face's plane; the exact distance to the face of smallest bound
+tightens ``u``, and only the faces whose bound is within it get the exact
+point-triangle distance, so no face that could be closer is ever skipped. The
 search runs in float64 on the CPU (structure-of-arrays, one contiguous kernel per
 operation); the distance and closest point are then recomputed on the chosen face in
 the input dtype and device, so they are differentiable w.r.t. points and vertices.
@@ -415,16 +417,37 @@ def _grid_search(grid: _FaceGrid, table: torch.Tensor, p: torch.Tensor, u2: torc
     pair_pt = torch.repeat_interleave(pt, count)
     offset = torch.repeat_interleave(first - (torch.cumsum(count, 0) - count), count)
     faces = grid.faces.index_select(0, torch.arange(pair_pt.numel()) + offset)
-    # bounding-sphere test |p - c_f| <= u + r_f, then exact distances for the survivors
+    # bounding-sphere test |p - c_f| <= u + r_f (cheap), then a tighter lower bound of
+    # d(p, f)^2 from the face's disc (centre c_f, radius r_f, in the face's plane): with
+    # w = p - c_f and n the unit normal, d^2 >= (w.n)^2 + max(0, |w - (w.n) n| - r_f)^2
     ppt = pp.t().contiguous()
     g = _gather_rows(table, faces, range(20, 24))
     q = _gather_rows(ppt, pair_pt, range(3))
-    dx, dy, dz = q[0] - g[0], q[1] - g[1], q[2] - g[2]
+    wx, wy, wz = q[0] - g[0], q[1] - g[1], q[2] - g[2]
+    ww = wx * wx + wy * wy + wz * wz
     reach = uu2.sqrt().index_select(0, pair_pt).add_(g[3])  # u + r_f
-    keep = (dx * dx + dy * dy + dz * dz <= reach.square_()).nonzero().squeeze(1)
+    keep = (ww <= reach.square_()).nonzero().squeeze(1)
     pair_pt, faces = pair_pt.index_select(0, keep), faces.index_select(0, keep)
-    d2 = _pair_d2(table, torch.stack([c.index_select(0, keep) for c in q]), faces)
-    m2 = uu2.clone().scatter_reduce_(0, pair_pt, d2, reduce="amin")
+    wx, wy, wz, ww, r = (x.index_select(0, keep) for x in (wx, wy, wz, ww, g[3]))
+    q = [c.index_select(0, keep) for c in q]
+    n = _gather_rows(table, faces, (9, 10, 11))
+    h2 = (wx * n[0] + wy * n[1] + wz * n[2]).square_()
+    lb = (ww - h2).clamp_min_(0.0).sqrt_().sub_(r).clamp_min_(0.0).square_().add_(h2)
+    # rounding slack: the bound must never exceed the computed distance of the face
+    lb.sub_(ww.add_(r.square()), alpha=1e-12)
+    # the exact distance to the face of smallest bound of each point tightens u; then
+    # only the faces whose bound is within the tightened u are evaluated
+    lmin = uu2.new_full(uu2.shape, math.inf).scatter_reduce_(0, pair_pt, lb, reduce="amin")
+    sel = lb <= lmin.index_select(0, pair_pt)
+    one = sel.nonzero().squeeze(1)
+    pt1, f1 = pair_pt.index_select(0, one), faces.index_select(0, one)
+    d2_1 = _pair_d2(table, torch.stack([c.index_select(0, one) for c in q]), f1)
+    m2 = uu2.clone().scatter_reduce_(0, pt1, d2_1, reduce="amin")
+    keep = ((lb <= m2.index_select(0, pair_pt)) & ~sel).nonzero().squeeze(1)
+    pt2, f2 = pair_pt.index_select(0, keep), faces.index_select(0, keep)
+    d2_2 = _pair_d2(table, torch.stack([c.index_select(0, keep) for c in q]), f2)
+    pair_pt, faces, d2 = torch.cat([pt1, pt2]), torch.cat([f1, f2]), torch.cat([d2_1, d2_2])
+    m2.scatter_reduce_(0, pt2, d2_2, reduce="amin")
     win = d2 <= m2.index_select(0, pair_pt)
     bf = best_f[rows_pt]
     bf[pair_pt[win]] = faces[win]
@@ -442,7 +465,8 @@ def _closest_faces(tri64: torch.Tensor, p64: torch.Tensor, block: int = 1 << 13)
        Each point scans the faces of the cells whose content box (the faces' boxes
        clipped to the cell) meets its ball of radius ``u``, on the finest level where
        the ball spans at most 2 (else 4, else 8) cells per axis; a bounding-sphere
-       test prunes, exact distances decide. The coarsest level has at most 2 cells per
+       then a bounding-disc test prune, the exact distance to the face of smallest
+       disc bound tightens ``u``, exact distances of the faces within it decide. The coarsest level has at most 2 cells per
        axis, so every point is resolved.
     """
     from scipy.spatial import cKDTree
