@@ -151,6 +151,16 @@ def scaling(factor: torch.Tensor | float, per_axis: bool | None = None) -> torch
 def scale_x(factor: torch.Tensor | float) -> torch.Tensor:
     """X-wise scale ``Xs(f) = diag(f, 1, 1)`` (report Table 2, ``scaleX``).
 
+    Convention:
+        Column vectors (``p' = M @ [x, y, 1]``); scales the x coordinate about the
+        origin. ``f < 0`` mirrors, ``f = 0`` gives a singular matrix (allowed).
+
+    Args:
+        factor: ``(*)`` float tensor or a number.
+
+    Returns:
+        ``(*, 3, 3)``.
+
     Example:
         >>> scale_x(torch.tensor([2.0, 3.0]))[:, 0, 0]
         tensor([2., 3.])
@@ -161,6 +171,16 @@ def scale_x(factor: torch.Tensor | float) -> torch.Tensor:
 
 def scale_y(factor: torch.Tensor | float) -> torch.Tensor:
     """Y-wise scale ``Ys(f) = diag(1, f, 1)`` (report Table 2, ``scaleY``).
+
+    Convention:
+        Column vectors (``p' = M @ [x, y, 1]``); scales the y coordinate about the
+        origin. ``f < 0`` mirrors, ``f = 0`` gives a singular matrix (allowed).
+
+    Args:
+        factor: ``(*)`` float tensor or a number.
+
+    Returns:
+        ``(*, 3, 3)``.
 
     Example:
         >>> scale_y(0.5)[1, 1]

@@ -71,6 +71,17 @@ class TRSTransform(nn.Module):
 class HomogeneousTransform(nn.Module):
     """A fixed or learnable ``(*, 3, 3)`` matrix applied with :func:`transform_points`.
 
+    Convention:
+        Column vectors, ``p' = M @ [x, y, 1]`` then the perspective divide (``w`` near
+        0 divides by ``±eps``). The matrix is a parameter when ``learnable`` (entries
+        trained freely, no normalization of ``M[2, 2]``), else a buffer; ``.to()``
+        moves it either way.
+
+    Args:
+        matrix: ``(*, 3, 3)`` float, copied.
+        learnable: register it as a ``nn.Parameter``.
+        eps: the divide's guard, as in :func:`transform_points`.
+
     Example:
         >>> m = HomogeneousTransform(torch.eye(3) * 2)
         >>> m(torch.tensor([[1.0, 2.0]])).detach()

@@ -118,6 +118,10 @@ class Orbit(nn.Module):
 class FixedTransform(nn.Module):
     """A constant ``parent_from_node`` matrix, stored as a buffer so ``.to()`` moves it.
 
+    Convention:
+        Column vectors; ``forward(theta (*))`` returns the matrix expanded to
+        ``(*, 3, 3)`` in ``theta``'s dtype (the same for every time).
+
     Example:
         >>> FixedTransform(translation(torch.tensor([1.0, 2.0])))(torch.zeros(3)).shape
         torch.Size([3, 3, 3])
@@ -143,7 +147,15 @@ class _CallableTransform(nn.Module):
 
 
 class SceneGraph(nn.Module):
-    """A kinematic tree of named 2D frames; see the module docstring for conventions.
+    """A kinematic tree of named 2D frames.
+
+    Convention:
+        Column vectors. Each node has a ``parent_from_node`` local transform, a
+        module or callable mapping times ``theta (T,)`` to ``(T, 3, 3)``; a node's
+        world matrix is ``world_from_parent @ parent_from_node`` (the root's is its
+        local transform). Nodes are added parents first; ``world_transforms``
+        evaluates one tree level at a time, all nodes of a level and all times
+        batched. See the module docstring.
 
     Example:
         >>> scene = SceneGraph()
