@@ -466,8 +466,8 @@ def _closest_faces(tri64: torch.Tensor, p64: torch.Tensor, block: int = 1 << 13)
        clipped to the cell) meets its ball of radius ``u``, on the finest level where
        the ball spans at most 2 (else 4, else 8) cells per axis; a bounding-sphere
        then a bounding-disc test prune, the exact distance to the face of smallest
-       disc bound tightens ``u``, exact distances of the faces within it decide. The coarsest level has at most 2 cells per
-       axis, so every point is resolved.
+       disc bound tightens ``u``, exact distances of the faces within it decide. The
+       coarsest level has at most 2 cells per axis, so every point is resolved.
     """
     from scipy.spatial import cKDTree
 
