@@ -136,41 +136,18 @@ def cases(quick: bool = False) -> list[Case]:
                     "ours forward", target=3.0))
 
     vn, fn = ico.vertices, ico.faces
-    out.append(
-        Case(
-            f"reference: ours CC level 1 vs trimesh subdivide_loop level 1, {tag}",
-            lambda: apply_operator(ops[0], verts),
-            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
-            f"trimesh {trimesh.__version__} subdivide_loop",
-            target=None,
-        )
-    )
-    out.append(
-        Case(
-            f"reference: ours CC build+apply level 1 vs trimesh subdivide_loop, {tag}",
-            lambda: apply_operator(catmull_clark_operator(faces, V), verts),
-            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
-            f"trimesh {trimesh.__version__} subdivide_loop",
-            target=None,
-        )
-    )
     loop_op = loop_operator(faces, V)
-    out.append(
-        Case(
-            f"reference: ours Loop level 1 (prebuilt) vs trimesh subdivide_loop, {tag}",
-            lambda: apply_operator(loop_op, verts),
-            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
-            f"trimesh {trimesh.__version__} subdivide_loop",
-            target=None,
-        )
-    )
-    out.append(
-        Case(
-            f"reference: ours Loop build+apply level 1 vs trimesh subdivide_loop, {tag}",
+    peer = "trimesh subdivide_loop"
+    references = {  # name -> ours; each runs against trimesh's Loop scheme at level 1
+        f"ours CC level 1 vs {peer} level 1": lambda: apply_operator(ops[0], verts),
+        f"ours CC build+apply level 1 vs {peer}":
+            lambda: apply_operator(catmull_clark_operator(faces, V), verts),
+        f"ours Loop level 1 (prebuilt) vs {peer}": lambda: apply_operator(loop_op, verts),
+        f"ours Loop build+apply level 1 vs {peer}":
             lambda: apply_operator(loop_operator(faces, V), verts),
-            lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
-            f"trimesh {trimesh.__version__} subdivide_loop",
-            target=None,
-        )
-    )
+    }
+    for label, ours in references.items():
+        out.append(Case(f"reference: {label}, {tag}", ours,
+                        lambda: trimesh.remesh.subdivide_loop(vn, fn, iterations=1),
+                        f"trimesh {trimesh.__version__} subdivide_loop", target=None))
     return out
