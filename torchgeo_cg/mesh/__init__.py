@@ -18,6 +18,7 @@ from torchgeo_cg.mesh.subdivision import (
     catmull_clark_operator,
     limit_positions,
 )
+from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
 __all__ += ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
@@ -31,3 +32,4 @@ __all__ += [
     "limit_positions",
 ]
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
+__all__ += ["SubdivisionTags", "INFINITELY_SHARP"]

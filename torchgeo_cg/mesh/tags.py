@@ -1,0 +1,60 @@
+"""Subdivision tags: creases, corners and holes, with OpenSubdiv's meaning of sharpness.
+
+The tags travel with a control mesh from the file that holds them (OpenSubdiv's ``t``
+lines in OBJ, see :mod:`torchgeo_cg.mesh.io`) to the subdivision operators
+(:mod:`torchgeo_cg.mesh.subdivision`, :mod:`torchgeo_cg.mesh.loop`).
+
+Convention:
+    Sharpness is OpenSubdiv's: ``0`` is smooth, values ``>= 10`` are infinitely sharp,
+    and a semi-sharp value ``s`` is used for ``ceil(s)`` levels, decreasing by 1 per
+    level (``"uniform"``) or by OpenSubdiv's Chaikin rule (``"chaikin"``). Creases are
+    undirected vertex pairs ``(a, b)`` that must be edges of the mesh; corners are vertex
+    ids; holes are face ids (rows of ``faces``).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+__all__ = ["SubdivisionTags", "INFINITELY_SHARP"]
+
+INFINITELY_SHARP = 10.0
+"""OpenSubdiv's ``SHARPNESS_INFINITE``: a sharpness at or above it never decays."""
+
+
+class SubdivisionTags(NamedTuple):
+    """Sharp creases, corners and holes of a control mesh.
+
+    Attributes:
+        creases: ``(E, 2)`` long, vertex pairs of the creased edges.
+        crease_sharpness: ``(E,)`` float, sharpness of each crease.
+        corners: ``(C,)`` long, vertex ids of the corners.
+        corner_sharpness: ``(C,)`` float, sharpness of each corner.
+        holes: ``(H,)`` long, ids of the faces that are holes.
+
+    Example:
+        >>> tags = SubdivisionTags.empty()
+        >>> tags.creases.shape, tags.holes.shape
+        (torch.Size([0, 2]), torch.Size([0]))
+    """
+
+    creases: torch.Tensor
+    crease_sharpness: torch.Tensor
+    corners: torch.Tensor
+    corner_sharpness: torch.Tensor
+    holes: torch.Tensor
+
+    @classmethod
+    def empty(cls, dtype: torch.dtype = torch.float32, device=None) -> SubdivisionTags:
+        """Tags with no crease, corner or hole (the untagged mesh)."""
+        long = {"dtype": torch.long, "device": device}
+        real = {"dtype": dtype, "device": device}
+        return cls(
+            creases=torch.zeros(0, 2, **long),
+            crease_sharpness=torch.zeros(0, **real),
+            corners=torch.zeros(0, **long),
+            corner_sharpness=torch.zeros(0, **real),
+            holes=torch.zeros(0, **long),
+        )
