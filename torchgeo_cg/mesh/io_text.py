@@ -1,0 +1,284 @@
+"""Text mesh files (OBJ, ASCII PLY, OFF) as numpy byte arrays, with line-exact errors.
+
+The whole file is handled as one ``uint8`` array: lines are found with one
+vectorized search for ``\\n``, the lines of one kind are gathered into one blob
+and their numbers are converted in bulk (``np.fromstring``). Only when a bulk
+check fails is the offending line looked for, so every error names the file and
+the line while the hot path has no Python loop over lines.
+
+Convention:
+    - Lines are numbered from 1 as a text editor shows them (physical lines): a
+      line joined to the next by a trailing backslash keeps its own number, and
+      the lines after it keep theirs.
+    - A UTF-8 byte-order mark is skipped; ``\\r\\n`` and a lone ``\\r`` end a line.
+    - Bytes below 0x20 other than tab, ``\\n``, ``\\r``, ``\\v`` and ``\\f`` mean
+      binary data, and non-ASCII bytes must be valid UTF-8: both raise.
+    - Every error is a ``ValueError`` reading ``"<file>, line <n>: <what>"``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "TextLines",
+    "file_error",
+    "read_text",
+    "blank_comments",
+    "first_chars",
+    "chars_at",
+    "gather_lines",
+    "LineTokens",
+    "line_tokens",
+    "parse_numbers",
+]
+
+_BOM = b"\xef\xbb\xbf"
+_INT64 = np.iinfo(np.int64)
+
+
+def file_error(name: str, line: int | None, message: str) -> ValueError:
+    """The ``ValueError`` for a malformed file: ``"<name>, line <line>: <message>"``.
+
+    Example:
+        >>> print(file_error("m.obj", 3, "'v' needs 3 coordinates, got 2"))
+        m.obj, line 3: 'v' needs 3 coordinates, got 2
+    """
+    where = name if line is None else f"{name}, line {int(line)}"
+    return ValueError(f"{where}: {message}")
+
+
+class TextLines(NamedTuple):
+    """A text file split into lines, all arrays ``(L,)`` over its ``L`` lines.
+
+    Attributes:
+        name: the file name used in error messages.
+        buf: ``(N,)`` uint8, a private writable copy of the text, ending with ``\\n``
+            (continuations and ``\\r`` already replaced, byte offsets unchanged).
+        starts: ``(L,)`` int64, offset of each line's first byte.
+        ends: ``(L,)`` int64, offset of each line's ``\\n``.
+        numbers: ``(L,)`` int64, the physical line number of each line (1-based).
+    """
+
+    name: str
+    buf: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    numbers: np.ndarray
+
+    def line_number_at(self, offset: int) -> int:
+        """The physical line number holding byte ``offset`` of ``buf``."""
+        line = int(np.searchsorted(self.ends, offset, side="left"))
+        return int(self.numbers[min(line, len(self.numbers) - 1)])
+
+
+def _check_bytes(buf: np.ndarray, raw: bytes, name: str, first_line: int) -> None:
+    """Refuse binary data (control bytes) and invalid UTF-8, naming the line."""
+    control = (buf < 9) | ((buf > 13) & (buf < 32))
+    if control.any():
+        at = int(np.argmax(control))
+        line = first_line + int(np.count_nonzero(buf[:at] == 10))
+        raise file_error(name, line, f"binary data (byte 0x{int(buf[at]):02x}), not a text file")
+    if not raw.isascii():
+        try:
+            raw.decode("utf-8")
+        except UnicodeDecodeError as err:
+            line = first_line + raw.count(b"\n", 0, err.start)
+            raise file_error(name, line, f"not valid UTF-8 text ({err.reason})") from None
+
+
+def _join_continuations(buf: np.ndarray) -> np.ndarray:
+    """Blank ``\\`` + line break pairs in place; return the offsets of the joined ``\\n``."""
+    slash = np.flatnonzero(buf[:-1] == 92)
+    nxt = buf[slash + 1]
+    crlf = (nxt == 13) & (buf[np.minimum(slash + 2, len(buf) - 1)] == 10)
+    cont = (nxt == 10) | crlf
+    slash, crlf = slash[cont], crlf[cont]
+    newline = slash + 1 + crlf
+    buf[slash] = 32
+    buf[slash + 1] = 32
+    buf[newline] = 32
+    return newline
+
+
+def read_text(
+    data: bytes, name: str, offset: int = 0, first_line: int = 1, continuations: bool = False
+) -> TextLines:
+    """Split ``data[offset:]`` into lines after checking that it is text.
+
+    Args:
+        data: the raw file bytes.
+        name: file name for the error messages.
+        offset: where the text starts (a PLY body); a BOM there is skipped.
+        first_line: the physical line number of the first line.
+        continuations: join a line ending with ``\\`` to the next (OBJ).
+
+    Returns:
+        :class:`TextLines`.
+
+    Raises:
+        ValueError: binary data or invalid UTF-8, naming the line.
+
+    Example:
+        >>> t = read_text(b"\\xef\\xbb\\xbfv 1 2 3\\r\\nf 1 \\\\\\n 2 3", "m.obj", continuations=True)
+        >>> t.numbers.tolist(), bytes(t.buf[t.starts[1]:t.ends[1]])
+        ([1, 2], b'f 1    2 3')
+    """
+    if data.startswith(_BOM, offset):
+        offset += len(_BOM)
+    raw = data[offset:]
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    _check_bytes(buf, raw, name, first_line)
+    buf = np.concatenate([buf, np.full(1 if not raw.endswith(b"\n") else 0, 10, np.uint8)])
+    joined = np.zeros(0, dtype=np.int64)
+    if continuations and b"\\" in raw:
+        joined = _join_continuations(buf)
+    if b"\r" in raw:
+        cr = np.flatnonzero(buf == 13)
+        buf[cr] = np.where(buf[cr + 1] == 10, 32, 10)  # "\r\n" -> " \n", lone "\r" -> "\n"
+    ends = np.flatnonzero(buf == 10)
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    numbers = first_line + np.arange(len(ends)) + np.searchsorted(joined, starts)
+    return TextLines(name, buf, starts, ends, numbers)
+
+
+def blank_comments(text: TextLines, marker: int = 35) -> None:
+    """Blank, in place, every byte from a ``#`` (``marker``) to the end of its line."""
+    hashes = np.flatnonzero(text.buf == marker)
+    if hashes.size == 0:
+        return
+    line = np.searchsorted(text.ends, hashes)
+    first = np.concatenate([[True], line[1:] != line[:-1]])
+    delta = np.zeros(len(text.buf) + 1, dtype=np.int8)
+    delta[hashes[first]] += 1
+    delta[text.ends[line[first]]] -= 1
+    text.buf[np.cumsum(delta[:-1], dtype=np.int8).view(bool)] = 32
+
+
+def first_chars(text: TextLines) -> np.ndarray:
+    """``(L,)`` int64 offset of each line's first non-blank byte (its ``\\n`` if blank)."""
+    buf, pos = text.buf, text.starts.copy()
+    c = buf[pos]
+    lead = np.flatnonzero((c == 32) | (c == 9) | (c == 11) | (c == 12))
+    while lead.size:  # loop over the depth of leading blanks, not over lines
+        pos[lead] += 1
+        c = buf[pos[lead]]
+        lead = lead[(c == 32) | (c == 9) | (c == 11) | (c == 12)]
+    return pos
+
+
+def chars_at(text: TextLines, pos: np.ndarray, width: int) -> np.ndarray:
+    """``(M, width)`` uint8 bytes from each offset ``pos``, stopped at the first blank (0 after)."""
+    cols = np.minimum(pos[:, None] + np.arange(width), len(text.buf) - 1)
+    chars = text.buf[cols]
+    return np.where(np.cumsum(chars <= 32, axis=1) > 0, 0, chars).astype(np.uint8)
+
+
+def gather_lines(text: TextLines, lines: np.ndarray, begin: np.ndarray) -> tuple:
+    """One blob holding bytes ``begin[i] .. ends[lines[i]]`` (its ``\\n`` included) of each line.
+
+    Args:
+        text: the file.
+        lines: ``(M,)`` increasing line indices.
+        begin: ``(M,)`` first offset to keep on each line (after its keyword).
+
+    Returns:
+        ``(blob (B,) uint8, seg_starts (M,) int64)``, a view when the lines are
+        consecutive and ``begin`` is their start (the usual OBJ/PLY block).
+    """
+    ends = text.ends[lines] + 1
+    if lines.size == 0:
+        return np.zeros(0, np.uint8), np.zeros(0, np.int64)
+    contiguous = lines[-1] - lines[0] + 1 == lines.size and (begin == text.starts[lines]).all()
+    if contiguous:
+        return text.buf[begin[0] : ends[-1]], begin - begin[0]
+    delta = np.zeros(len(text.buf) + 1, dtype=np.int8)
+    delta[begin] += 1
+    delta[ends] -= 1
+    keep = np.cumsum(delta[:-1], dtype=np.int8).view(bool)
+    lengths = ends - begin
+    return text.buf[keep], np.concatenate([[0], np.cumsum(lengths)[:-1]])
+
+
+class LineTokens(NamedTuple):
+    """Blank-separated tokens of gathered lines.
+
+    Attributes:
+        counts: ``(M,)`` int64, tokens on each line.
+        starts: ``(T,)`` int64, offset in the blob of each token's first byte.
+        lengths: ``(T,)`` int64, bytes in each token.
+        line: ``(T,)`` int64, the gathered line (``0 .. M-1``) of each token.
+    """
+
+    counts: np.ndarray
+    starts: np.ndarray
+    lengths: np.ndarray
+    line: np.ndarray
+
+
+def line_tokens(blob: np.ndarray, seg_starts: np.ndarray) -> LineTokens:
+    """Tokens of the lines gathered in ``blob`` (see :func:`gather_lines`), vectorized."""
+    if blob.size == 0:
+        empty = np.zeros(0, np.int64)
+        return LineTokens(np.zeros(len(seg_starts), np.int64), empty, empty, empty)
+    blank = blob <= 32
+    before = np.concatenate([[True], blank[:-1]])
+    after = np.concatenate([blank[1:], [True]])
+    start_mask = ~blank & before
+    counts = np.add.reduceat(start_mask.view(np.uint8), seg_starts, dtype=np.int64)
+    starts = np.flatnonzero(start_mask)
+    lengths = np.flatnonzero(~blank & after) - starts + 1
+    line = np.repeat(np.arange(len(seg_starts)), counts)
+    return LineTokens(counts, starts, lengths, line)
+
+
+def _first_bad_line(blob, seg_starts, counts, dtype) -> tuple[int, str]:
+    """Error path only: the first gathered line whose numbers do not parse."""
+    bounds = np.append(seg_starts, len(blob))
+    for i in range(len(seg_starts)):  # runs only after a bulk parse failed
+        seg = blob[bounds[i] : bounds[i + 1]].tobytes()
+        tokens = seg.split()
+        kind = "an integer" if dtype == np.int64 else "a number"
+        for tok in tokens:
+            if tok in (b"-", b"+"):
+                return i, f"expected {kind}, got {tok.decode(errors='replace')!r}"
+            try:
+                got = np.fromstring(tok, dtype=dtype, sep=" ")
+            except ValueError:
+                got = ()
+            if len(got) != 1:
+                return i, f"expected {kind}, got {tok.decode(errors='replace')!r}"
+    return 0, "could not read the numbers"  # pragma: no cover - the bulk parse disagreed
+
+
+def parse_numbers(
+    text: TextLines, lines: np.ndarray, blob: np.ndarray, seg_starts: np.ndarray,
+    tokens: LineTokens, dtype=np.float64,
+) -> np.ndarray:
+    """All tokens of the gathered lines as one flat ``float64`` or ``int64`` array.
+
+    Raises:
+        ValueError: a token is not a number (or an integer out of the int64 range),
+            naming the file and its line.
+    """
+    total = int(tokens.counts.sum())
+    if total == 0:
+        return np.zeros(0, dtype=dtype)
+    bare_sign = (tokens.lengths == 1) & ((blob[tokens.starts] == 45) | (blob[tokens.starts] == 43))
+    values = None
+    if not bare_sign.any():
+        try:
+            values = np.fromstring(blob.tobytes(), dtype=dtype, sep=" ")
+        except ValueError:
+            values = None
+    if values is None or len(values) != total:
+        i, message = _first_bad_line(blob, seg_starts, tokens.counts, dtype)
+        raise file_error(text.name, text.numbers[lines[i]], message)
+    if dtype == np.int64:
+        clipped = (values == _INT64.max) | (values == _INT64.min)
+        if clipped.any():
+            line = text.numbers[lines[tokens.line[int(np.argmax(clipped))]]]
+            raise file_error(text.name, line, "integer out of range")
+    return values
