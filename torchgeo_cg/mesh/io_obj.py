@@ -124,12 +124,12 @@ def _corner_forms(text, lines, blob, tokens):
     n_slash = np.add.reduceat(slash.view(np.uint8), tokens.starts, dtype=np.int64)
     double = np.concatenate([slash[:-1] & slash[1:], [False]])
     n_double = np.add.reduceat(double.view(np.uint8), tokens.starts, dtype=np.int64)
-    ends = tokens.starts + tokens.lengths - 1
+    ends = tokens.ends(blob)
     bad = (n_slash > 2) | (n_double > 1) | slash[tokens.starts] | slash[ends]
     if bad.any():
         t = int(np.argmax(bad))
         corner = blob[tokens.starts[t] : ends[t] + 1].tobytes().decode(errors="replace")
-        raise file_error(text.name, text.numbers[lines[tokens.line[t]]],
+        raise file_error(text.name, text.numbers[lines[tokens.line()[t]]],
                          f"malformed face corner {corner!r}")
     blob[slash] = 32
     return np.where(n_slash == 0, 0, np.where(n_slash == 1, 1, np.where(n_double == 1, 3, 2)))
@@ -155,6 +155,9 @@ def _check_uniform_forms(text, lines, forms, starts_f):
 
 def _resolve(text, lines, idx, corner_line, kind_lines, total, what, plural):
     """OBJ indices (1-based, negative relative) -> 0-based, range checked."""
+    if idx.size == 0 or (idx.min() > 0 and idx.max() <= total):
+        return idx - 1
+    corner_line = corner_line()
     if (idx == 0).any():
         t = int(np.argmax(idx == 0))
         raise file_error(text.name, text.numbers[lines[corner_line[t]]],
@@ -202,7 +205,11 @@ def _faces(text, kinds, pos, n_verts, n_uvs):
     has_vt = _check_uniform_forms(text, lines, forms, starts_f)
     numbers = line_tokens(blob, segs) if forms.any() else corners
     values = parse_numbers(text, lines, blob, segs, numbers, np.int64)
-    first = np.cumsum(np.array([1, 2, 3, 2])[forms]) - np.array([1, 2, 3, 2])[forms]
+    if forms.any():
+        n_numbers = np.array([1, 2, 3, 2])[forms]
+        first = np.cumsum(n_numbers) - n_numbers
+    else:
+        first = slice(None)
     vi = _resolve(text, lines, values[first], corners.line, kinds["v"], n_verts, "vertex",
                   "vertices")
     faces = _pad(vi, corners.counts)

@@ -261,6 +261,18 @@ def _binary_list_element(data, pos, el, end, where) -> tuple[_Records, int]:
     pre_dt, post_dt = _struct(el.props[:li], end), _struct(el.props[li + 1:], end)
     cdt, idt = np.dtype(end + lp.count_dtype), np.dtype(end + lp.dtype)
     starts, total = _list_starts(data, pos, el, end, pre_dt.itemsize, post_dt.itemsize)
+    if total is not None:  # every record has the same size: one structured view
+        k = (total // max(el.count, 1) - pre_dt.itemsize - cdt.itemsize - post_dt.itemsize)
+        k //= idt.itemsize
+        fields = [(p.name, end + p.dtype) for p in el.props if p is not lp]
+        fields.insert(li, (lp.name, idt, (k,)))
+        fields.insert(li, (lp.name + " count", cdt))
+        raw = np.frombuffer(data, np.dtype(fields), el.count, pos)
+        items = raw[lp.name].astype(np.float64 if idt.kind == "f" else np.int64)
+        scalars = {n: raw[n].astype(np.float64) for n, *_ in fields if n not in
+                   (lp.name, lp.name + " count")}
+        degrees = np.full(el.count, k, dtype=np.int64)
+        return _Records(scalars, items.reshape(el.count, k), degrees, where), total
     body = np.frombuffer(data, np.uint8, offset=pos)
     past = starts + pre_dt.itemsize + cdt.itemsize > len(body)
     if past.any():

@@ -208,30 +208,31 @@ class LineTokens(NamedTuple):
     Attributes:
         counts: ``(M,)`` int64, tokens on each line.
         starts: ``(T,)`` int64, offset in the blob of each token's first byte.
-        lengths: ``(T,)`` int64, bytes in each token.
-        line: ``(T,)`` int64, the gathered line (``0 .. M-1``) of each token.
     """
 
     counts: np.ndarray
     starts: np.ndarray
-    lengths: np.ndarray
-    line: np.ndarray
+
+    def line(self) -> np.ndarray:
+        """``(T,)`` int64, the gathered line (``0 .. M-1``) of each token."""
+        return np.repeat(np.arange(len(self.counts)), self.counts)
+
+    def ends(self, blob: np.ndarray) -> np.ndarray:
+        """``(T,)`` int64, offset of each token's last byte."""
+        blank = blob <= 32
+        return np.flatnonzero(~blank & np.concatenate([blank[1:], [True]]))
 
 
 def line_tokens(blob: np.ndarray, seg_starts: np.ndarray) -> LineTokens:
     """Tokens of the lines gathered in ``blob`` (see :func:`gather_lines`), vectorized."""
     if blob.size == 0:
-        empty = np.zeros(0, np.int64)
-        return LineTokens(np.zeros(len(seg_starts), np.int64), empty, empty, empty)
+        return LineTokens(np.zeros(len(seg_starts), np.int64), np.zeros(0, np.int64))
     blank = blob <= 32
-    before = np.concatenate([[True], blank[:-1]])
-    after = np.concatenate([blank[1:], [True]])
-    start_mask = ~blank & before
-    counts = np.add.reduceat(start_mask.view(np.uint8), seg_starts, dtype=np.int64)
+    start_mask = ~blank
+    start_mask[1:] &= blank[:-1]
     starts = np.flatnonzero(start_mask)
-    lengths = np.flatnonzero(~blank & after) - starts + 1
-    line = np.repeat(np.arange(len(seg_starts)), counts)
-    return LineTokens(counts, starts, lengths, line)
+    bounds = np.searchsorted(starts, np.append(seg_starts, len(blob)))
+    return LineTokens(np.diff(bounds), starts)
 
 
 def _first_bad_line(blob, seg_starts, counts, dtype) -> tuple[int, str]:
@@ -266,9 +267,12 @@ def parse_numbers(
     total = int(tokens.counts.sum())
     if total == 0:
         return np.zeros(0, dtype=dtype)
-    bare_sign = (tokens.lengths == 1) & ((blob[tokens.starts] == 45) | (blob[tokens.starts] == 43))
+    bare_sign = False
+    if dtype == np.int64:  # numpy reads a bare "-" as the integer 0
+        signs = np.flatnonzero((blob == 45) | (blob == 43))
+        bare_sign = signs.size and (blob[np.minimum(signs + 1, len(blob) - 1)] <= 32).any()
     values = None
-    if not bare_sign.any():
+    if not bare_sign:
         try:
             values = np.fromstring(blob.tobytes(), dtype=dtype, sep=" ")
         except ValueError:
@@ -276,9 +280,9 @@ def parse_numbers(
     if values is None or len(values) != total:
         i, message = _first_bad_line(blob, seg_starts, tokens.counts, dtype)
         raise file_error(text.name, text.numbers[lines[i]], message)
-    if dtype == np.int64:
+    if dtype == np.int64 and (values.max() == _INT64.max or values.min() == _INT64.min):
         clipped = (values == _INT64.max) | (values == _INT64.min)
         if clipped.any():
-            line = text.numbers[lines[tokens.line[int(np.argmax(clipped))]]]
+            line = text.numbers[lines[tokens.line()[int(np.argmax(clipped))]]]
             raise file_error(text.name, line, "integer out of range")
     return values
