@@ -245,3 +245,27 @@ def test_ply_error_paths(tmp_path):
     )
     with pytest.raises(ValueError, match="lists.ply: no 'vertex' element"):
         load_mesh(tmp_path / "lists.ply")
+
+
+# ---------------------------------------------------------------------------
+# Malformed files: every case of the corpus raises the exact ValueError expected
+# ---------------------------------------------------------------------------
+
+from tests.mesh.malformed.make_corpus import CASES, TRIANGLE_OBJ, write_corpus  # noqa: E402
+
+
+def test_malformed_corpus_is_large_and_unique(tmp_path):
+    assert len(CASES) >= 60
+    assert len({c.name for c in CASES}) == len(CASES)
+    paths = write_corpus(tmp_path)
+    assert [p.read_bytes() for p in paths] == [c.content for c in CASES]
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_malformed_file_raises_value_error_naming_file_and_line(tmp_path, case):
+    path = tmp_path / case.name
+    path.write_bytes(case.content)
+    with pytest.raises(ValueError) as err:
+        load_mesh(path)
+    sep = "" if case.expected.startswith(":") else ", "
+    assert str(err.value).startswith(f"{path}{sep}{case.expected}"), str(err.value)

@@ -100,7 +100,8 @@ def _numbers_block(text, lines, pos, skip, allowed, what):
         i = int(np.argmax(bad))
         raise file_error(
             text.name, text.numbers[lines[i]],
-            f"{what} needs {' or '.join(map(str, allowed))} values, got {tokens.counts[i]}",
+            f"{what} needs {', '.join(map(str, allowed[:-1]))} or {allowed[-1]} values, "
+            f"got {tokens.counts[i]}",
         )
     values = parse_numbers(text, lines, blob, segs, tokens, np.float64)
     return values, tokens.counts

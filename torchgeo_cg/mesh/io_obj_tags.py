@@ -136,7 +136,8 @@ def _per_item(text, g: _Group, per: int, what: str):
     n_items = g.ints.shape[1] // per if g.ints.shape[1] % per == 0 else 0
     if n_items == 0 or g.floats.shape[1] not in (1, n_items) or g.strings.shape[1]:
         raise file_error(text.name, text.numbers[g.lines[0]],
-                         f"tag {what!r}: expected {per}k ints, 1 or k floats and no strings, got "
+                         f"tag {what!r}: expected {'2k' if per == 2 else 'k'} ints, 1 or k floats "
+                         "and no strings, got "
                          f"{g.ints.shape[1]}/{g.floats.shape[1]}/{g.strings.shape[1]}")
     items = g.ints.reshape(-1, per)
     sharp = np.broadcast_to(g.floats, (len(g.lines), n_items)).reshape(-1)

@@ -159,8 +159,8 @@ def _check_typed(name, where, values, dtype, what):
     bad = (values != np.floor(values)) | (values < info.min) | (values > info.max)
     if bad.any():
         i = int(np.argmax(bad.reshape(len(bad), -1).any(1)) if bad.ndim > 1 else np.argmax(bad))
-        raise where(i, f"{what}: expected a {np.dtype(dtype).name}, got "
-                       f"{values[i] if values.ndim == 1 else values[i][bad[i]][0]!r}")
+        got = values[i] if values.ndim == 1 else values[i][bad[i]][0]
+        raise where(i, f"{what}: expected a {np.dtype(dtype).name}, got {float(got)!r}")
 
 
 def _ascii_element(text, lines, el: PlyElement) -> _Records:
@@ -209,13 +209,15 @@ def _read_ascii(data, name, header: PlyHeader) -> dict:
     text = read_text(data, name, offset=header.body, first_line=header.body_line)
     pos = first_chars(text)
     records = np.flatnonzero(text.buf[pos] != 10)  # non-blank lines
-    want = sum(e.count for e in header.elements)
-    if len(records) < want:
-        raise file_error(name, None, f"the header declares {want} records but only "
-                         f"{len(records)} non-blank lines follow it")
-    if len(records) > want:
-        raise file_error(name, text.numbers[records[want]],
-                         f"extra line after the {want} declared records")
+    row = 0
+    for el in header.elements:  # check every count before reading anything
+        if el.count > len(records) - row:
+            raise file_error(name, el.line, f"element {el.name!r} declares {el.count} records, "
+                             f"but only {len(records) - row} non-blank lines are left for it")
+        row += el.count
+    if len(records) > row:
+        raise file_error(name, text.numbers[records[row]],
+                         f"extra line after the {row} declared records")
     out, row = {}, 0
     for el in header.elements:  # loop over element kinds
         out[el.name] = _ascii_element(text, records[row:row + el.count], el)
@@ -303,13 +305,8 @@ def _binary_list_element(data, pos, el, end, where) -> tuple[_Records, int]:
 
 
 def _min_record_bytes(el, end) -> int:
-    """Fewest bytes one record can take (faces need 3 list items)."""
-    size = 0
-    for p in el.props:
-        size += np.dtype(end + (p.count_dtype or p.dtype)).itemsize
-        if p.count_dtype and el.name == "face":
-            size += 3 * np.dtype(p.dtype).itemsize
-    return size
+    """Fewest bytes one record can take (its lists empty)."""
+    return sum(np.dtype(end + (p.count_dtype or p.dtype)).itemsize for p in el.props)
 
 
 def _read_binary(data, name, header: PlyHeader) -> dict:
