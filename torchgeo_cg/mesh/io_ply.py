@@ -262,6 +262,10 @@ def _binary_list_element(data, pos, el, end, where) -> tuple[_Records, int]:
     lp = el.props[li]
     pre_dt, post_dt = _struct(el.props[:li], end), _struct(el.props[li + 1:], end)
     cdt, idt = np.dtype(end + lp.count_dtype), np.dtype(end + lp.dtype)
+    if el.count == 0:
+        names = (pre_dt.names or ()) + (post_dt.names or ())
+        empty = np.zeros(0, np.int64)
+        return _Records({n: np.zeros(0) for n in names}, empty.reshape(0, 3), empty, where), 0
     starts, total = _list_starts(data, pos, el, end, pre_dt.itemsize, post_dt.itemsize)
     if total is not None:  # every record has the same size: one structured view
         k = (total // max(el.count, 1) - pre_dt.itemsize - cdt.itemsize - post_dt.itemsize)
