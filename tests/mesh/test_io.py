@@ -581,3 +581,8 @@ def test_damaged_files_raise_value_error_or_load(tmp_path_factory, name, data):
     assert mesh.verts.ndim == 2 and mesh.verts.shape[1] == 3
     if mesh.faces.shape[0]:
         assert ((mesh.faces >= 0).sum(1) >= 3).all() and int(mesh.faces.max()) < len(mesh.verts)
+
+
+def test_continuation_on_the_last_line(tmp_path):
+    mesh = _load_bytes(tmp_path, "end.obj", TRIANGLE_OBJ + b"f 1 2 \\\n3\\\n")
+    assert mesh.faces.tolist() == TRI

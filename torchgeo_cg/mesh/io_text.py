@@ -138,6 +138,8 @@ def read_text(
     if b"\r" in raw:
         cr = np.flatnonzero(buf == 13)
         buf[cr] = np.where(buf[cr + 1] == 10, 32, 10)  # "\r\n" -> " \n", lone "\r" -> "\n"
+    if buf[-1] != 10:  # a continuation joined the last line break
+        buf = np.concatenate([buf, np.full(1, 10, np.uint8)])
     ends = np.flatnonzero(buf == 10)
     starts = np.concatenate([[0], ends[:-1] + 1])
     numbers = first_line + np.arange(len(ends)) + np.searchsorted(joined, starts)
