@@ -112,10 +112,11 @@ def _uv_arrays(uvs, uv_faces, faces_fk: torch.Tensor):
     if uv_faces is None:
         return uvs_np, None
     uv_fk = pad_faces(uv_faces).cpu()
-    if uv_fk.shape[1] < faces_fk.shape[1]:
-        uv_fk = torch.cat([uv_fk, uv_fk.new_full((uv_fk.shape[0], faces_fk.shape[1] - uv_fk.shape[1]), -1)], 1)
-    if uv_fk.shape[0] != faces_fk.shape[0] or not torch.equal(uv_fk[:, : faces_fk.shape[1]] >= 0,
-                                                              faces_fk >= 0):
+    width = faces_fk.shape[1]
+    if uv_fk.shape[1] < width:
+        uv_fk = torch.cat([uv_fk, uv_fk.new_full((uv_fk.shape[0], width - uv_fk.shape[1]), -1)], 1)
+    same = uv_fk.shape[0] == faces_fk.shape[0] and not (uv_fk[:, width:] >= 0).any()
+    if not same or not torch.equal(uv_fk[:, :width] >= 0, faces_fk >= 0):
         raise ValueError(f"uv_faces: expected the padding of faces {tuple(faces_fk.shape)}, "
                          f"got shape {tuple(uv_fk.shape)} with other face sizes")
     uv_fk = check_faces(uv_fk[:, : faces_fk.shape[1]], uvs.shape[0], name="uv_faces",

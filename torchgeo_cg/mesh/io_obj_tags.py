@@ -28,7 +28,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from torchgeo_cg.mesh.io_text import TextLines, file_error, gather_lines, line_tokens
+from torchgeo_cg.mesh.io_text import (  # read_text: doctests
+    TextLines,
+    file_error,
+    gather_lines,
+    line_tokens,
+    read_text,  # noqa: F401
+)
 
 __all__ = ["ObjTags", "parse_tags", "format_tags", "OPTION_TAGS"]
 
@@ -122,7 +128,8 @@ def _groups(text: TextLines, lines: np.ndarray) -> list[_Group]:
         if bad.any():
             r = rows[int(np.argmax(bad))]
             raise file_error(text.name, text.numbers[lines[r]],
-                             f"tag {name!r} {spec} needs {ni + nf + ns} values, got {counts[r] - 2}")
+                             f"tag {name!r} {spec} needs {ni + nf + ns} values, "
+                             f"got {counts[r] - 2}")
         args = tokens[first[rows][:, None] + 2 + np.arange(ni + nf + ns)].reshape(len(rows), -1)
         groups.append(_Group(
             name, lines[rows], _numbers(args[:, :ni], np.int64, text, lines[rows]),
@@ -204,7 +211,14 @@ def _option(text, g: _Group, options: dict) -> None:
 
 
 def parse_tags(text: TextLines, lines: np.ndarray, n_verts: int, faces_fk: np.ndarray) -> ObjTags:
-    """Tags of the ``t`` lines ``lines`` (their ``t`` already blanked), checked against the mesh."""
+    r"""Tags of the ``t`` lines ``lines`` (their ``t`` already blanked), checked against the mesh.
+
+    Example:
+        >>> t = read_text(b"  crease 2/1/0 0 1 3\n  hole 1/0/0 0\n", "m.obj")
+        >>> tags = parse_tags(t, np.arange(2), 3, np.array([[0, 1, 2]]))
+        >>> tags.creases.tolist(), tags.crease_sharpness.tolist(), tags.holes.tolist()
+        ([[0, 1]], [3.0], [0])
+    """
     if lines.size == 0:
         return ObjTags.empty()
     parts = {"crease": [], "corner": [], "hole": []}
@@ -273,7 +287,8 @@ def format_tags(tags: ObjTags, precision: int) -> str:
         if isinstance(values, dict):
             word = {v: k for k, v in values.items()}.get(value)
             if word is None:
-                raise ValueError(f"options: {key}={value!r} is not one of {sorted(values.values())}")
+                raise ValueError(
+                    f"options: {key}={value!r} is not one of {sorted(values.values())}")
             out += f"t {tag} 0/0/1 {word}\n"
         else:
             if value not in values:

@@ -190,7 +190,7 @@ def _ascii_element(text, lines, el: PlyElement) -> _Records:
             raise where(i, f"element {el.name!r}: the list holds {degrees[i]} values, so the "
                            f"line needs {n_scalar + 1 + degrees[i]} values, got {tokens.counts[i]}")
     scalars, lists, col = {}, None, first.copy()
-    for k, p in enumerate(el.props):  # loop over properties
+    for p in el.props:  # loop over properties
         if p.count_dtype is None:
             scalars[p.name] = values[col]
             _check_typed(text.name, where, scalars[p.name], p.dtype, p.name)
@@ -361,7 +361,8 @@ def _mesh_of(name, header, records) -> tuple[np.ndarray, np.ndarray]:
         i = int(np.argmax(small))
         raise face.where(i, f"face {i} has {face.degrees[i]} vertices; a face needs at least 3")
     faces = face.lists.astype(np.int64)
-    bad = (faces >= len(verts)) | ((faces < 0) & (np.arange(faces.shape[1]) < face.degrees[:, None]))
+    used = np.arange(faces.shape[1]) < face.degrees[:, None]
+    bad = (faces >= len(verts)) | ((faces < 0) & used)
     if bad.any():
         i = int(np.argmax(bad.any(1)))
         raise face.where(i, f"face {i} has vertex index {int(faces[i][bad[i]][0])}, "

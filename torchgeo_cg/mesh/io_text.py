@@ -122,7 +122,8 @@ def read_text(
         ValueError: binary data or invalid UTF-8, naming the line.
 
     Example:
-        >>> t = read_text(b"\\xef\\xbb\\xbfv 1 2 3\\r\\nf 1 \\\\\\n 2 3", "m.obj", continuations=True)
+        >>> raw = b"\\xef\\xbb\\xbfv 1 2 3\\r\\nf 1 \\\\\\n 2 3"
+        >>> t = read_text(raw, "m.obj", continuations=True)
         >>> t.numbers.tolist(), bytes(t.buf[t.starts[1]:t.ends[1]])
         ([1, 2], b'f 1    2 3')
     """
@@ -147,7 +148,14 @@ def read_text(
 
 
 def blank_comments(text: TextLines, marker: int = 35) -> None:
-    """Blank, in place, every byte from a ``#`` (``marker``) to the end of its line."""
+    r"""Blank, in place, every byte from a ``#`` (``marker``) to the end of its line.
+
+    Example:
+        >>> t = read_text(b"v 1 2 3 # a # b\n# c\n", "m.obj")
+        >>> blank_comments(t)
+        >>> bytes(t.buf)
+        b'v 1 2 3        \n   \n'
+    """
     hashes = np.flatnonzero(text.buf == marker)
     if hashes.size == 0:
         return
@@ -160,7 +168,12 @@ def blank_comments(text: TextLines, marker: int = 35) -> None:
 
 
 def first_chars(text: TextLines) -> np.ndarray:
-    """``(L,)`` int64 offset of each line's first non-blank byte (its ``\\n`` if blank)."""
+    r"""``(L,)`` int64 offset of each line's first non-blank byte (its ``\n`` if blank).
+
+    Example:
+        >>> first_chars(read_text(b"v 1\n  \tf 1\n\n", "m.obj")).tolist()
+        [0, 7, 11]
+    """
     buf, pos = text.buf, text.starts.copy()
     c = buf[pos]
     lead = np.flatnonzero((c == 32) | (c == 9) | (c == 11) | (c == 12))
@@ -172,14 +185,20 @@ def first_chars(text: TextLines) -> np.ndarray:
 
 
 def chars_at(text: TextLines, pos: np.ndarray, width: int) -> np.ndarray:
-    """``(M, width)`` uint8 bytes from each offset ``pos``, stopped at the first blank (0 after)."""
+    r"""``(M, width)`` uint8 bytes from each offset ``pos``, stopped at the first blank (0 after).
+
+    Example:
+        >>> t = read_text(b"usemtl x\nvt 0 0\n", "m.obj")
+        >>> chars_at(t, first_chars(t), 8).view("S8").ravel().tolist()
+        [b'usemtl', b'vt']
+    """
     cols = np.minimum(pos[:, None] + np.arange(width), len(text.buf) - 1)
     chars = text.buf[cols]
     return np.where(np.cumsum(chars <= 32, axis=1) > 0, 0, chars).astype(np.uint8)
 
 
 def gather_lines(text: TextLines, lines: np.ndarray, begin: np.ndarray) -> tuple:
-    """One blob holding bytes ``begin[i] .. ends[lines[i]]`` (its ``\\n`` included) of each line.
+    r"""One blob holding bytes ``begin[i] .. ends[lines[i]]`` (its ``\n`` included) of each line.
 
     Args:
         text: the file.
@@ -189,6 +208,12 @@ def gather_lines(text: TextLines, lines: np.ndarray, begin: np.ndarray) -> tuple
     Returns:
         ``(blob (B,) uint8, seg_starts (M,) int64)``, a view when the lines are
         consecutive and ``begin`` is their start (the usual OBJ/PLY block).
+
+    Example:
+        >>> t = read_text(b"1 2\n# x\n3 4\n", "m.txt")
+        >>> blob, segs = gather_lines(t, np.array([0, 2]), t.starts[[0, 2]])
+        >>> bytes(blob), segs.tolist()
+        (b'1 2\n3 4\n', [0, 4])
     """
     ends = text.ends[lines] + 1
     if lines.size == 0:
@@ -226,7 +251,13 @@ class LineTokens(NamedTuple):
 
 
 def line_tokens(blob: np.ndarray, seg_starts: np.ndarray) -> LineTokens:
-    """Tokens of the lines gathered in ``blob`` (see :func:`gather_lines`), vectorized."""
+    r"""Tokens of the lines gathered in ``blob`` (see :func:`gather_lines`), vectorized.
+
+    Example:
+        >>> tok = line_tokens(np.frombuffer(b" 1 22\n\n333\n", np.uint8), np.array([0, 6, 7]))
+        >>> tok.counts.tolist(), tok.starts.tolist(), tok.line().tolist()
+        ([2, 0, 1], [1, 3, 7], [0, 0, 2])
+    """
     if blob.size == 0:
         return LineTokens(np.zeros(len(seg_starts), np.int64), np.zeros(0, np.int64))
     blank = blob <= 32
@@ -260,11 +291,20 @@ def parse_numbers(
     text: TextLines, lines: np.ndarray, blob: np.ndarray, seg_starts: np.ndarray,
     tokens: LineTokens, dtype=np.float64,
 ) -> np.ndarray:
-    """All tokens of the gathered lines as one flat ``float64`` or ``int64`` array.
+    r"""All tokens of the gathered lines as one flat ``float64`` or ``int64`` array.
 
     Raises:
         ValueError: a token is not a number (or an integer out of the int64 range),
             naming the file and its line.
+
+    Example:
+        >>> t = read_text(b"1 2\n3 x\n", "m.txt")
+        >>> lines = np.arange(2)
+        >>> blob, segs = gather_lines(t, lines, t.starts)
+        >>> parse_numbers(t, lines, blob, segs, line_tokens(blob, segs))
+        Traceback (most recent call last):
+        ...
+        ValueError: m.txt, line 2: expected a number, got 'x'
     """
     total = int(tokens.counts.sum())
     if total == 0:
