@@ -33,7 +33,7 @@ def test_public_surface():
     }
 
 
-@pytest.mark.parametrize("suffix", [".obj", ".ply", ".PLY"])
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".PLY", ".off"])
 @pytest.mark.parametrize("binary", [True, False])
 def test_round_trip_keeps_polygons(tmp_path, suffix, binary, dtype):
     v = _verts(dtype)
@@ -364,6 +364,8 @@ def test_ply_refuses_uvs_and_tags(tmp_path):
         save_mesh(tmp_path / "m.ply", v, MIXED, tags=tags)
     with pytest.raises(ValueError, match="PLY holds no uvs"):
         save_mesh(tmp_path / "m.ply", v, MIXED, uvs=torch.zeros(1, 2))
+    with pytest.raises(ValueError, match="OFF holds no uvs"):
+        save_mesh(tmp_path / "m.off", v, MIXED, options={"boundary": "none"})
 
 
 def test_mesh_defaults_keep_two_field_construction():
@@ -535,7 +537,7 @@ def test_obj_reader_matches_line_by_line_reference(tmp_path_factory, data):
 def _valid_files():
     v = _verts()
     out = {}
-    for name, binary in (("a.obj", False), ("a.ply", False), ("b.ply", True)):
+    for name, binary in (("a.obj", False), ("a.ply", False), ("b.ply", True), ("a.off", False)):
         import tempfile
 
         with tempfile.TemporaryDirectory() as d:
@@ -586,3 +588,14 @@ def test_damaged_files_raise_value_error_or_load(tmp_path_factory, name, data):
 def test_continuation_on_the_last_line(tmp_path):
     mesh = _load_bytes(tmp_path, "end.obj", TRIANGLE_OBJ + b"f 1 2 \\\n3\\\n")
     assert mesh.faces.tolist() == TRI
+
+
+def test_off_matches_trimesh_writer_and_keeps_colours_out(tmp_path):
+    ico = trimesh.creation.icosphere(subdivisions=2)
+    ico.export(tmp_path / "ico.off")
+    mesh = load_mesh(tmp_path / "ico.off", dtype=torch.float64)
+    np.testing.assert_array_equal(mesh.faces.numpy(), ico.faces)
+    np.testing.assert_allclose(mesh.verts.numpy(), ico.vertices, rtol=1e-7, atol=1e-12)
+    text = b"OFF 4 2 0\n0 0 0\n1 0 0\n1 1 0\n# c\n0 1 0\n4 0 1 2 3 255 0 0\n3 0 1 2 1 1 1 1\n"
+    mesh = _load_bytes(tmp_path, "c.off", text)
+    assert unpad_faces(mesh.faces) == [[0, 1, 2, 3], [0, 1, 2]] and mesh.verts.shape == (4, 3)

@@ -1,4 +1,4 @@
-"""Polygon mesh I/O (OBJ, PLY) with UVs and subdivision tags, and trimesh interop.
+"""Polygon mesh I/O (OBJ, PLY, OFF) with UVs and subdivision tags, and trimesh interop.
 
 Convention:
     - A mesh is ``Mesh(verts, faces, uvs, uv_faces, tags, options)``: ``verts``
@@ -30,6 +30,7 @@ from torchgeo_cg.core.check import check_float, check_shape, check_tensor
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
 from torchgeo_cg.mesh.io_obj import ObjContent, format_obj, read_obj
 from torchgeo_cg.mesh.io_obj_tags import ObjTags
+from torchgeo_cg.mesh.io_off import format_off, read_off
 from torchgeo_cg.mesh.io_ply import format_ply, read_ply
 from torchgeo_cg.mesh.tags import SubdivisionTags
 
@@ -69,8 +70,8 @@ def _resolve_dtype(dtype: torch.dtype | None) -> torch.dtype:
 
 def _suffix(path) -> str:
     suffix = os.path.splitext(os.fspath(path))[1].lower()
-    if suffix not in (".obj", ".ply"):
-        raise ValueError(f"path: expected a .obj or .ply suffix, got {suffix!r}")
+    if suffix not in (".obj", ".ply", ".off"):
+        raise ValueError(f"path: expected a .obj, .ply or .off suffix, got {suffix!r}")
     return suffix
 
 
@@ -155,7 +156,7 @@ def save_mesh(
     tags: SubdivisionTags | None = None,
     options: dict | None = None,
 ) -> None:
-    """Write a polygon mesh to ``.obj`` or ``.ply``, keeping polygons of any size.
+    """Write a polygon mesh to ``.obj``, ``.ply`` or ``.off``, keeping polygons of any size.
 
     Convention:
         See the module docstring; OBJ indices are written 1-based, with ``v/vt``
@@ -163,10 +164,12 @@ def save_mesh(
         and ``options``. Numbers are written with 17 (float64) or 9 significant
         digits, so they read back exactly. PLY is written binary little-endian
         (``binary=False``: ASCII), with ``float``/``double`` ``x, y, z`` following
-        ``verts.dtype`` and ``list uchar int vertex_indices``; PLY holds no UVs or tags.
+        ``verts.dtype`` and ``list uchar int vertex_indices``; OFF is ASCII. PLY and
+        OFF hold no UVs or tags.
 
     Args:
-        path: destination; the suffix (``.obj`` or ``.ply``, any case) picks the format.
+        path: destination; the suffix (``.obj``, ``.ply``, ``.off``, any case) picks the
+            format.
         verts: ``(V, 3)`` float (detached and moved to the CPU for writing), or a
             :class:`Mesh` (then ``faces`` and the keyword arguments come from it).
         faces: ``(F, K)`` long padded with ``-1``, or a list of index lists; every face
@@ -179,7 +182,7 @@ def save_mesh(
 
     Raises:
         ValueError: unknown suffix, faces of fewer than 3 vertices, indices out of
-            range, or UVs/tags for a PLY file.
+            range, or UVs/tags for a PLY or OFF file.
 
     Example:
         >>> import tempfile, os
@@ -202,10 +205,15 @@ def save_mesh(
     verts, faces_fk = _mesh_arrays(verts, faces)
     verts_v3 = verts.detach().cpu().numpy()
     precision = 17 if verts.dtype == torch.float64 else 9
+    if suffix != ".obj" and (uvs is not None or uv_faces is not None or options or (
+            tags is not None and any(t.numel() for t in tags))):
+        raise ValueError(f"path: {suffix[1:].upper()} holds no uvs, uv_faces, tags or options; "
+                         "save as .obj")
+    if suffix == ".off":
+        with open(path, "w", encoding="ascii", newline="\n") as fh:
+            fh.write(format_off(verts_v3, faces_fk.numpy(), precision))
+        return
     if suffix == ".ply":
-        if uvs is not None or uv_faces is not None or (tags is not None and any(
-                t.numel() for t in tags)) or options:
-            raise ValueError("path: PLY holds no uvs, uv_faces, tags or options; save as .obj")
         if faces_fk.shape[1] > 255:
             raise ValueError(
                 f"faces: PLY stores at most 255 vertices per face, got {faces_fk.shape[1]}")
@@ -225,17 +233,18 @@ def load_mesh(
     dtype: torch.dtype | None = None,
     device: torch.device | str | None = None,
 ) -> Mesh:
-    """Read an ``.obj`` or ``.ply`` polygon mesh, with its UVs and subdivision tags.
+    """Read an ``.obj``, ``.ply`` or ``.off`` polygon mesh, with its UVs and subdivision tags.
 
     Convention:
         See the module docstring and :mod:`torchgeo_cg.mesh.io_obj`
         (statements, ``vt``, negative indices, ``\\`` continuations, comments),
         :mod:`torchgeo_cg.mesh.io_obj_tags` (OpenSubdiv ``t`` tags) and
-        :mod:`torchgeo_cg.mesh.io_ply` (header checks, ASCII and binary). A BOM and
+        :mod:`torchgeo_cg.mesh.io_ply` (header checks, ASCII and binary) and
+        :mod:`torchgeo_cg.mesh.io_off`. A BOM and
         CRLF line ends are accepted. No vertex is merged or dropped.
 
     Args:
-        path: an ``.obj`` or ``.ply`` file.
+        path: an ``.obj``, ``.ply`` or ``.off`` file.
         dtype: dtype of ``verts``, ``uvs`` and the tag sharpness (default:
             ``torch.get_default_dtype()``).
         device: device of every tensor (default: CPU).
@@ -244,7 +253,7 @@ def load_mesh(
         :class:`Mesh`: ``verts`` ``(V, 3)``, ``faces`` ``(F, K)`` padded with ``-1``;
         ``uvs`` ``(T, 2)`` when the OBJ has ``vt`` lines and ``uv_faces`` ``(F, K)``
         when its faces use them (else ``None``); ``tags`` (empty without ``t``
-        lines, and for PLY) and ``options`` (``{}`` without option tags).
+        lines, and for PLY/OFF) and ``options`` (``{}`` without option tags).
 
     Raises:
         ValueError: unknown suffix, or a malformed file (naming the file and line).
@@ -267,8 +276,8 @@ def load_mesh(
         data = fh.read()
     name = os.fspath(path)
     dtype = _resolve_dtype(dtype)
-    if suffix == ".ply":
-        verts_v3, faces_fk = read_ply(data, name)
+    if suffix in (".ply", ".off"):
+        verts_v3, faces_fk = (read_ply if suffix == ".ply" else read_off)(data, name)
         content = ObjContent(verts_v3, faces_fk, None, None, ObjTags.empty())
     else:
         content = read_obj(data, name)

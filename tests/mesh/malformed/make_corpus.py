@@ -289,7 +289,45 @@ def _ply_binary_cases() -> list[Case]:
     ]
 
 
-CASES: list[Case] = _obj_cases() + _ply_ascii_cases() + _ply_binary_cases()
+def _off_cases() -> list[Case]:
+    v = b"0 0 0\n1 0 0\n0 1 0\n"  # lines 3-5 after b"OFF\n3 1 0\n"
+    h = b"OFF\n3 1 0\n"
+    return [
+        Case("off_coff.off", b"COFF\n3 1 0\n" + v + b"3 0 1 2\n",
+             "line 1: expected 'OFF', got 'COFF'"),
+        Case("off_empty.off", b"", ": empty file, expected 'OFF'"),
+        Case("off_no_counts.off", b"OFF\n", ": no 'V F E' counts line"),
+        Case("off_letter_count.off", b"OFF\n3 x 0\n", "line 2: expected a number, got 'x'"),
+        Case("off_negative_count.off", b"OFF\n-3 1 0\n" + v,
+             "line 2: expected the counts 'V F E' (non-negative integers)"),
+        Case("off_faces_short.off", b"OFF\n3 2 0\n" + v + b"3 0 1 2\n",
+             "line 2: the counts declare 3 vertices and 2 faces, but only 4 non-blank lines "
+             "follow"),
+        Case("off_billion_vertices.off", b"OFF\n1000000000 1 0\n0 0 0\n",
+             "line 2: the counts declare 1000000000 vertices and 1 faces, but only 1 non-blank "
+             "lines follow"),
+        Case("off_extra_line.off", h + v + b"3 0 1 2\n3 0 1 2\n",
+             "line 7: extra line after the 4 declared records"),
+        Case("off_vertex_two_values.off", h + b"0 0 0\n1 0\n0 1 0\n3 0 1 2\n",
+             "line 4: a vertex needs 3 values, got 2"),
+        Case("off_face_degree_two.off", b"OFF\n3 1 0\n" + v + b"2 0 1\n",
+             "line 6: a face needs at least 3 vertices, got 2"),
+        Case("off_face_short.off", h + v + b"4 0 1 2\n",
+             "line 6: a face of 4 vertices needs 5 values (+ 3 or 4 colour values), got 4"),
+        Case("off_index_past_end.off", h + v + b"3 0 1 3\n",
+             "line 6: vertex index 3 is not an integer in [0, 3)"),
+        Case("off_index_float.off", h + v + b"3 0 1.5 2\n",
+             "line 6: vertex index 1.5 is not an integer in [0, 3)"),
+        Case("off_index_minus_one.off", h + v + b"3 0 -1 2\n",
+             "line 6: vertex index -1 is not an integer in [0, 3)"),
+        Case("off_degree_float.off", h + v + b"3.5 0 1 2\n",
+             "line 6: the vertex count of a face must be an integer, got 3.5"),
+        Case("off_binary_garbage.off", bytes(range(256)) * 4,
+             "line 1: binary data (byte 0x00), not a text file"),
+    ]
+
+
+CASES: list[Case] = _obj_cases() + _ply_ascii_cases() + _ply_binary_cases() + _off_cases()
 
 
 def write_corpus(directory: str | Path) -> list[Path]:
