@@ -28,6 +28,8 @@ from torchgeo_cg.mesh.io_text import (
     chars_at,
     file_error,
     first_chars,
+    format_faces,
+    format_rows,
     gather_lines,
     line_tokens,
     parse_numbers,
@@ -255,18 +257,6 @@ def read_obj(data: bytes, name: str) -> ObjContent:
     return ObjContent(verts, faces, uvs, uv_faces, tags)
 
 
-def _face_lines(faces_fk: np.ndarray, uv_faces_fk: np.ndarray | None) -> str:
-    """``f`` lines, 1-based, ``v/vt`` corners when ``uv_faces_fk`` is given."""
-    lines = np.full(len(faces_fk), "f", dtype=object)
-    for k in range(faces_fk.shape[1]):  # loop over polygon degree, not faces
-        col = faces_fk[:, k]
-        token = np.char.add(" ", (col + 1).astype(str))
-        if uv_faces_fk is not None:
-            token = np.char.add(np.char.add(token, "/"), (uv_faces_fk[:, k] + 1).astype(str))
-        lines = lines + np.where(col >= 0, token.astype(object), "")
-    return "".join(line + "\n" for line in lines.tolist())
-
-
 def format_obj(content: ObjContent, precision: int) -> str:
     """OBJ text for ``content``: ``v``, ``vt``, ``f`` and ``t`` lines.
 
@@ -284,10 +274,9 @@ def format_obj(content: ObjContent, precision: int) -> str:
         f 1 2 3
     """
     out = _io.StringIO()
-    g = f"%.{precision}g"
-    np.savetxt(out, content.verts_v3, fmt=f"v {g} {g} {g}")
+    out.write(format_rows("v", content.verts_v3, precision))
     if content.uvs_t2 is not None:
-        np.savetxt(out, content.uvs_t2, fmt=f"vt {g} {g}")
-    out.write(_face_lines(content.faces_fk, content.uv_faces_fk))
+        out.write(format_rows("vt", content.uvs_t2, precision))
+    out.write(format_faces("f", content.faces_fk, 1, content.uv_faces_fk))
     out.write(format_tags(content.tags, precision))
     return out.getvalue()

@@ -263,7 +263,7 @@ def _lines(prefix: str, items: np.ndarray, sharp: np.ndarray | None, precision: 
     rows = np.full(len(items), prefix, dtype=object)
     for col in np.column_stack(cols).T if len(items) else ():  # loop over columns
         rows = rows + " " + col.astype(object)
-    return "".join(r + "\n" for r in rows.tolist())
+    return "\n".join(rows.tolist()) + "\n" if len(rows) else ""
 
 
 def format_tags(tags: ObjTags, precision: int) -> str:

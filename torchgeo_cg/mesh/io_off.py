@@ -20,6 +20,8 @@ from torchgeo_cg.mesh.io_text import (
     blank_comments,
     file_error,
     first_chars,
+    format_faces,
+    format_rows,
     gather_lines,
     line_tokens,
     parse_numbers,
@@ -138,12 +140,6 @@ def format_off(verts_v3: np.ndarray, faces_fk: np.ndarray, precision: int) -> st
         0 0 1
         3 0 1 2
     """
-    g = f"%.{precision}g"
-    coords = np.char.mod(g, verts_v3).astype(object)
-    rows_v = coords[:, 0] + " " + coords[:, 1] + " " + coords[:, 2] if len(verts_v3) else []
-    rows_f = (faces_fk >= 0).sum(1).astype(str).astype(object)
-    for k in range(faces_fk.shape[1]):  # loop over polygon degree, not faces
-        col = faces_fk[:, k]
-        rows_f = rows_f + np.where(col >= 0, np.char.add(" ", col.astype(str)).astype(object), "")
-    body = "".join(r + "\n" for r in list(rows_v) + rows_f.tolist())
-    return f"OFF\n{len(verts_v3)} {len(faces_fk)} 0\n" + body
+    faces = format_faces("", faces_fk, 0, count=True)
+    verts = format_rows("", verts_v3, precision)
+    return f"OFF\n{len(verts_v3)} {len(faces_fk)} 0\n" + verts + faces

@@ -25,6 +25,8 @@ import numpy as np
 from torchgeo_cg.mesh.io_text import (
     file_error,
     first_chars,
+    format_faces,
+    format_rows,
     gather_lines,
     line_tokens,
     parse_numbers,
@@ -275,8 +277,7 @@ def _binary_list_element(data, pos, el, end, where) -> tuple[_Records, int]:
         fields.insert(li, (lp.name + " count", cdt))
         raw = np.frombuffer(data, np.dtype(fields), el.count, pos)
         items = raw[lp.name].astype(np.float64 if idt.kind == "f" else np.int64)
-        scalars = {n: raw[n].astype(np.float64) for n, *_ in fields if n not in
-                   (lp.name, lp.name + " count")}
+        scalars = {n: raw[n] for n, *_ in fields if n not in (lp.name, lp.name + " count")}
         degrees = np.full(el.count, k, dtype=np.int64)
         return _Records(scalars, items.reshape(el.count, k), degrees, where), total
     body = np.frombuffer(data, np.uint8, offset=pos)
@@ -331,8 +332,7 @@ def _read_binary(data, name, header: PlyHeader) -> dict:
         else:
             dt = _struct(el.props, end)
             raw = np.frombuffer(data, dt, el.count, pos)
-            out[el.name] = _Records({n: raw[n].astype(np.float64) for n in dt.names or ()},
-                                    None, None, where)
+            out[el.name] = _Records({n: raw[n] for n in dt.names or ()}, None, None, where)
             used = el.count * dt.itemsize
         pos += used
     if pos != len(data):
@@ -348,7 +348,9 @@ def _mesh_of(name, header, records) -> tuple[np.ndarray, np.ndarray]:
     missing = [a for a in "xyz" if a not in vert.scalars]
     if missing:
         raise file_error(name, elements["vertex"].line, f"'vertex' lacks properties {missing}")
-    verts = np.stack([vert.scalars[a] for a in "xyz"], axis=1)
+    verts = np.empty((len(vert.scalars["x"]), 3))
+    for k, axis in enumerate("xyz"):  # loop over the 3 coordinates
+        verts[:, k] = vert.scalars[axis]
     if "face" not in elements:
         return verts, np.zeros((0, 3), np.int64)
     face_el, face = elements["face"], records["face"]
@@ -360,7 +362,10 @@ def _mesh_of(name, header, records) -> tuple[np.ndarray, np.ndarray]:
     if small.any():
         i = int(np.argmax(small))
         raise face.where(i, f"face {i} has {face.degrees[i]} vertices; a face needs at least 3")
-    faces = face.lists.astype(np.int64)
+    faces = np.asarray(face.lists, dtype=np.int64)
+    full = faces.size == 0 or (face.degrees == faces.shape[1]).all()
+    if full and (faces.size == 0 or (faces.min() >= 0 and faces.max() < len(verts))):
+        return verts, faces
     used = np.arange(faces.shape[1]) < face.degrees[:, None]
     bad = (faces >= len(verts)) | ((faces < 0) & used)
     if bad.any():
@@ -416,12 +421,5 @@ def format_ply(verts_v3: np.ndarray, faces_fk: np.ndarray, binary: bool, precisi
         at = (starts_f[rows] + 1 + 4 * cols)[:, None] + np.arange(4)
         buf[at] = faces_fk[valid_fk].astype("<i4").view(np.uint8).reshape(-1, 4)
         return header + np.ascontiguousarray(verts_v3, dtype=npf).tobytes() + buf.tobytes()
-    g = f"%.{precision}g"
-    coords = np.char.mod(g, verts_v3).astype(object)
-    body = coords[:, 0] + " " + coords[:, 1] + " " + coords[:, 2] if len(verts_v3) else coords[:, 0]
-    rows = sizes_f.astype(str).astype(object)
-    for k in range(faces_fk.shape[1]):  # loop over polygon degree, not faces
-        col = faces_fk[:, k]
-        rows = rows + np.where(col >= 0, np.char.add(" ", col.astype(str)).astype(object), "")
-    text = "".join(line + "\n" for line in body.tolist() + rows.tolist())
-    return header + text.encode("ascii")
+    body = format_rows("", verts_v3, precision) + format_faces("", faces_fk, 0, count=True)
+    return header + body.encode("ascii")

@@ -33,6 +33,8 @@ __all__ = [
     "LineTokens",
     "line_tokens",
     "parse_numbers",
+    "format_rows",
+    "format_faces",
 ]
 
 _BOM = b"\xef\xbb\xbf"
@@ -328,3 +330,56 @@ def parse_numbers(
             line = text.numbers[lines[tokens.line()[int(np.argmax(clipped))]]]
             raise file_error(text.name, line, "integer out of range")
     return values
+
+
+def format_rows(prefix: str, values: np.ndarray, precision: int | None = None) -> str:
+    """One text line per row of ``values``: ``prefix`` then the row's numbers.
+
+    One ``%`` formatting call for the whole array (no Python loop over rows).
+
+    Args:
+        prefix: start of every line (``"v"``, or ``""`` for none).
+        values: ``(N, C)`` array; floats are written with ``precision`` significant digits,
+            integers exactly (``precision=None``).
+        precision: significant digits (17 round-trips float64, 9 float32).
+
+    Example:
+        >>> print(format_rows("v", np.array([[0.5, 1, 2], [3, 4, 1/3]]), 9), end="")
+        v 0.5 1 2
+        v 3 4 0.333333333
+    """
+    if len(values) == 0:
+        return ""
+    fmt = "%d" if precision is None else f"%.{precision}g"
+    row = (prefix + " " if prefix else "") + " ".join([fmt] * values.shape[1]) + "\n"
+    return (row * len(values)) % tuple(values.ravel().tolist())
+
+
+def format_faces(prefix: str, faces_fk: np.ndarray, offset: int, uv_faces_fk=None,
+                 count: bool = False) -> str:
+    """One line per padded face: ``prefix``, optionally its size, then its indices + ``offset``.
+
+    Args:
+        prefix: ``"f"`` (OBJ) or ``""``.
+        faces_fk: ``(F, K)`` int, padded with ``-1``.
+        offset: added to every index (1 for OBJ).
+        uv_faces_fk: ``(F, K)`` int padded like ``faces_fk``: corners written ``v/vt``.
+        count: write the face size first (PLY, OFF).
+
+    Example:
+        >>> print(format_faces("f", np.array([[0, 1, 2, 3], [1, 4, 2, -1]]), 1), end="")
+        f 1 2 3 4
+        f 2 5 3
+    """
+    if len(faces_fk) == 0:
+        return ""
+    valid_fk = faces_fk >= 0
+    sizes_f = valid_fk.sum(1)
+    corner = " %d" if uv_faces_fk is None else " %d/%d"
+    head = [prefix + (" " if prefix and count else "") + (str(k) if count else "")
+            for k in range(faces_fk.shape[1] + 1)]  # one template per face size
+    templates = np.array([h + corner * k + "\n" for k, h in enumerate(head)], dtype=object)
+    values = faces_fk[valid_fk] + offset
+    if uv_faces_fk is not None:
+        values = np.stack([values, uv_faces_fk[valid_fk] + offset], axis=1)
+    return "".join(templates[sizes_f].tolist()) % tuple(values.ravel().tolist())
