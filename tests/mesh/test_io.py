@@ -500,31 +500,43 @@ def _reference_obj(text: str):
     return verts, uvs, faces, uv_faces
 
 
-@settings(max_examples=30, deadline=None)
-@given(st.data())
-def test_obj_reader_matches_line_by_line_reference(tmp_path_factory, data):
-    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
-    n_v, n_t = int(rng.integers(3, 12)), int(rng.integers(1, 6))
+def _random_obj(rng) -> str:
+    """Interleaved v / vt / f / comment / group lines; every index valid where it stands."""
     with_uv = bool(rng.integers(2))
-    lines = [f"v {x:.6g} {y:.6g} {z:.6g}" for x, y, z in rng.normal(size=(n_v, 3)) * 1e3]
-    lines += [f"vt {u:.6g} {w:.6g}" for u, w in rng.random((n_t, 2))]
-    for _ in range(int(rng.integers(0, 8))):
-        k = int(rng.integers(3, 7))
-        vi = rng.integers(0, n_v, k)
-        corners = [str(i + 1) if rng.random() < 0.5 else str(i - n_v) for i in vi]
-        if with_uv:
-            corners = [f"{c}/{int(rng.integers(1, n_t + 1))}" for c in corners]
-        sep = " " if rng.random() < 0.8 else "\t "
-        lines.append("f " + sep.join(corners) + (" # c" if rng.random() < 0.2 else ""))
-    rng.shuffle(lines[: n_v])
-    text = "\n".join(lines) + ("\n" if rng.random() < 0.5 else "")
+    lines, n_v, n_t = ["v 0 0 0", "v 1 0 0", "v 0 1 0", "vt 0.5 0.5"], 3, 1
+    for _ in range(int(rng.integers(0, 40))):
+        kind = rng.choice(["v", "vt", "f", "f", "#", "", "g"])
+        if kind == "v":
+            lines.append("v " + " ".join(f"{x:.6g}" for x in rng.normal(size=3) * 1e3)
+                         + (" 1" if rng.random() < 0.1 else ""))
+            n_v += 1
+        elif kind == "vt":
+            lines.append(f"vt {rng.random():.6g} {rng.random():.6g}")
+            n_t += 1
+        elif kind == "f":
+            k = int(rng.integers(3, 7))
+            vi = rng.integers(0, n_v, k)
+            corners = [str(i + 1) if rng.random() < 0.5 else str(i - n_v) for i in vi]
+            if with_uv:
+                corners = [f"{c}/{int(rng.integers(1, n_t + 1))}" for c in corners]
+            sep = " " if rng.random() < 0.8 else "\t "
+            lines.append("f " + sep.join(corners) + (" # c" if rng.random() < 0.2 else ""))
+        else:
+            lines.append({"#": "# comment v 1 2", "": "  ", "g": "g group"}[kind])
+    return "\n".join(lines) + ("\n" if rng.random() < 0.5 else "")
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_obj_reader_matches_line_by_line_reference(tmp_path_factory, seed):
+    text = _random_obj(np.random.default_rng(seed))
     path = tmp_path_factory.mktemp("ref") / "r.obj"
     path.write_text(text)
     mesh = load_mesh(path, dtype=torch.float64)
     verts, uvs, faces, uv_faces = _reference_obj(text)
     assert mesh.verts.tolist() == verts and mesh.uvs.tolist() == uvs
     assert unpad_faces(mesh.faces) == faces if faces else mesh.faces.shape[0] == 0
-    if with_uv and faces:
+    if uv_faces:
         assert unpad_faces(mesh.uv_faces) == uv_faces
     else:
         assert mesh.uv_faces is None
