@@ -611,3 +611,24 @@ def test_off_matches_trimesh_writer_and_keeps_colours_out(tmp_path):
     text = b"OFF 4 2 0\n0 0 0\n1 0 0\n1 1 0\n# c\n0 1 0\n4 0 1 2 3 255 0 0\n3 0 1 2 1 1 1 1\n"
     mesh = _load_bytes(tmp_path, "c.off", text)
     assert unpad_faces(mesh.faces) == [[0, 1, 2, 3], [0, 1, 2]] and mesh.verts.shape == (4, 3)
+
+
+def test_save_refuses_tags_that_would_not_read_back(tmp_path):
+    verts, faces, tags = _tagged_cube()
+    cases = [
+        (tags._replace(creases=torch.tensor([[0, 1], [1, 3], [0, 7]])), r"tags.creases: item 2: "
+         r"crease \[0, 7\] is not an edge of the mesh"),
+        (tags._replace(corner_sharpness=torch.tensor([1.0, -2.0], dtype=torch.float64)),
+         "tags.corners: item 1: corner sharpness must be finite and >= 0, got -2.0"),
+        (tags._replace(holes=torch.tensor([6])), r"tags.holes: item 0: hole \[6\] out of range"),
+        (tags._replace(creases=torch.tensor([[0, 1], [1, 3], [1, 0]])),
+         r"tags.creases: item 2: crease \[1, 0\] tagged twice"),
+    ]
+    for bad, msg in cases:
+        with pytest.raises(ValueError, match=msg):
+            save_mesh(tmp_path / "bad.obj", verts, faces, tags=bad)
+    with pytest.raises(ValueError, match="options: boundary='sharp' is not one of"):
+        save_mesh(tmp_path / "bad.obj", verts, faces, options={"boundary": "sharp"})
+    with pytest.raises(ValueError, match="options: unknown keys"):
+        save_mesh(tmp_path / "bad.obj", verts, faces, options={"sharpness": 1})
+    assert not (tmp_path / "bad.obj").exists()

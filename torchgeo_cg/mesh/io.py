@@ -29,7 +29,7 @@ import torch
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
 from torchgeo_cg.mesh.io_obj import ObjContent, format_obj, read_obj
-from torchgeo_cg.mesh.io_obj_tags import ObjTags
+from torchgeo_cg.mesh.io_obj_tags import ObjTags, check_tags
 from torchgeo_cg.mesh.io_off import format_off, read_off
 from torchgeo_cg.mesh.io_ply import format_ply, read_ply
 from torchgeo_cg.mesh.tags import SubdivisionTags
@@ -126,23 +126,20 @@ def _uv_arrays(uvs, uv_faces, faces_fk: torch.Tensor):
 
 
 def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, n_verts: int,
-                n_faces: int) -> ObjTags:
+                faces_fk: np.ndarray) -> ObjTags:
     """Checked numpy tags for writing."""
     if tags is None:
         return ObjTags.empty()._replace(options=dict(options or {}))
     if not isinstance(tags, SubdivisionTags):
         raise TypeError(f"tags: expected a SubdivisionTags, got {type(tags).__name__}")
-    arrays = [t.detach().cpu().numpy() for t in tags]
-    creases, crease_s, corners, corner_s, holes = arrays
-    for got, limit, what in ((creases, n_verts, "tags.creases"), (corners, n_verts, "tags.corners"),
-                             (holes, n_faces, "tags.holes")):
-        if got.size and (got.min() < 0 or got.max() >= limit):
-            raise ValueError(f"{what}: indices must be in [0, {limit})")
+    creases, crease_s, corners, corner_s, holes = (t.detach().cpu().numpy() for t in tags)
     if creases.reshape(-1, 2).shape[0] != crease_s.size or corners.size != corner_s.size:
         raise ValueError("tags: one sharpness per crease and per corner expected")
-    return ObjTags(creases.reshape(-1, 2).astype(np.int64), crease_s.astype(np.float64),
-                   corners.reshape(-1).astype(np.int64), corner_s.astype(np.float64),
-                   holes.reshape(-1).astype(np.int64), dict(options or {}))
+    out = ObjTags(creases.reshape(-1, 2).astype(np.int64), crease_s.astype(np.float64),
+                  corners.reshape(-1).astype(np.int64), corner_s.astype(np.float64),
+                  holes.reshape(-1).astype(np.int64), dict(options or {}))
+    check_tags(out, n_verts, faces_fk)  # write only what load_mesh reads back
+    return out
 
 
 def save_mesh(
@@ -221,7 +218,7 @@ def save_mesh(
             fh.write(format_ply(verts_v3, faces_fk.numpy(), binary, precision))
         return
     uvs_np, uv_np = _uv_arrays(uvs, uv_faces, faces_fk)
-    tag_np = _tag_arrays(tags, options, len(verts_v3), faces_fk.shape[0])
+    tag_np = _tag_arrays(tags, options, len(verts_v3), faces_fk.numpy())
     content = ObjContent(verts_v3, faces_fk.numpy(), uvs_np, uv_np, tag_np)
     text = format_obj(content, precision)
     with open(path, "w", encoding="utf-8", newline="\n") as fh:

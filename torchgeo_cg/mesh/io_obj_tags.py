@@ -36,7 +36,7 @@ from torchgeo_cg.mesh.io_text import (  # read_text: doctests
     read_text,  # noqa: F401
 )
 
-__all__ = ["ObjTags", "parse_tags", "format_tags", "OPTION_TAGS"]
+__all__ = ["ObjTags", "parse_tags", "check_tags", "format_tags", "OPTION_TAGS"]
 
 OPTION_TAGS = {
     "interpolateboundary": ("boundary", ("none", "edge_and_corner", "edge_only")),
@@ -151,30 +151,28 @@ def _per_item(text, g: _Group, per: int, what: str):
     return items, sharp, np.repeat(g.lines, n_items)
 
 
-def _check_items(text, lines, items, limit, what, sharp=None):
+def _check_items(error, items, limit, what, sharp=None):
+    """Indices in ``[0, limit)``, sharpness finite and ``>= 0``, no item twice."""
     if len(items) == 0:
         return
     bad = ((items < 0) | (items >= limit)).reshape(len(items), -1).any(1)
     if bad.any():
         i = int(np.argmax(bad))
-        raise file_error(text.name, text.numbers[lines[i]],
-                         f"{what} {items[i].tolist()} out of range [0, {limit})")
+        raise error(i, f"{what} {items[i].tolist()} out of range [0, {limit})")
     if sharp is not None:
         bad = ~np.isfinite(sharp) | (sharp < 0)
         if bad.any():
             i = int(np.argmax(bad))
-            raise file_error(text.name, text.numbers[lines[i]],
-                             f"{what} sharpness must be finite and >= 0, got {sharp[i]}")
+            raise error(i, f"{what} sharpness must be finite and >= 0, got {sharp[i]}")
     keys = np.sort(items.reshape(len(items), -1), axis=1)
     _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
     repeat = first[inverse.reshape(-1)] != np.arange(len(items))
     if repeat.any():
         i = int(np.argmax(repeat))
-        raise file_error(text.name, text.numbers[lines[i]],
-                         f"{what} {items[i].tolist()} tagged twice")
+        raise error(i, f"{what} {items[i].tolist()} tagged twice")
 
 
-def _check_edges(text, lines, creases, faces_fk, n_verts):
+def _check_edges(error, creases, faces_fk, n_verts):
     """Every crease must be an edge of the mesh (undirected)."""
     if creases.size == 0:
         return
@@ -186,8 +184,37 @@ def _check_edges(text, lines, creases, faces_fk, n_verts):
     bad = ~np.isin(keys, edge_keys)
     if bad.any():
         i = int(np.argmax(bad))
-        raise file_error(text.name, text.numbers[lines[i]],
-                         f"crease {creases[i].tolist()} is not an edge of the mesh")
+        raise error(i, f"crease {creases[i].tolist()} is not an edge of the mesh")
+
+
+def check_tags(tags: ObjTags, n_verts: int, faces_fk: np.ndarray, error=None) -> None:
+    """Check tags against a mesh as :func:`parse_tags` does (for writing what reads back).
+
+    Args:
+        tags: the tags.
+        n_verts: ``V``.
+        faces_fk: ``(F, K)`` padded faces.
+        error: ``error(kind, i, message) -> Exception``; default names ``tags.<kind>s``.
+
+    Example:
+        >>> t = ObjTags.empty()._replace(creases=np.array([[0, 2]]), crease_sharpness=np.ones(1))
+        >>> check_tags(t, 4, np.array([[0, 1, 2, 3]]))
+        Traceback (most recent call last):
+        ...
+        ValueError: tags.creases: item 0: crease [0, 2] is not an edge of the mesh
+    """
+    if error is None:
+        def error(kind, i, msg):
+            return ValueError(f"tags.{kind}s: item {i}: {msg}")
+    for kind, items, sharp in (("crease", tags.creases.reshape(-1, 2), tags.crease_sharpness),
+                               ("corner", tags.corners.reshape(-1, 1), tags.corner_sharpness),
+                               ("hole", tags.holes.reshape(-1, 1), None)):
+        def err(i, msg, kind=kind):
+            return error(kind, i, msg)
+
+        _check_items(err, items, len(faces_fk) if kind == "hole" else n_verts, kind, sharp)
+        if kind == "crease":
+            _check_edges(err, items, faces_fk, n_verts)
 
 
 def _option(text, g: _Group, options: dict) -> None:
@@ -246,14 +273,16 @@ def parse_tags(text: TextLines, lines: np.ndarray, n_verts: int, faces_fk: np.nd
         where = np.concatenate([p[2] for p in got]) if got else np.zeros(0, np.int64)
         order = np.argsort(where, kind="stable")  # file order
         items, sharp, where = items[order], sharp[order], where[order]
-        limit = len(faces_fk) if kind == "hole" else n_verts
-        _check_items(text, where, items, limit, kind, None if kind == "hole" else sharp)
-        if kind == "crease":
-            _check_edges(text, where, items, faces_fk, n_verts)
-        out[kind] = (items, sharp)
-    return ObjTags(out["crease"][0].reshape(-1, 2), out["crease"][1],
+        out[kind] = (items, sharp, where)
+    tags = ObjTags(out["crease"][0].reshape(-1, 2), out["crease"][1],
                    out["corner"][0].reshape(-1), out["corner"][1],
                    out["hole"][0].reshape(-1), options)
+
+    def error(kind, i, msg):
+        return file_error(text.name, text.numbers[out[kind][2][i]], msg)
+
+    check_tags(tags, n_verts, faces_fk, error)
+    return tags
 
 
 def _lines(prefix: str, items: np.ndarray, sharp: np.ndarray | None, precision: int) -> str:
