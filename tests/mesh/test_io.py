@@ -632,3 +632,38 @@ def test_save_refuses_tags_that_would_not_read_back(tmp_path):
     with pytest.raises(ValueError, match="options: unknown keys"):
         save_mesh(tmp_path / "bad.obj", verts, faces, options={"sharpness": 1})
     assert not (tmp_path / "bad.obj").exists()
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian", "binary_big_endian"])
+def test_ply_other_elements_and_properties_are_read_and_dropped(tmp_path, fmt):
+    """Scalars before and after the face list, an extra list element, mixed face sizes."""
+    header = (
+        f"ply\nformat {fmt} 1.0\nelement vertex 4\nproperty uchar red\nproperty double x\n"
+        "property double y\nproperty double z\nelement face 2\nproperty short tag\n"
+        "property list uchar uint vertex_indices\nproperty float weight\nelement edge 2\n"
+        "property list ushort int vertex_pair\nproperty char kind\nend_header\n"
+    ).encode()
+    verts = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.5]]
+    faces = [[0, 1, 2, 3], [0, 2, 3]]
+    if fmt == "ascii":
+        body = "".join(f"7 {x} {y} {z}\n" for x, y, z in verts)
+        body += "-3 4 0 1 2 3 0.5\n5 3 0 2 3 1.5\n2 0 1 -1\n2 2 3 1\n"
+        data = header + body.encode()
+    else:
+        e = "<" if fmt.endswith("little_endian") else ">"
+        vdt = np.dtype([("r", "u1"), ("x", e + "f8"), ("y", e + "f8"), ("z", e + "f8")])
+        v = np.zeros(4, vdt)
+        v["x"], v["y"], v["z"] = np.array(verts).T
+        body = v.tobytes()
+        for tag, f, w in ((-3, faces[0], 0.5), (5, faces[1], 1.5)):
+            body += np.array([tag], e + "i2").tobytes() + bytes([len(f)])
+            body += np.array(f, e + "u4").tobytes() + np.array([w], e + "f4").tobytes()
+        for pair, kind in (([0, 1], -1), ([2, 3], 1)):
+            body += np.array([2], e + "u2").tobytes() + np.array(pair, e + "i4").tobytes()
+            body += np.array([kind], "i1").tobytes()
+        data = header + body
+    mesh = _load_bytes(tmp_path, "x.ply", data)
+    assert mesh.verts.tolist() == verts and unpad_faces(mesh.faces) == faces
+    for cut in (1, 5) if fmt != "ascii" else ():  # truncated: refused, never misread
+        with pytest.raises(ValueError, match="x.ply: "):
+            _load_bytes(tmp_path, "x.ply", data[:-cut])
