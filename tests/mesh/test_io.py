@@ -667,3 +667,11 @@ def test_ply_other_elements_and_properties_are_read_and_dropped(tmp_path, fmt):
     for cut in (1, 5) if fmt != "ascii" else ():  # truncated: refused, never misread
         with pytest.raises(ValueError, match="x.ply: "):
             _load_bytes(tmp_path, "x.ply", data[:-cut])
+
+
+def test_one_huge_face_does_not_pad_every_face_to_gigabytes(tmp_path):
+    """200k triangles + one 800-gon would pad to 200k x 800 int64 (1.2 GiB) from a 2 MB file."""
+    text = b"v 0 0 0\n" * 800 + b"f 1 2 3\n" * 200_000 + b"f " + b" ".join(
+        str(i).encode() for i in range(1, 801)) + b"\n"
+    with pytest.raises(ValueError, match=r"line 200801: a face of 800 vertices pads 200001 faces"):
+        _load_bytes(tmp_path, "big.obj", text)

@@ -26,6 +26,7 @@ from torchgeo_cg.mesh.io_text import (
     TextLines,
     blank_comments,
     chars_at,
+    check_padding,
     file_error,
     first_chars,
     format_faces,
@@ -179,10 +180,9 @@ def _resolve(text, lines, idx, corner_line, kind_lines, total, what, plural):
     return out
 
 
-def _pad(values, degrees):
+def _pad(values, degrees, k):
     if degrees.size == 0:
         return np.zeros((0, 3), np.int64)
-    k = int(degrees.max())
     if (degrees == k).all():
         return values.reshape(-1, k)
     out = np.full((len(degrees), k), -1, np.int64)
@@ -215,12 +215,14 @@ def _faces(text, kinds, pos, n_verts, n_uvs):
         first = slice(None)
     vi = _resolve(text, lines, values[first], corners.line, kinds["v"], n_verts, "vertex",
                   "vertices")
-    faces = _pad(vi, corners.counts)
+    longest = int(np.argmax(corners.counts))
+    width = check_padding(text.name, text.numbers[lines[longest]], corners.counts, len(text.buf))
+    faces = _pad(vi, corners.counts, width)
     if not has_vt:
         return faces, None
     ti = _resolve(text, lines, values[first + 1], corners.line, kinds["vt"], n_uvs,
                   "texture coordinate", "texture coordinates")
-    return faces, _pad(ti, corners.counts)
+    return faces, _pad(ti, corners.counts, width)
 
 
 def read_obj(data: bytes, name: str) -> ObjContent:

@@ -18,6 +18,7 @@ import numpy as np
 from torchgeo_cg.mesh.io_text import (
     TextLines,
     blank_comments,
+    check_padding,
     file_error,
     first_chars,
     format_faces,
@@ -80,7 +81,8 @@ def _faces(text, lines, n_verts):
                f"a face of {degrees[i]} vertices needs {degrees[i] + 1} values (+ 3 or 4 "
                f"colour values), got {tokens.counts[i]}")
         raise file_error(text.name, text.numbers[lines[i]], msg)
-    width = int(degrees.max()) if degrees.size else 3
+    longest = text.numbers[lines[int(np.argmax(degrees))]] if degrees.size else None
+    width = check_padding(text.name, longest, degrees, len(text.buf))
     valid = np.arange(width) < degrees[:, None]
     idx = np.where(valid, values[np.where(valid, first[:, None] + 1 + np.arange(width), 0)], -1)
     bad_f = ((idx != np.floor(idx)) | (idx < -1) | (idx >= n_verts) | ((idx == -1) & valid)).any(1)

@@ -23,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from torchgeo_cg.mesh.io_text import (
+    check_padding,
     file_error,
     first_chars,
     format_faces,
@@ -198,7 +199,8 @@ def _ascii_element(text, lines, el: PlyElement) -> _Records:
             _check_typed(text.name, where, scalars[p.name], p.dtype, p.name)
             col = col + 1
             continue
-        width = max(int(degrees.max()) if degrees.size else 0, 3)
+        longest = text.numbers[lines[int(np.argmax(degrees))]] if degrees.size else None
+        width = check_padding(text.name, longest, degrees, len(text.buf))
         valid = np.arange(width) < degrees[:, None]
         items = values[np.where(valid, col[:, None] + 1 + np.arange(width), 0)]
         _check_typed(text.name, where, np.where(valid, items, 0), p.dtype, p.name)
@@ -259,7 +261,7 @@ def _list_starts(data, pos, el, end, pre, post):
     return starts, None
 
 
-def _binary_list_element(data, pos, el, end, where) -> tuple[_Records, int]:
+def _binary_list_element(data, pos, el, end, where, name) -> tuple[_Records, int]:
     li = next(k for k, p in enumerate(el.props) if p.count_dtype)
     lp = el.props[li]
     pre_dt, post_dt = _struct(el.props[:li], end), _struct(el.props[li + 1:], end)
@@ -293,7 +295,7 @@ def _binary_list_element(data, pos, el, end, where) -> tuple[_Records, int]:
     if el.count and ends[-1] > len(body) or (ends[:-1] != starts[1:]).any():
         i = int(np.argmax(np.append(ends[:-1] != starts[1:], True)))
         raise where(i, "truncated: the record runs past the end of the file")
-    width = max(int(degrees.max()) if el.count else 0, 3)
+    width = check_padding(name, None, degrees, len(data))
     valid = np.arange(width) < degrees[:, None]
     at = starts[:, None] + pre_dt.itemsize + cdt.itemsize + idt.itemsize * np.arange(width)
     at = np.where(valid, at, 0)[..., None] + np.arange(idt.itemsize)
@@ -328,7 +330,7 @@ def _read_binary(data, name, header: PlyHeader) -> dict:
             return file_error(name, None, f"element {el.name!r} record {i}: {msg}")
 
         if any(p.count_dtype for p in el.props):
-            out[el.name], used = _binary_list_element(data, pos, el, end, where)
+            out[el.name], used = _binary_list_element(data, pos, el, end, where, name)
         else:
             dt = _struct(el.props, end)
             raw = np.frombuffer(data, dt, el.count, pos)

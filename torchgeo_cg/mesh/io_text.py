@@ -35,6 +35,7 @@ __all__ = [
     "parse_numbers",
     "format_rows",
     "format_faces",
+    "check_padding",
 ]
 
 _BOM = b"\xef\xbb\xbf"
@@ -383,3 +384,28 @@ def format_faces(prefix: str, faces_fk: np.ndarray, offset: int, uv_faces_fk=Non
     if uv_faces_fk is not None:
         values = np.stack([values, uv_faces_fk[valid_fk] + offset], axis=1)
     return "".join(templates[sizes_f].tolist()) % tuple(values.ravel().tolist())
+
+
+def check_padding(name: str, line: int | None, degrees: np.ndarray, file_bytes: int) -> int:
+    """Width ``K`` of the padded ``(F, K)`` faces; refuse a padding far larger than the file.
+
+    One face of many vertices pads every face to its size. Before allocating, the
+    ``F x K`` int64 entries are compared with the file: more than ``64 x`` its size
+    (and over 1 GiB) raises, naming the line of the longest face (``line``).
+
+    Example:
+        >>> check_padding("m.obj", 3, np.array([3, 4, 3]), 100)
+        4
+        >>> check_padding("m.obj", 7, np.array([3] * 10**6 + [10**6]), 10**7)
+        Traceback (most recent call last):
+        ...
+        ValueError: m.obj, line 7: a face of 1000000 vertices pads 1000001 faces to 7451 GiB \
+of indices (the file has 0.0093 GiB); split it
+    """
+    width = max(int(degrees.max()) if degrees.size else 3, 3)
+    need = 8 * len(degrees) * width
+    if need > max(64 * file_bytes, 2**30):
+        raise file_error(name, line, f"a face of {width} vertices pads {len(degrees)} faces to "
+                         f"{need / 2**30:.4g} GiB of indices (the file has "
+                         f"{file_bytes / 2**30:.2g} GiB); split it")
+    return width
