@@ -120,19 +120,27 @@ def _columns(values, counts, width, fill=0.0):
     return np.where(col < counts[:, None], values[np.minimum(idx, len(values) - 1)], fill)
 
 
+def _per_token(positions: np.ndarray, token_starts: np.ndarray) -> np.ndarray:
+    """How many of the sorted byte ``positions`` fall in each token (tokens hold no blank)."""
+    before = np.searchsorted(positions, token_starts)
+    return np.diff(np.append(before, len(positions)))
+
+
 def _corner_forms(text, lines, blob, tokens):
     """Form of each corner: 0 ``v``, 1 ``v/vt``, 2 ``v/vt/vn``, 3 ``v//vn``."""
     slash = blob == 47
     if not slash.any():
         return np.zeros(len(tokens.starts), np.int64)
-    n_slash = np.add.reduceat(slash.view(np.uint8), tokens.starts, dtype=np.int64)
-    double = np.concatenate([slash[:-1] & slash[1:], [False]])
-    n_double = np.add.reduceat(double.view(np.uint8), tokens.starts, dtype=np.int64)
-    ends = tokens.ends(blob)
-    bad = (n_slash > 2) | (n_double > 1) | slash[tokens.starts] | slash[ends]
+    n_slash = _per_token(np.flatnonzero(slash), tokens.starts)
+    n_double = _per_token(np.flatnonzero(slash[:-1] & slash[1:]), tokens.starts)
+    bad = (n_slash > 2) | (n_double > 1) | slash[tokens.starts]
+    trailing = np.flatnonzero(slash[:-1] & (blob[1:] <= 32))  # "1/" ends a corner
+    bad[np.searchsorted(tokens.starts, trailing, side="right") - 1] = True
     if bad.any():
         t = int(np.argmax(bad))
-        corner = blob[tokens.starts[t] : ends[t] + 1].tobytes().decode(errors="replace")
+        start = tokens.starts[t]
+        end = start + int(np.argmax(blob[start:] <= 32))
+        corner = blob[start:end].tobytes().decode(errors="replace")
         raise file_error(text.name, text.numbers[lines[tokens.line()[t]]],
                          f"malformed face corner {corner!r}")
     blob[slash] = 32
@@ -141,9 +149,10 @@ def _corner_forms(text, lines, blob, tokens):
 
 def _check_uniform_forms(text, lines, forms, starts_f):
     """Texture indices on every corner of every face, or on none."""
-    vt_t = ((forms == 1) | (forms == 2)).view(np.uint8)
-    has_vt = np.maximum.reduceat(vt_t, starts_f).astype(bool)
-    mixed = np.minimum.reduceat(vt_t, starts_f).astype(bool) != has_vt
+    vt_before = np.concatenate([[0], np.cumsum((forms == 1) | (forms == 2))])
+    n_vt_f = np.diff(np.append(vt_before[starts_f], vt_before[-1]))
+    has_vt = n_vt_f > 0
+    mixed = has_vt & (n_vt_f < np.diff(np.append(starts_f, len(forms))))
     if mixed.any():
         i = int(np.argmax(mixed))
         raise file_error(text.name, text.numbers[lines[i]],

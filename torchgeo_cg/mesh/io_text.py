@@ -247,11 +247,6 @@ class LineTokens(NamedTuple):
         """``(T,)`` int64, the gathered line (``0 .. M-1``) of each token."""
         return np.repeat(np.arange(len(self.counts)), self.counts)
 
-    def ends(self, blob: np.ndarray) -> np.ndarray:
-        """``(T,)`` int64, offset of each token's last byte."""
-        blank = blob <= 32
-        return np.flatnonzero(~blank & np.concatenate([blank[1:], [True]]))
-
 
 def line_tokens(blob: np.ndarray, seg_starts: np.ndarray) -> LineTokens:
     r"""Tokens of the lines gathered in ``blob`` (see :func:`gather_lines`), vectorized.
