@@ -369,6 +369,7 @@ def test_ply_refuses_uvs_and_tags(tmp_path):
 
 
 def test_mesh_defaults_keep_two_field_construction():
+    assert Mesh._fields == ("verts", "faces", "uvs", "uv_faces", "tags", "options")
     m = Mesh(_verts(), pad_faces(MIXED))
     assert m.uvs is None and m.uv_faces is None and m.tags is None and m.options is None
     verts, faces, *_ = m
