@@ -1,20 +1,26 @@
-"""Polygon mesh I/O (OBJ, PLY) and trimesh interop, keeping polygons of any size.
+"""Polygon mesh I/O (OBJ, PLY, OFF) with UVs and subdivision tags, and trimesh interop.
 
 Convention:
-    - A mesh is ``Mesh(verts, faces)``: ``verts`` ``(V, 3)`` float, ``faces``
-      ``(F, K)`` long padded with ``-1`` (see :mod:`torchgeo_cg.mesh.faces`).
+    - A mesh is ``Mesh(verts, faces, uvs, uv_faces, tags, options)``: ``verts``
+      ``(V, 3)`` float, ``faces`` ``(F, K)`` long padded with ``-1`` (see
+      :mod:`torchgeo_cg.mesh.faces`); ``uvs`` ``(T, 2)`` and ``uv_faces`` ``(F, K)``
+      (same padding as ``faces``) are the OBJ texture coordinates, ``tags`` the
+      OpenSubdiv ``t`` tags (:class:`~torchgeo_cg.mesh.SubdivisionTags`) and
+      ``options`` the scheme options they set (``{"boundary": "edge_only", ...}``,
+      see :mod:`torchgeo_cg.mesh.io_obj_tags`).
     - Indices are 0-based in memory; OBJ files are 1-based (negative OBJ indices,
-      relative to the last vertex read, are resolved).
+      relative to the last vertex read, are resolved); tag indices are 0-based.
     - Faces keep their order and winding (counter-clockwise seen from outside);
       vertices keep their file order. Nothing is merged, removed or re-ordered.
+    - Every malformed file raises ``ValueError("<file>, line <n>: ...")`` (binary
+      PLY: ``"<file>: element 'face' record <i>: ..."``); nothing is read silently
+      wrong. Faces need at least 3 vertices, on load and on save.
     - trimesh holds triangles only: :func:`to_trimesh` fan-triangulates polygons.
 """
 
 from __future__ import annotations
 
-import io as _io
 import os
-import re
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -22,96 +28,60 @@ import torch
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
+from torchgeo_cg.mesh.io_obj import ObjContent, format_obj, read_obj
+from torchgeo_cg.mesh.io_obj_tags import ObjTags, check_tags
+from torchgeo_cg.mesh.io_off import format_off, read_off
+from torchgeo_cg.mesh.io_ply import format_ply, read_ply
+from torchgeo_cg.mesh.tags import SubdivisionTags
 
 __all__ = ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
 
 
 class Mesh(NamedTuple):
-    """A polygon mesh.
+    """A polygon mesh, with optional texture coordinates and subdivision tags.
 
     Attributes:
         verts: ``(V, 3)`` float vertex positions.
         faces: ``(F, K)`` long vertex indices, padded with ``-1``.
+        uvs: ``(T, 2)`` float texture coordinates, or ``None``.
+        uv_faces: ``(F, K)`` long indices into ``uvs``, padded like ``faces``, or ``None``.
+        tags: :class:`~torchgeo_cg.mesh.SubdivisionTags`, or ``None``.
+        options: ``dict`` of subdivision scheme options, or ``None``.
+
+    The last four default to ``None``, so ``Mesh(verts, faces)`` still works.
 
     Example:
         >>> m = Mesh(torch.zeros(4, 3), torch.tensor([[0, 1, 2, 3]]))
-        >>> m.verts.shape, m.faces.shape
-        (torch.Size([4, 3]), torch.Size([1, 4]))
+        >>> m.verts.shape, m.faces.shape, m.uvs
+        (torch.Size([4, 3]), torch.Size([1, 4]), None)
     """
 
     verts: torch.Tensor
     faces: torch.Tensor
+    uvs: torch.Tensor | None = None
+    uv_faces: torch.Tensor | None = None
+    tags: SubdivisionTags | None = None
+    options: dict | None = None
 
 
 def _resolve_dtype(dtype: torch.dtype | None) -> torch.dtype:
     return torch.get_default_dtype() if dtype is None else dtype
 
 
-_OBJ_V = re.compile(r"^[ \t]*v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)", re.MULTILINE)
-_OBJ_F = re.compile(r"^[ \t]*f[ \t]+([^\r\n#]*)", re.MULTILINE)
-_OBJ_VF = re.compile(r"^[ \t]*(v|f)[ \t]", re.MULTILINE)
-_SLASH_TAIL = re.compile(r"/\S*")
+def _suffix(path) -> str:
+    suffix = os.path.splitext(os.fspath(path))[1].lower()
+    if suffix not in (".obj", ".ply", ".off"):
+        raise ValueError(f"path: expected a .obj, .ply or .off suffix, got {suffix!r}")
+    return suffix
 
 
-def _parse_obj(text: str) -> tuple[np.ndarray, np.ndarray]:
-    """OBJ text -> ``(V, 3)`` float64 and ``(F, K)`` int64 padded faces (0-based)."""
-    verts_v3 = np.array(_OBJ_V.findall(text), dtype=np.float64).reshape(-1, 3)
-    bodies = _OBJ_F.findall(text)
-    if not bodies:
-        return verts_v3, np.zeros((0, 3), dtype=np.int64)
-    # Keep only the vertex index of "v/vt/vn" tokens, separate faces with a 0
-    # (never a valid OBJ index), and split the flat integer stream vectorized.
-    stream = _SLASH_TAIL.sub("", " 0 ".join(bodies) + " 0")
-    flat = np.array(stream.split(), dtype=np.int64)
-    sep = flat == 0
-    face_of_token = np.cumsum(sep) - sep  # face index of each token
-    idx = flat[~sep]
-    face_of_idx = face_of_token[~sep]
-    if (idx < 0).any():  # relative indices: count the vertices read before each face
-        kinds = np.array(_OBJ_VF.findall(text))
-        verts_before_face = np.cumsum(kinds == "v")[kinds == "f"]
-        rel = idx < 0
-        idx[rel] = verts_before_face[face_of_idx[rel]] + idx[rel] + 1
-    idx = idx - 1
-    sizes_f = np.bincount(face_of_idx, minlength=len(bodies))
-    starts_f = np.cumsum(sizes_f) - sizes_f
-    col = np.arange(idx.size) - starts_f[face_of_idx]
-    faces_fk = np.full((len(bodies), max(int(sizes_f.max()), 3)), -1, dtype=np.int64)
-    faces_fk[face_of_idx, col] = idx
-    return verts_v3, faces_fk
-
-
-def _face_lines(faces_fk: np.ndarray, head: np.ndarray, offset: int) -> str:
-    """One text line per face: ``head[f]`` then the valid indices (+ ``offset``)."""
-    lines = head.astype(str).astype(object)
-    for k in range(faces_fk.shape[1]):  # loop over polygon degree, not faces
-        col = faces_fk[:, k]
-        tokens = np.char.add(" ", (col + offset).astype(str)).astype(object)
-        lines = lines + np.where(col >= 0, tokens, "")
-    return "".join(line + "\n" for line in lines.tolist())
-
-
-def _format_obj(verts_v3: np.ndarray, faces_fk: np.ndarray, precision: int) -> str:
-    out = _io.StringIO()
-    np.savetxt(out, verts_v3, fmt=f"v %.{precision}g %.{precision}g %.{precision}g")
-    out.write(_face_lines(faces_fk, np.full(len(faces_fk), "f"), 1))
-    return out.getvalue()
-
-
-def _ply_binary_faces(faces_fk: np.ndarray) -> bytes:
-    """Binary little-endian ``list uchar int`` records for variable-size faces."""
-    valid_fk = faces_fk >= 0
-    sizes_f = valid_fk.sum(1)
-    rec_len_f = 1 + 4 * sizes_f
-    starts_f = np.cumsum(rec_len_f) - rec_len_f
-    buf = np.zeros(int(rec_len_f.sum()), dtype=np.uint8)
-    buf[starts_f] = sizes_f.astype(np.uint8)
-    idx_bytes = faces_fk[valid_fk].astype("<i4").view(np.uint8).reshape(-1, 4)
-    face_of = np.nonzero(valid_fk)[0]
-    col_of = np.nonzero(valid_fk)[1]
-    pos = starts_f[face_of] + 1 + 4 * col_of
-    buf[pos[:, None] + np.arange(4)[None, :]] = idx_bytes
-    return buf.tobytes()
+def _check_min_degree(faces_fk: torch.Tensor, name: str = "faces") -> None:
+    sizes_f = (faces_fk >= 0).sum(1)
+    small = torch.nonzero(sizes_f < 3).flatten()
+    if small.numel():
+        f = int(small[0])
+        raise ValueError(f"{name}: face {f} has {int(sizes_f[f])} vertices; a face needs at "
+                         "least 3")
 
 
 def _mesh_arrays(verts: torch.Tensor, faces) -> tuple[torch.Tensor, torch.Tensor]:
@@ -123,28 +93,93 @@ def _mesh_arrays(verts: torch.Tensor, faces) -> tuple[torch.Tensor, torch.Tensor
         raise ValueError(
             f"verts and faces must be on the same device, got {verts.device} and {faces.device}"
         )
-    faces_fk = check_faces(
-        faces_fk.cpu(), verts.shape[0], allow_duplicates=True, allow_degenerate=True
-    )
+    faces_fk = faces_fk.cpu()
+    if faces_fk.shape[0]:
+        _check_min_degree(faces_fk)
+    faces_fk = check_faces(faces_fk, verts.shape[0], allow_duplicates=True, allow_degenerate=True)
     return verts, faces_fk
 
 
-def save_mesh(path: str | os.PathLike, verts: torch.Tensor, faces, binary: bool = True) -> None:
-    """Write a polygon mesh to ``.obj`` or ``.ply``, keeping polygons of any size.
+def _uv_arrays(uvs, uv_faces, faces_fk: torch.Tensor):
+    """Checked numpy ``(T, 2)`` uvs and ``(F, K)`` uv faces (same padding as faces)."""
+    if uvs is None and uv_faces is None:
+        return None, None
+    if uvs is None:
+        raise ValueError("uvs: uv_faces were given without uvs")
+    check_tensor(uvs, "uvs")
+    check_shape(uvs, ["T", "2"], "uvs")
+    check_float(uvs, "uvs")
+    uvs_np = uvs.detach().cpu().numpy()
+    if uv_faces is None:
+        return uvs_np, None
+    uv_fk = pad_faces(uv_faces).cpu()
+    width = faces_fk.shape[1]
+    if uv_fk.shape[1] < width:
+        uv_fk = torch.cat([uv_fk, uv_fk.new_full((uv_fk.shape[0], width - uv_fk.shape[1]), -1)], 1)
+    same = uv_fk.shape[0] == faces_fk.shape[0] and not (uv_fk[:, width:] >= 0).any()
+    if not same or not torch.equal(uv_fk[:, :width] >= 0, faces_fk >= 0):
+        raise ValueError(f"uv_faces: expected the padding of faces {tuple(faces_fk.shape)}, "
+                         f"got shape {tuple(uv_fk.shape)} with other face sizes")
+    uv_fk = check_faces(uv_fk[:, : faces_fk.shape[1]], uvs.shape[0], name="uv_faces",
+                        allow_duplicates=True, allow_degenerate=True)
+    return uvs_np, uv_fk.numpy()
+
+
+def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, n_verts: int,
+                faces_fk: np.ndarray) -> ObjTags:
+    """Checked numpy tags for writing."""
+    if tags is None:
+        return ObjTags.empty()._replace(options=dict(options or {}))
+    if not isinstance(tags, SubdivisionTags):
+        raise TypeError(f"tags: expected a SubdivisionTags, got {type(tags).__name__}")
+    creases, crease_s, corners, corner_s, holes = (t.detach().cpu().numpy() for t in tags)
+    if creases.reshape(-1, 2).shape[0] != crease_s.size or corners.size != corner_s.size:
+        raise ValueError("tags: one sharpness per crease and per corner expected")
+    out = ObjTags(creases.reshape(-1, 2).astype(np.int64), crease_s.astype(np.float64),
+                  corners.reshape(-1).astype(np.int64), corner_s.astype(np.float64),
+                  holes.reshape(-1).astype(np.int64), dict(options or {}))
+    check_tags(out, n_verts, faces_fk)  # write only what load_mesh reads back
+    return out
+
+
+def save_mesh(
+    path: str | os.PathLike,
+    verts: torch.Tensor | Mesh,
+    faces=None,
+    binary: bool = True,
+    *,
+    uvs: torch.Tensor | None = None,
+    uv_faces=None,
+    tags: SubdivisionTags | None = None,
+    options: dict | None = None,
+) -> None:
+    """Write a polygon mesh to ``.obj``, ``.ply`` or ``.off``, keeping polygons of any size.
 
     Convention:
-        See the module docstring; OBJ indices are written 1-based. PLY is written
-        binary little-endian (``binary=False``: ASCII), with ``float``/``double``
-        ``x, y, z`` following ``verts.dtype`` and ``list uchar int vertex_indices``.
+        See the module docstring; OBJ indices are written 1-based, with ``v/vt``
+        corners when ``uv_faces`` is given and OpenSubdiv ``t`` lines for ``tags``
+        and ``options``. Numbers are written with 17 (float64) or 9 significant
+        digits, so they read back exactly. PLY is written binary little-endian
+        (``binary=False``: ASCII), with ``float``/``double`` ``x, y, z`` following
+        ``verts.dtype`` and ``list uchar int vertex_indices``; OFF is ASCII. PLY and
+        OFF hold no UVs or tags.
 
     Args:
-        path: destination; the suffix (``.obj`` or ``.ply``, any case) picks the format.
-        verts: ``(V, 3)`` float (detached and moved to the CPU for writing).
-        faces: ``(F, K)`` long padded with ``-1``, or a list of index lists.
+        path: destination; the suffix (``.obj``, ``.ply``, ``.off``, any case) picks the
+            format.
+        verts: ``(V, 3)`` float (detached and moved to the CPU for writing), or a
+            :class:`Mesh` (then ``faces`` and the keyword arguments come from it).
+        faces: ``(F, K)`` long padded with ``-1``, or a list of index lists; every face
+            has at least 3 vertices.
         binary: PLY only; ignored for OBJ.
+        uvs: ``(T, 2)`` float texture coordinates (OBJ).
+        uv_faces: ``(F, K)`` long indices into ``uvs``, padded like ``faces`` (OBJ).
+        tags: :class:`~torchgeo_cg.mesh.SubdivisionTags` (OBJ).
+        options: scheme options, e.g. ``{"boundary": "edge_only"}`` (OBJ).
 
     Raises:
-        ValueError: unknown suffix or invalid faces.
+        ValueError: unknown suffix, faces of fewer than 3 vertices, indices out of
+            range, or UVs/tags for a PLY or OFF file.
 
     Example:
         >>> import tempfile, os
@@ -154,153 +189,40 @@ def save_mesh(path: str | os.PathLike, verts: torch.Tensor, faces, binary: bool 
         >>> print(open(os.path.join(d, "m.obj")).read().splitlines()[-2:])
         ['f 1 2 3 4', 'f 2 5 3']
     """
+    if isinstance(verts, Mesh) and faces is None:
+        mesh = verts
+        verts, faces = mesh.verts, mesh.faces
+        uvs = mesh.uvs if uvs is None else uvs
+        uv_faces = mesh.uv_faces if uv_faces is None else uv_faces
+        tags = mesh.tags if tags is None else tags
+        options = mesh.options if options is None else options
+    if faces is None:
+        raise TypeError("save_mesh: faces are required unless verts is a Mesh")
+    suffix = _suffix(path)
     verts, faces_fk = _mesh_arrays(verts, faces)
-    suffix = os.path.splitext(os.fspath(path))[1].lower()
     verts_v3 = verts.detach().cpu().numpy()
-    faces_np = faces_fk.numpy()
-    if suffix == ".obj":
-        precision = 17 if verts.dtype == torch.float64 else 9
-        with open(path, "w") as fh:
-            fh.write(_format_obj(verts_v3, faces_np, precision))
+    precision = 17 if verts.dtype == torch.float64 else 9
+    if suffix != ".obj" and (uvs is not None or uv_faces is not None or options or (
+            tags is not None and any(t.numel() for t in tags))):
+        raise ValueError(f"path: {suffix[1:].upper()} holds no uvs, uv_faces, tags or options; "
+                         "save as .obj")
+    if suffix == ".off":
+        with open(path, "w", encoding="ascii", newline="\n") as fh:
+            fh.write(format_off(verts_v3, faces_fk.numpy(), precision))
         return
-    if suffix != ".ply":
-        raise ValueError(f"path: expected a .obj or .ply suffix, got {suffix!r}")
-    if faces_np.shape[1] > 255:
-        raise ValueError(
-            f"faces: PLY stores at most 255 vertices per face, got {faces_np.shape[1]}"
-        )
-    ftype, npf = ("double", "<f8") if verts.dtype == torch.float64 else ("float", "<f4")
-    header = (
-        f"ply\nformat {'binary_little_endian' if binary else 'ascii'} 1.0\n"
-        f"comment torchgeo_cg\nelement vertex {len(verts_v3)}\n"
-        f"property {ftype} x\nproperty {ftype} y\nproperty {ftype} z\n"
-        f"element face {len(faces_np)}\nproperty list uchar int vertex_indices\nend_header\n"
-    )
-    with open(path, "wb") as fh:
-        fh.write(header.encode("ascii"))
-        if binary:
-            fh.write(np.ascontiguousarray(verts_v3, dtype=npf).tobytes())
-            fh.write(_ply_binary_faces(faces_np))
-        else:
-            body = _io.StringIO()
-            np.savetxt(body, verts_v3, fmt="%.17g" if ftype == "double" else "%.9g")
-            body.write(_face_lines(faces_np, (faces_np >= 0).sum(1), 0))
-            fh.write(body.getvalue().encode("ascii"))
-
-
-_PLY_TYPES = {
-    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
-    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
-    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
-}
-
-
-def _ply_header(data: bytes) -> tuple[str, list, int]:
-    """Parse a PLY header -> (format, [(element, count, [(prop, type, list_count_type)])], body)."""
-    end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise ValueError("path: not a PLY file (no 'ply' magic or no 'end_header')")
-    body = data.index(b"\n", end) + 1
-    fmt, elements = "", []
-    for line in data[:end].decode("ascii", errors="replace").splitlines():  # header lines
-        tok = line.split()
-        if not tok:
-            continue
-        if tok[0] == "format":
-            fmt = tok[1]
-        elif tok[0] == "element":
-            elements.append((tok[1], int(tok[2]), []))
-        elif tok[0] == "property" and tok[1] == "list":
-            elements[-1][2].append((tok[4], _PLY_TYPES[tok[3]], _PLY_TYPES[tok[2]]))
-        elif tok[0] == "property":
-            elements[-1][2].append((tok[2], _PLY_TYPES[tok[1]], None))
-    return fmt, elements, body
-
-
-def _ply_list_starts(count_at: np.ndarray, start: int, n_records: int, fixed: int, item: int):
-    """Record start offsets of ``n_records`` variable-size binary records, vectorized.
-
-    A record at byte ``i`` has ``fixed + item * count_at[i]`` bytes, so
-    ``next[i]`` is a jump table; pointer doubling (loop over ``log2 F`` levels)
-    collects ``next^m(start)`` for ``m < n_records`` without a loop over records.
-    """
-    size = len(count_at) + 1  # the last slot is a sink for jumps past the end
-    next_b = np.minimum(np.arange(size) + fixed + item * np.r_[count_at, 0], size - 1)
-    starts = np.array([start], dtype=np.int64)
-    jump = next_b
-    while len(starts) < n_records:
-        starts = np.concatenate([starts, jump[starts]])
-        jump = jump[jump]
-    return starts[:n_records]
-
-
-def _load_ply(path) -> tuple[np.ndarray, np.ndarray]:
-    """Small PLY reader (ASCII and binary) keeping the face lists of any size."""
-    with open(path, "rb") as fh:
-        data = fh.read()
-    fmt, elements, offset = _ply_header(data)
-    verts_v3 = np.zeros((0, 3))
-    faces_fk = np.zeros((0, 3), dtype=np.int64)
-    if fmt == "ascii":
-        lines = data[offset:].decode("ascii").splitlines()
-        row = 0
-        for name, count, props in elements:  # loop over the few element kinds
-            recs = lines[row:row + count]
-            row += count
-            if name == "vertex":
-                table = np.loadtxt(recs, dtype=np.float64, ndmin=2).reshape(count, -1)
-                cols = [[p[0] for p in props].index(a) for a in "xyz"]
-                verts_v3 = table[:, cols]
-            elif name == "face" and count:
-                # the list is assumed first: "n i0 .. in-1 [other props]"
-                stream = " -1 ".join(recs) + " -1"
-                flat = np.array(stream.split(), dtype=np.float64).astype(np.int64)
-                sep = flat == -1
-                rec_of = np.cumsum(sep) - sep
-                head = np.r_[0, np.nonzero(sep)[0][:-1] + 1]  # first token of each record
-                n_f = flat[head]
-                pos = np.arange(flat.size) - head[rec_of]
-                take = ~sep & (pos >= 1) & (pos <= n_f[rec_of])
-                faces_fk = np.full((count, max(int(n_f.max()), 3)), -1, dtype=np.int64)
-                faces_fk[rec_of[take], pos[take] - 1] = flat[take]
-        return verts_v3, faces_fk
-    if fmt not in ("binary_little_endian", "binary_big_endian"):
-        raise ValueError(f"path: unsupported PLY format {fmt!r}")
-    end = "<" if fmt == "binary_little_endian" else ">"
-    buf = np.frombuffer(data, dtype=np.uint8, offset=offset)
-    pos = 0
-    for name, count, props in elements:
-        lists = [p for p in props if p[2] is not None]
-        if not lists:
-            dt = np.dtype([(p[0], end + p[1]) for p in props])
-            table = np.frombuffer(buf[pos:pos + count * dt.itemsize].tobytes(), dtype=dt)
-            pos += count * dt.itemsize
-            if name == "vertex":
-                verts_v3 = np.stack([table[a].astype(np.float64) for a in "xyz"], axis=1)
-            continue
-        if name != "face" or len(lists) != 1 or props[0][2] is None:
-            raise ValueError(f"path: unsupported PLY element {name!r} with list properties")
-        _, item_t, count_t = props[0]
-        cnt_dt, item_dt = np.dtype(end + count_t), np.dtype(end + item_t)
-        rest = sum(np.dtype(p[1]).itemsize for p in props[1:])
-        fixed = cnt_dt.itemsize + rest
-        body = buf[pos:]
-        pad = np.zeros(cnt_dt.itemsize, dtype=np.uint8)
-        padded = np.concatenate([body, pad])
-        count_at = np.lib.stride_tricks.sliding_window_view(padded, cnt_dt.itemsize)
-        count_at = count_at[: len(body)].copy().view(cnt_dt).reshape(-1).astype(np.int64)
-        starts = _ply_list_starts(count_at, 0, count, fixed, item_dt.itemsize)
-        n_f = count_at[starts]
-        width = max(int(n_f.max()) if count else 3, 3)
-        col = np.arange(width)
-        valid = col[None, :] < n_f[:, None]
-        byte0 = starts[:, None] + cnt_dt.itemsize + col[None, :] * item_dt.itemsize
-        idx_bytes = body[(byte0[valid][:, None] + np.arange(item_dt.itemsize)).clip(0)]
-        faces_fk = np.full((count, width), -1, dtype=np.int64)
-        faces_fk[valid] = idx_bytes.copy().view(item_dt).reshape(-1)
-        pos += int(starts[-1] + fixed + item_dt.itemsize * n_f[-1]) if count else 0
-    return verts_v3, faces_fk
+    if suffix == ".ply":
+        if faces_fk.shape[1] > 255:
+            raise ValueError(
+                f"faces: PLY stores at most 255 vertices per face, got {faces_fk.shape[1]}")
+        with open(path, "wb") as fh:
+            fh.write(format_ply(verts_v3, faces_fk.numpy(), binary, precision))
+        return
+    uvs_np, uv_np = _uv_arrays(uvs, uv_faces, faces_fk)
+    tag_np = _tag_arrays(tags, options, len(verts_v3), faces_fk.numpy())
+    content = ObjContent(verts_v3, faces_fk.numpy(), uvs_np, uv_np, tag_np)
+    text = format_obj(content, precision)
+    with open(path, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(text)
 
 
 def load_mesh(
@@ -308,49 +230,66 @@ def load_mesh(
     dtype: torch.dtype | None = None,
     device: torch.device | str | None = None,
 ) -> Mesh:
-    """Read an ``.obj`` or ``.ply`` polygon mesh, keeping polygons of any size.
+    """Read an ``.obj``, ``.ply`` or ``.off`` polygon mesh, with its UVs and subdivision tags.
 
     Convention:
-        See the module docstring. OBJ: only ``v`` and ``f`` records are read
-        (``vt``/``vn``/groups/materials are ignored; ``f 1/2/3`` keeps ``1``).
-        PLY (ASCII or binary, any scalar types) needs ``x, y, z`` vertex
-        properties and a face element whose first property is the index list.
-        No vertex is merged or dropped.
+        See the module docstring and :mod:`torchgeo_cg.mesh.io_obj`
+        (statements, ``vt``, negative indices, ``\\`` continuations, comments),
+        :mod:`torchgeo_cg.mesh.io_obj_tags` (OpenSubdiv ``t`` tags) and
+        :mod:`torchgeo_cg.mesh.io_ply` (header checks, ASCII and binary) and
+        :mod:`torchgeo_cg.mesh.io_off`. A BOM and
+        CRLF line ends are accepted. No vertex is merged or dropped.
 
     Args:
-        path: an ``.obj`` or ``.ply`` file.
-        dtype: dtype of ``verts`` (default: ``torch.get_default_dtype()``).
-        device: device of both tensors (default: CPU).
+        path: an ``.obj``, ``.ply`` or ``.off`` file.
+        dtype: dtype of ``verts``, ``uvs`` and the tag sharpness (default:
+            ``torch.get_default_dtype()``).
+        device: device of every tensor (default: CPU).
 
     Returns:
-        :class:`Mesh` with ``verts`` ``(V, 3)`` and ``faces`` ``(F, K)`` padded with ``-1``.
+        :class:`Mesh`: ``verts`` ``(V, 3)``, ``faces`` ``(F, K)`` padded with ``-1``;
+        ``uvs`` ``(T, 2)`` when the OBJ has ``vt`` lines and ``uv_faces`` ``(F, K)``
+        when its faces use them (else ``None``); ``tags`` (empty without ``t``
+        lines, and for PLY/OFF) and ``options`` (``{}`` without option tags).
 
     Raises:
-        ValueError: unknown suffix, or face indices out of range.
+        ValueError: unknown suffix, or a malformed file (naming the file and line).
 
     Example:
         >>> import tempfile, os
         >>> path = os.path.join(tempfile.mkdtemp(), "m.obj")
         >>> with open(path, "w") as fh:
-        ...     _ = fh.write("v 0 0 0\\nv 1 0 0\\nv 1 1 0\\nv 0 1 0\\nv 2 0 0\\n"
-        ...                  "f 1/1 2/2 3/3 4/4\\nf -4 -1 -3\\n")
-        >>> load_mesh(path).faces
+        ...     _ = fh.write("v 0 0 0\\nv 1 0 0\\nv 1 1 0\\nv 0 1 0\\nv 2 0 0\\nvt 0 0\\n"
+        ...                  "f 1/1 2/1 3/1 4/1\\nf -4/1 -1/1 -3/1\\nt crease 2/1/0 0 1 2.5\\n")
+        >>> m = load_mesh(path)
+        >>> m.faces
         tensor([[ 0,  1,  2,  3],
                 [ 1,  4,  2, -1]])
+        >>> m.uv_faces.shape, m.tags.creases.tolist(), m.tags.crease_sharpness.tolist()
+        (torch.Size([2, 4]), [[0, 1]], [2.5])
     """
-    suffix = os.path.splitext(os.fspath(path))[1].lower()
-    if suffix == ".obj":
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            verts_v3, faces_fk = _parse_obj(fh.read())
-    elif suffix == ".ply":
-        verts_v3, faces_fk = _load_ply(path)
+    suffix = _suffix(path)
+    with open(path, "rb") as fh:
+        data = fh.read()
+    name = os.fspath(path)
+    dtype = _resolve_dtype(dtype)
+    if suffix in (".ply", ".off"):
+        verts_v3, faces_fk = (read_ply if suffix == ".ply" else read_off)(data, name)
+        content = ObjContent(verts_v3, faces_fk, None, None, ObjTags.empty())
     else:
-        raise ValueError(f"path: expected a .obj or .ply suffix, got {suffix!r}")
-    faces = check_faces(
-        torch.from_numpy(faces_fk), len(verts_v3), allow_duplicates=True, allow_degenerate=True
-    )
-    verts = torch.from_numpy(verts_v3).to(device=device, dtype=_resolve_dtype(dtype))
-    return Mesh(verts, faces.to(device))
+        content = read_obj(data, name)
+
+    def real(a):
+        return None if a is None else torch.from_numpy(a).to(device=device, dtype=dtype)
+
+    def index(a):
+        return None if a is None else torch.from_numpy(a).to(device=device)
+
+    t = content.tags
+    tags = SubdivisionTags(index(t.creases), real(t.crease_sharpness), index(t.corners),
+                           real(t.corner_sharpness), index(t.holes))
+    return Mesh(real(content.verts_v3), index(content.faces_fk), real(content.uvs_t2),
+                index(content.uv_faces_fk), tags, dict(t.options))
 
 
 def from_trimesh(
