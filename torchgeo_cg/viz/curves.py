@@ -14,7 +14,6 @@ from torchgeo_cg.curves import (
     cycloid,
     figure_eight_implicit,
     figure_eight_parametric,
-    fit_parameters,
     grid_2d,
     hermite,
     marching_squares,
@@ -163,56 +162,20 @@ def _hermite(path: Path) -> None:
     save(fig, path)
 
 
-def _glyph_points(char: str = "d", samples: int = 480) -> torch.Tensor:
-    from matplotlib.font_manager import FontProperties
-    from matplotlib.textpath import TextPath
-
-    text = TextPath((0, 0), char, size=10, prop=FontProperties(family="DejaVu Sans"))
-    polygon = max(text.to_polygons(), key=len)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(polygon, axis=0), axis=1))])
-    s = np.linspace(0, arc[-1], samples, endpoint=False)
-    xy = np.stack([np.interp(s, arc, polygon[:, 0]), np.interp(s, arc, polygon[:, 1])], -1)
-    return torch.tensor(xy, dtype=_F64)
-
-
 @figure(
     "curves",
     "curves_glyph_fit.png",
     "A learnable BezierCurve fitted to the glyph 'd'",
-    "Twelve cubic pieces (one BezierCurve module with (12, 4, 2) control points) start as "
-    "straight segments and are trained with Adam on chord-parametrised samples of the "
-    "outline plus a join penalty (examples/fit_bezier_glyph.py). Right: the loss.",
+    "The outline of 'd' is cut at its corners (red circles: a cubic cannot turn a sharp "
+    "corner without looping) and into pieces of similar length; one BezierCurve module with "
+    "(P, 4, 2) control points starts as straight segments (orange dots) and is trained with "
+    "Adam on chord-parametrised samples plus a penalty joining consecutive pieces "
+    "(torchgeo_cg.viz.glyph_fit, also examples/fit_bezier_glyph.py). Green: each piece's "
+    "control polygon and inner control points; black squares: the shared piece ends. "
+    "Right: the loss.",
 )
 def _glyph(path: Path) -> None:
-    points = _glyph_points()
-    pieces, size = 12, len(points) // 12
-    closed = torch.cat([points, points[:1]])
-    runs = closed[: pieces * size + 1].unfold(0, size + 1, size).transpose(1, 2)  # (P, M, 2)
-    t = fit_parameters(runs, "chord")
-    start = torch.lerp(runs[:, :1], runs[:, -1:], torch.linspace(0, 1, 4, dtype=_F64)[:, None])
-    curve = BezierCurve(start)
-    optimizer = torch.optim.Adam(curve.parameters(), lr=0.05)
-    losses = []
-    for _ in range(400):
-        optimizer.zero_grad()
-        cp = curve.control_points
-        loss = ((curve(t) - runs).pow(2).sum(-1).mean()
-                + (cp[:, -1] - cp.roll(-1, dims=0)[:, 0]).pow(2).sum(-1).mean())
-        loss.backward()
-        optimizer.step()
-        losses.append(float(loss.detach()))
-    fig, axes = plt.subplots(1, 2, figsize=(10, 5), gridspec_kw={"width_ratios": [1, 1.3]})
-    axes[0].plot(*points.T, ".", ms=2, color="0.6", label="outline samples")
-    dense = torch.linspace(0, 1, 60, dtype=_F64)
-    for k, piece in enumerate(BezierCurve(start, learnable=False)(dense)):
-        axes[0].plot(*piece.T, ":", color="C1", lw=1, label="start" if k == 0 else None)
-    with torch.no_grad():
-        for k, piece in enumerate(curve(dense)):
-            axes[0].plot(*piece.T, "C0-", lw=1.5, label="fitted" if k == 0 else None)
-        axes[0].plot(*curve.control_points.reshape(-1, 2).T, "C0.", ms=3)
-    axes[0].set_aspect("equal")
-    axes[0].legend(fontsize=8)
-    axes[1].semilogy(losses)
-    axes[1].set_xlabel("Adam step")
-    axes[1].set_ylabel("loss")
-    save(fig, path)
+    from torchgeo_cg.viz.glyph_fit import fit_glyph, glyph_pieces, plot_glyph_fit
+
+    parts = glyph_pieces("d")
+    plot_glyph_fit(parts, fit_glyph(parts.runs), path)
