@@ -37,6 +37,7 @@ def test_gallery_writes_figures_and_index(tmp_path):
     assert "Articulated motion" in index
 
 
+@pytest.mark.slow
 def test_bench_quick_runs_and_prints_ratios(capsys):
     assert main(["bench", "--quick", "--only", "transforms", "--no-write"]) == 0
     out = capsys.readouterr().out

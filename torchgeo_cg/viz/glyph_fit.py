@@ -136,7 +136,7 @@ def fit_glyph(runs: torch.Tensor, steps: int = 400, lr: float = 0.05) -> GlyphFi
     Example:
         >>> fit = fit_glyph(glyph_pieces("d").runs, steps=50)
         >>> fit.curve.control_points.shape, bool(fit.losses[-1] < fit.losses[0] / 5)
-        (torch.Size([14, 4, 2]), True)
+        (torch.Size([16, 4, 2]), True)
     """
     t = fit_parameters(runs, "chord")  # (P, M), fixed during training
     ends = runs[:, [0, -1]]  # (P, 2, 2)
