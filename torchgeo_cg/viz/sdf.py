@@ -145,11 +145,17 @@ def _sampler(path: Path) -> None:
     p, d = s.points.numpy(), s.sdf.numpy()
     slab = np.abs(p[:, 2]) < 0.05
     fig, axes = plt.subplots(1, 2, figsize=(12, 5))
-    axes[0].scatter(p[slab, 0], p[slab, 1], s=1, c=np.where(d[slab] < 0, "C0", "C3"))
+    inside = d[slab] < 0
+    axes[0].scatter(p[slab][inside, 0], p[slab][inside, 1], s=1, c="C0", label="inside (sdf < 0)")
+    axes[0].scatter(p[slab][~inside, 0], p[slab][~inside, 1], s=1, c="C3",
+                    label="outside (sdf ≥ 0)")
+    axes[0].legend(loc="center", markerscale=6, fontsize=9)
+    axes[0].set_title("samples with |z| < 0.05")
     axes[0].set_aspect("equal")
     axes[0].set_xlabel("x")
     axes[0].set_ylabel("y")
     axes[1].hist(d, bins=200, range=(-0.3, 0.3), color="0.4")
     axes[1].set_xlabel("signed distance")
     axes[1].set_ylabel("samples")
+    axes[1].set_title("all 60,000 samples (|sdf| ≤ 0.3 shown)")
     save(fig, path)
