@@ -164,3 +164,14 @@ def test_bad_argument_in_a_real_process_has_no_traceback(tmp_path):
         "torchgeo-cg fit-shapes: error: argument --steps: must be an integer in "
         f"[1, 1000000], got {2**70}"
     ]
+
+
+def test_closed_output_pipe_is_quiet(tmp_path):
+    """`torchgeo-cg info | head -0`: the reader is gone before we print; no error, no traceback."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+    proc = subprocess.Popen([sys.executable, "-m", "torchgeo_cg", "info"], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # before the child has imported torch, let alone printed
+    err = proc.stderr.read().decode()
+    assert proc.wait() == 141
+    assert err == ""

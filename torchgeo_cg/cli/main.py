@@ -67,7 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``torchgeo-cg`` console script.
 
     Returns the exit code: 0 on success, 2 for bad arguments, 1 when the command
-    failed (an output could not be written, a figure failed), 130 on Ctrl-C.
+    failed (an output could not be written, a figure failed), 130 on Ctrl-C and 141
+    when the output pipe closes early.
 
     Example:
         >>> main(["info", "--brief"])  # doctest: +ELLIPSIS
@@ -81,6 +82,11 @@ def main(argv: list[str] | None = None) -> int:
     except CommandError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as cat does
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except OSError as exc:  # an output that cannot be written, a missing input file
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 1
