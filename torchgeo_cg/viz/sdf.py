@@ -79,10 +79,10 @@ def _tolerance(path: Path) -> None:
     # symlog: linear below 1, so a count of zero is drawn at 0, not faked on a log axis
     axes[0].set_yscale("symlog", linthresh=1.0)
     axes[0].set_ylim(bottom=0)
-    for n, count in zip(resolutions, fixed):
-        if count == 0:
-            axes[0].annotate("none kept", (n, 0), xytext=(4, 6), textcoords="offset points",
-                             fontsize=8, color="C0")
+    empty = [n for n, count in zip(resolutions, fixed) if count == 0]
+    if empty:
+        axes[0].annotate(f"none kept at {', '.join(f'{n}³' for n in empty)}", (empty[0], 0),
+                         xytext=(4, 8), textcoords="offset points", fontsize=9, color="C0")
     axes[0].set_xticks(resolutions, [str(n) for n in resolutions], minor=False)
     axes[0].set_xticks([], minor=True)
     axes[0].set_xlabel("grid resolution per axis")
