@@ -144,12 +144,12 @@ def _sampler(path: Path) -> None:
     s = SDFSampler(lambda p: torus(p, _R, _r), bounds=_BOUNDS, seed=0).sample(60000)
     p, d = s.points.numpy(), s.sdf.numpy()
     slab = np.abs(p[:, 2]) < 0.05
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), layout="constrained")
     inside = d[slab] < 0
     axes[0].scatter(p[slab][inside, 0], p[slab][inside, 1], s=1, c="C0", label="inside (sdf < 0)")
     axes[0].scatter(p[slab][~inside, 0], p[slab][~inside, 1], s=1, c="C3",
                     label="outside (sdf ≥ 0)")
-    axes[0].legend(loc="center", markerscale=6, fontsize=9)
+    fig.legend(loc="outside lower center", ncol=2, markerscale=6, fontsize=10)
     axes[0].set_title("samples with |z| < 0.05")
     axes[0].set_aspect("equal")
     axes[0].set_xlabel("x")
