@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import json
 import pkgutil
 from pathlib import Path
@@ -23,6 +24,38 @@ from benchmarks.harness import Measurement, metadata, run_case
 ROOT = Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
 MARKDOWN = ROOT.parent / "BENCHMARKS.md"
+
+
+#: The peer libraries each area compares against (import names). An area not listed
+#: here is still checked: a ModuleNotFoundError while it runs becomes MissingPeer.
+PEERS: dict[str, tuple[str, ...]] = {
+    "curves": ("scipy", "bezier"),
+    "estimation": ("cv2", "kornia"),
+    "marching_cubes": ("skimage", "mcubes"),
+    "sdf": ("trimesh", "rtree"),
+    "subdivision": ("pymeshlab", "trimesh"),
+    "transforms": ("kornia",),
+}
+#: pip names of import names that differ.
+PIP_NAMES = {"cv2": "opencv-python-headless", "mcubes": "PyMCubes", "skimage": "scikit-image"}
+
+
+class MissingPeer(RuntimeError):
+    """A benchmark area needs a peer library that is not installed."""
+
+    def __init__(self, area: str, module: str) -> None:
+        pip = PIP_NAMES.get(module, module)
+        super().__init__(
+            f"benchmark area {area!r} needs {pip!r}, which is not installed: "
+            "pip install -e '.[bench]' (the bench extra has every peer)"
+        )
+
+
+def check_peers(area: str) -> None:
+    """Raise :class:`MissingPeer` if a peer library of ``area`` is not importable."""
+    for module in PEERS.get(area, ()):
+        if importlib.util.find_spec(module) is None:
+            raise MissingPeer(area, module)
 
 
 def areas() -> list[str]:
@@ -95,12 +128,20 @@ def run(
 
     RESULTS.mkdir(exist_ok=True)
     measured: list[Measurement] = []
-    for area in only or areas():
-        module = importlib.import_module(f"benchmarks.bench_{area}")
-        cases = module.cases(quick=quick)
-        area_results = []
-        for case in tqdm(cases, desc=f"bench {area}", unit="case"):
-            area_results += run_case(case, min_run_time=0.2 if quick else 1.0)
+    selected = only or areas()
+    for area in selected:  # every peer present before anything runs
+        check_peers(area)
+    for area in selected:
+        try:
+            module = importlib.import_module(f"benchmarks.bench_{area}")
+            cases = module.cases(quick=quick)
+            area_results = []
+            for case in tqdm(cases, desc=f"bench {area}", unit="case"):
+                area_results += run_case(case, min_run_time=0.2 if quick else 1.0)
+        except ModuleNotFoundError as exc:
+            if exc.name is None or exc.name.split(".")[0] in ("torchgeo_cg", "benchmarks"):
+                raise
+            raise MissingPeer(area, exc.name.split(".")[0]) from exc
         measured += area_results
         if write:
             payload = {
@@ -125,12 +166,17 @@ def print_table(measured: list[Measurement]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.run", description=__doc__.splitlines()[0]
+    )
     parser.add_argument("--quick", action="store_true", help="smaller sizes, shorter timing")
-    parser.add_argument("--only", nargs="*", choices=areas(), help="areas to run")
+    parser.add_argument("--only", nargs="+", choices=areas(), help="areas to run")
     parser.add_argument("--no-write", action="store_true", help="do not write results")
     args = parser.parse_args(argv)
-    measured = run(args.only, args.quick, write=not args.no_write)
+    try:
+        measured = run(args.only, args.quick, write=not args.no_write)
+    except MissingPeer as exc:
+        parser.exit(2, f"{parser.prog}: error: {exc}\n")
     print_table(measured)
     return 0
 

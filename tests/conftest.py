@@ -1,4 +1,18 @@
-"""Suite-wide fixtures: every test asking for ``device``/``dtype`` runs over all of them."""
+"""Suite-wide fixtures and settings, in the style of kornia's ``testing/base.py``.
+
+- ``device`` / ``dtype``: every test asking for them runs over all of them (CPU,
+  plus CUDA when present; float32 and float64); ``tol`` is the tolerance table of
+  the current dtype.
+- ``one_thread``: run a test with one torch thread (small batched ops are faster
+  and shared CI cores are not oversubscribed); use it with
+  ``pytestmark = pytest.mark.usefixtures("one_thread")`` or as an argument.
+- ``rng``: a seeded ``torch.Generator`` per test, so tests never share a stream.
+- Markers (registered in ``pyproject.toml``): ``slow`` for tests over ~5 s and
+  ``grad`` for float64 gradchecks. CI (``.ci/run``) runs everything; locally,
+  ``pytest -m "not slow"`` skips the slow ones.
+- Hypothesis profiles, chosen with ``HYPOTHESIS_PROFILE``: ``ci`` (the default, 40
+  examples) and ``thorough`` (500 examples, for a nightly or a release check).
+"""
 
 from __future__ import annotations
 
@@ -13,16 +27,24 @@ from torchgeo_cg.core.testing import DTYPES, available_devices, tolerance
 settings.register_profile(
     "ci", max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow]
 )
+settings.register_profile(
+    "thorough",
+    max_examples=500,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 @pytest.fixture(params=available_devices())
 def device(request) -> torch.device:
+    """Every available device: ``cpu``, then ``cuda`` when present."""
     return torch.device(request.param)
 
 
 @pytest.fixture(params=DTYPES, ids=lambda d: str(d).replace("torch.", ""))
 def dtype(request) -> torch.dtype:
+    """Every float dtype of :data:`torchgeo_cg.core.testing.DTYPES`."""
     return request.param
 
 
@@ -30,3 +52,20 @@ def dtype(request) -> torch.dtype:
 def tol(dtype) -> dict[str, float]:
     """``{"rtol", "atol"}`` for the current dtype."""
     return tolerance(dtype)
+
+
+@pytest.fixture
+def one_thread():
+    """Run the test with one torch thread, restoring the previous count afterwards."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)
+
+
+@pytest.fixture
+def rng(request) -> torch.Generator:
+    """A CPU ``torch.Generator`` seeded from the test's name (stable across runs and workers)."""
+    import zlib
+
+    return torch.Generator().manual_seed(zlib.crc32(request.node.nodeid.encode()))

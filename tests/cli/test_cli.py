@@ -23,6 +23,7 @@ def test_info_prints_versions_devices_threads(capsys):
     assert "cpu" in out
 
 
+@pytest.mark.slow
 def test_gallery_writes_figures_and_index(tmp_path):
     assert (
         main(["gallery", "--out", str(tmp_path), "--section", "transforms", "--no-progress"]) == 0
@@ -37,6 +38,7 @@ def test_gallery_writes_figures_and_index(tmp_path):
     assert "Articulated motion" in index
 
 
+@pytest.mark.slow
 def test_bench_quick_runs_and_prints_ratios(capsys):
     assert main(["bench", "--quick", "--only", "transforms", "--no-write"]) == 0
     out = capsys.readouterr().out

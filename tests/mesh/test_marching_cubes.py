@@ -448,6 +448,8 @@ def _small_field(seed=0, n=4):
     return vol
 
 
+@pytest.mark.slow
+@pytest.mark.grad
 def test_gradcheck_verts_normals_weights():
     vol = _small_field().requires_grad_()
     iso = torch.tensor(0.01, dtype=torch.float64, requires_grad=True)

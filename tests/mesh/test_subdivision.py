@@ -283,6 +283,8 @@ def test_limit_regular_boundary_is_cubic_bspline():
 
 # ----------------------------------------------------------------------------- gradients
 
+@pytest.mark.slow
+@pytest.mark.grad
 def test_gradcheck():
     v0, f0 = pyramid()
     cc = CatmullClark(f0, len(v0), levels=2, dtype=torch.float64)

@@ -23,14 +23,7 @@ from torchgeo_cg.transforms import (
     transform_points,
 )
 
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Small batched ops: one thread is faster and avoids oversubscribing shared CI cores."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
 def random_homographies(batch, gen, dtype=torch.float64, scale=200.0):

@@ -40,13 +40,7 @@ def random_problem(batch, n, gen, noise=0.0, dtype=torch.float64):
     return src, dst, h
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Small batched ops: one thread is faster and avoids oversubscribing shared CI cores."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
 def test_public_surface():

@@ -19,20 +19,7 @@ ROOT = Path(__file__).resolve().parents[2]
 rs = importlib.import_module("torchgeo_cg.transforms.report_shapes")
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Small batched ops: one thread is faster and avoids oversubscribing shared CI cores."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
-
-
-def test_public_surface():
-    assert set(rs.__all__) == {
-        "ReportShapes", "ShapeFit", "REPORT_NAMES", "REPORT_FORMULAS", "report_shapes",
-        "fit_report_shapes", "format_transform", "format_report_table",
-    }
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
 def test_shapes_data(device, dtype):

@@ -39,14 +39,36 @@ def test_solar_system_radii_and_periods(spin):
     }
     for name, expected in (("moon1", 2.0), ("moon2", 3.0), ("moon3", 1.0)):
         torch.testing.assert_close(radii[name], torch.full_like(radii[name], expected))
-    # revolutions per cycle: moon 2 twice as fast as moon 1; moon 3 twice around moon 2
+    # revolutions per cycle: moon 2 twice as fast as moon 1; moon 3 round moon 2 by the
+    # report's T_moon3 = T_moon2(θ)·R(θ)·T([1, 0]): once in moon 2's turning frame, three
+    # times in fixed axes, so it does not move in lockstep with moon 2
     assert _revolutions(pos["moon1"]) == pytest.approx(1.0, abs=1e-9)
     assert _revolutions(pos["moon2"]) == pytest.approx(2.0, abs=1e-9)
-    assert _revolutions(pos["moon3"] - pos["moon2"]) == pytest.approx(2.0, abs=1e-9)
+    assert _revolutions(pos["moon3"] - pos["moon2"]) == pytest.approx(3.0, abs=1e-9)
+    # seen along the planet-moon 2 line, moon 3 turns once per cycle (lockstep would be 0)
+    along = torch.atan2(pos["moon2"][:, 1], pos["moon2"][:, 0])
+    rel = pos["moon3"] - pos["moon2"]
+    c, s = along.cos(), along.sin()
+    in_moon2_frame = torch.stack([c * rel[:, 0] + s * rel[:, 1], c * rel[:, 1] - s * rel[:, 0]], -1)
+    assert _revolutions(in_moon2_frame) == pytest.approx(1.0, abs=1e-9)
     # periods: moon 2 returns after half a cycle but not after a quarter
     half = world.get("moon2")[360, :2, 2]
     assert torch.allclose(half, pos["moon2"][0], atol=1e-12)
     assert not torch.allclose(world.get("moon2")[180, :2, 2], pos["moon2"][0], atol=1e-3)
+
+
+@pytest.mark.parametrize("spin", [False, True])
+def test_solar_system_is_the_reports_formula(spin):
+    """Report 2.3 as written: T_moon2(θ) = R(2θ)·T([3, 0]), T_moon3 = T_moon2(θ)·R(θ)·T([1, 0])."""
+    theta = torch.linspace(0, 2 * math.pi, 37, dtype=F64)
+    world = solar_system(spin=spin).to(F64).world_transforms(theta)
+    moon2 = compose(rotation(2 * theta, degrees=False),
+                    translation(torch.tensor([3.0, 0.0], dtype=F64)))
+    moon3 = compose(moon2, rotation(theta, degrees=False),
+                    translation(torch.tensor([1.0, 0.0], dtype=F64)))
+    torch.testing.assert_close(world.get("moon3")[:, :2, 2], moon3[:, :2, 2])
+    if spin:  # the rotating frames themselves, not only the positions
+        torch.testing.assert_close(world.get("moon3"), moon3)
 
 
 def test_spin_true_reproduces_report_rotating_frames():

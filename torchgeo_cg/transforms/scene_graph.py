@@ -262,28 +262,35 @@ def solar_system(spin: bool = False) -> SceneGraph:
     - ``planet``: at the origin.
     - ``moon1``: orbits the planet at distance 2, once per cycle (the report does
       not give this radius; 2 is our choice).
-    - ``moon2``: orbits the planet at distance 3, twice as fast as moon 1.
-    - ``moon3``: orbits moon 2 at distance 1, twice per cycle.
+    - ``moon2``: orbits the planet at distance 3, twice as fast as moon 1:
+      ``T_moon2(θ) = R(2θ)·T([3, 0])``.
+    - ``moon3``: orbits moon 2 at distance 1 by the report's formula
+      ``T_moon3 = T_moon2(θ)·R(θ)·T([1, 0])``: once per cycle in moon 2's turning
+      frame, so in fixed axes it circles moon 2 three times per cycle while moon 2
+      circles the planet twice, and its trail is an epicycle round moon 2's orbit.
+      (The report's prose says "twice per animation cycle"; its formula gives the
+      motion above, which we follow.)
 
     Convention:
         ``theta`` in radians, one cycle is ``[0, 2π)``; all orbits counter-clockwise.
-        With ``spin=False`` every speed is relative to fixed axes, so moon 3 goes
-        round moon 2 exactly twice per cycle. With ``spin=True`` frames rotate
-        with their orbits as in the report's ``T_moon3 = T_moon2(θ)·R(θ)·T([1, 0])``;
-        moon 3's local speed is then 0 so that it still circles moon 2 twice per
-        cycle, tidally locked to moon 2's frame.
+        Both values of ``spin`` give the same world positions. ``spin=True`` builds
+        the report's rotating frames literally (each moon's axes turn with its
+        orbit); ``spin=False`` keeps every frame's axes parallel to the world's,
+        so moon 3's local speed is 3 revolutions per cycle relative to fixed axes.
 
     Example:
-        >>> world = solar_system().world_transforms(torch.tensor([0.0]))
+        >>> world = solar_system().world_transforms(torch.tensor([0.0, math.pi / 2]))
         >>> world.positions()[:, 0]
         tensor([[0., 0.],
                 [2., 0.],
                 [3., 0.],
                 [4., 0.]])
+        >>> (world.positions()[3, 1] - world.positions()[2, 1]).round(decimals=4) + 0.0
+        tensor([ 0., -1.])
     """
     scene = SceneGraph()
     scene.add("planet")
     scene.add("moon1", "planet", Orbit(radius=2.0, speed=1.0, spin=spin))
     scene.add("moon2", "planet", Orbit(radius=3.0, speed=2.0, spin=spin))
-    scene.add("moon3", "moon2", Orbit(radius=1.0, speed=0.0 if spin else 2.0, spin=spin))
+    scene.add("moon3", "moon2", Orbit(radius=1.0, speed=1.0 if spin else 3.0, spin=spin))
     return scene

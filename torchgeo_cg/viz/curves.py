@@ -14,7 +14,6 @@ from torchgeo_cg.curves import (
     cycloid,
     figure_eight_implicit,
     figure_eight_parametric,
-    fit_parameters,
     grid_2d,
     hermite,
     marching_squares,
@@ -33,9 +32,10 @@ _F64 = torch.float64
     "curves_figure_eight.png",
     "Figure-eight: implicit product versus parametric stitch (report Figure 1)",
     "Left: sign of the product of two circle fields on the report's 2000x2000 grid over "
-    "[-10, 10]^2 and its zero set by marching squares. Middle: the touching point, where "
-    "f = 0 and grad f = 0 (f ~ y^4 - 4 r^2 x^2): the negative slivers between the arcs are "
-    "thinner than a cell, the samples there are products of two tiny numbers, and the "
+    "[-10, 10]^2 (blue: f < 0, inside one circle; red: f > 0) and its zero set by marching "
+    "squares. Middle: the touching point on a coarse grid, where f = 0 and grad f = 0 "
+    "(f ~ y^4 - 4 r^2 x^2): the positive sliver between the two arcs (outside both circles) "
+    "is thinner than a cell, the samples there are products of two tiny numbers, and the "
     "contour has to resolve a saddle; anything dividing by |grad f| gets 0/0 (the report's "
     "invalid values). Right: the parametric stitch, continuous with a continuous tangent.",
 )
@@ -50,7 +50,8 @@ def _figure_eight(path: Path) -> None:
     axes[0].imshow(sign, origin="lower", extent=extent, cmap="coolwarm", vmin=-3, vmax=3)
     for poly in contours.polylines():
         axes[0].plot(*poly.numpy().T, "k-", lw=1)
-    axes[0].set_title(f"implicit product, {len(contours.lengths)} polylines")
+    count = len(contours.lengths)
+    axes[0].set_title(f"implicit product: {count} polyline{'' if count == 1 else 's'}")
     # Zoom on the touching point with a coarse grid so cells are visible.
     zn, zl = 41, 0.6
     zspacing = 2 * zl / (zn - 1)
@@ -66,7 +67,13 @@ def _figure_eight(path: Path) -> None:
         axes[1].plot(x, 5.0 * torch.sin(theta), "g--", lw=1)
     axes[1].set_xlim(-zl, zl)
     axes[1].set_ylim(-zl, zl)
-    axes[1].set_title("crossing: grad f = 0 (dashed: true circles)")
+    axes[1].set_title("the touching point: grad f = 0\n(dashed: true circles; red sliver: f > 0)",
+                      fontsize=11)
+    from matplotlib.patches import Patch
+
+    axes[0].legend(handles=[Patch(color=plt.get_cmap("coolwarm")(1 / 3), label="f < 0"),
+                            Patch(color=plt.get_cmap("coolwarm")(2 / 3), label="f > 0")],
+                   loc="lower center", ncol=2, fontsize=9)
     t = torch.linspace(0, 4 * math.pi, 800, dtype=_F64)
     points = figure_eight_parametric(t, 5.0)
     axes[2].scatter(*points.T, c=t, cmap="viridis", s=3)
@@ -143,76 +150,49 @@ HERMITE_VARIANTS = {
     "curves_hermite.png",
     "Hermite tangent variants (report Figure 4)",
     "One cubic Hermite segment from (0, 0) to (1, 0) with four pairs of end tangents "
-    "(arrows): original, exaggerated (5x), vertical and parallel. hermite() with the "
-    "Appendix A basis H00, H10, H01, H11.",
+    "(red arrows, drawn at a fifth of their length m/5 from each end point): original, "
+    "exaggerated (5x), vertical and parallel. hermite() with the Appendix A basis H00, H10, "
+    "H01, H11. All panels share one scale.",
 )
 def _hermite(path: Path) -> None:
     p0 = torch.tensor([0.0, 0.0], dtype=_F64)
     p1 = torch.tensor([1.0, 0.0], dtype=_F64)
     t = torch.linspace(0, 1, 100, dtype=_F64)
-    fig, axes = plt.subplots(2, 2, figsize=(9, 7))
-    for ax, (name, (m0, m1)) in zip(axes.flat, HERMITE_VARIANTS.items()):
-        m0, m1 = torch.tensor(m0, dtype=_F64), torch.tensor(m1, dtype=_F64)
-        ax.plot(*hermite(p0, p1, m0, m1, t).T, "C0-", lw=2)
+    variants = [(name, torch.tensor(m0, dtype=_F64), torch.tensor(m1, dtype=_F64))
+                for name, (m0, m1) in HERMITE_VARIANTS.items()]
+    curves = [hermite(p0, p1, m0, m1, t) for _, m0, m1 in variants]  # each (100, 2)
+    tips = [torch.stack([p0 + 0.2 * m0, p1 + 0.2 * m1]) for _, m0, m1 in variants]  # (2, 2)
+    extent = torch.cat([*curves, *tips, torch.stack([p0, p1])])  # every point drawn
+    low, high = extent.amin(0) - 0.15, extent.amax(0) + 0.15  # arrows stay inside
+    fig, axes = plt.subplots(2, 2, figsize=(9, 8), layout="constrained")
+    for ax, (name, m0, m1), curve in zip(axes.flat, variants, curves):
+        ax.plot(*curve.T, "C0-", lw=2)
         for p, m in ((p0, m0), (p1, m1)):
             ax.annotate("", xy=(p + 0.2 * m).tolist(), xytext=p.tolist(),
-                        arrowprops={"arrowstyle": "->", "color": "C3"})
+                        arrowprops={"arrowstyle": "->", "color": "C3", "lw": 1.5})
         ax.plot(*torch.stack([p0, p1]).T, "ko")
-        ax.set_title(f"{name}: m0={m0.tolist()}, m1={m1.tolist()}", fontsize=9)
+        ax.set_title(f"{name}: m0 = {m0.tolist()}, m1 = {m1.tolist()}", fontsize=10)
+        ax.set_xlim(float(low[0]), float(high[0]))
+        ax.set_ylim(float(low[1]), float(high[1]))
         ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
     save(fig, path)
-
-
-def _glyph_points(char: str = "d", samples: int = 480) -> torch.Tensor:
-    from matplotlib.font_manager import FontProperties
-    from matplotlib.textpath import TextPath
-
-    text = TextPath((0, 0), char, size=10, prop=FontProperties(family="DejaVu Sans"))
-    polygon = max(text.to_polygons(), key=len)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(polygon, axis=0), axis=1))])
-    s = np.linspace(0, arc[-1], samples, endpoint=False)
-    xy = np.stack([np.interp(s, arc, polygon[:, 0]), np.interp(s, arc, polygon[:, 1])], -1)
-    return torch.tensor(xy, dtype=_F64)
 
 
 @figure(
     "curves",
     "curves_glyph_fit.png",
     "A learnable BezierCurve fitted to the glyph 'd'",
-    "Twelve cubic pieces (one BezierCurve module with (12, 4, 2) control points) start as "
-    "straight segments and are trained with Adam on chord-parametrised samples of the "
-    "outline plus a join penalty (examples/fit_bezier_glyph.py). Right: the loss.",
+    "The outline of 'd' is cut at its corners (red circles: a cubic cannot turn a sharp "
+    "corner without looping) and into pieces of similar length; one BezierCurve module with "
+    "(P, 4, 2) control points starts as straight segments (orange dots) and is trained with "
+    "Adam on chord-parametrised samples plus a penalty joining consecutive pieces "
+    "(torchgeo_cg.viz.glyph_fit, also examples/fit_bezier_glyph.py). Green: each piece's "
+    "control polygon and inner control points; black squares: the shared piece ends. "
+    "Right: the loss.",
 )
 def _glyph(path: Path) -> None:
-    points = _glyph_points()
-    pieces, size = 12, len(points) // 12
-    closed = torch.cat([points, points[:1]])
-    runs = closed[: pieces * size + 1].unfold(0, size + 1, size).transpose(1, 2)  # (P, M, 2)
-    t = fit_parameters(runs, "chord")
-    start = torch.lerp(runs[:, :1], runs[:, -1:], torch.linspace(0, 1, 4, dtype=_F64)[:, None])
-    curve = BezierCurve(start)
-    optimizer = torch.optim.Adam(curve.parameters(), lr=0.05)
-    losses = []
-    for _ in range(400):
-        optimizer.zero_grad()
-        cp = curve.control_points
-        loss = ((curve(t) - runs).pow(2).sum(-1).mean()
-                + (cp[:, -1] - cp.roll(-1, dims=0)[:, 0]).pow(2).sum(-1).mean())
-        loss.backward()
-        optimizer.step()
-        losses.append(float(loss.detach()))
-    fig, axes = plt.subplots(1, 2, figsize=(10, 5), gridspec_kw={"width_ratios": [1, 1.3]})
-    axes[0].plot(*points.T, ".", ms=2, color="0.6", label="outline samples")
-    dense = torch.linspace(0, 1, 60, dtype=_F64)
-    for k, piece in enumerate(BezierCurve(start, learnable=False)(dense)):
-        axes[0].plot(*piece.T, ":", color="C1", lw=1, label="start" if k == 0 else None)
-    with torch.no_grad():
-        for k, piece in enumerate(curve(dense)):
-            axes[0].plot(*piece.T, "C0-", lw=1.5, label="fitted" if k == 0 else None)
-        axes[0].plot(*curve.control_points.reshape(-1, 2).T, "C0.", ms=3)
-    axes[0].set_aspect("equal")
-    axes[0].legend(fontsize=8)
-    axes[1].semilogy(losses)
-    axes[1].set_xlabel("Adam step")
-    axes[1].set_ylabel("loss")
-    save(fig, path)
+    from torchgeo_cg.viz.glyph_fit import fit_glyph, glyph_pieces, plot_glyph_fit
+
+    parts = glyph_pieces("d")
+    plot_glyph_fit(parts, fit_glyph(parts.runs), path)

@@ -37,21 +37,27 @@ def plot_report_fits(fit: ShapeFit, path: str | Path) -> None:
     shapes = fit.shapes
     start = shapes.start.detach().cpu().double()
     fitted = transform_points(fit.homography.detach().cpu().double(), start.expand(8, -1, -1))
-    fig, axes = plt.subplots(2, 4, figsize=(15, 8.5), constrained_layout=True)
+    # two columns, so the text stays readable when the page shows the image 520 px wide
+    fig, axes = plt.subplots(4, 2, figsize=(7.5, 15), layout="constrained")
+    drawn = torch.cat([start, shapes.targets.detach().cpu().double().reshape(-1, 2)])  # (K, 2)
+    low, high = float(drawn.min()) - 0.7, float(drawn.max()) + 0.7  # one square view for all
     for i, ax in enumerate(axes.flat):
         ax.fill(*closed(start.numpy()).T, color="0.85", label="start")
         ax.plot(*closed(shapes.targets[i].detach().cpu().numpy()).T, "k-", lw=3, alpha=0.35,
-                label="target")
+                label="target (Table 3)")
         ax.plot(*closed(fitted[i].numpy()).T, "r--", lw=1.5, label="fitted")
         title = shapes.formulas[i] if i < 7 else "homography (Table 3)"
-        ax.set_title(f"{shapes.names[i]}: {title}", fontsize=7.5)
-        ax.set_xlabel(f"fit: {format_transform(fit.homography[i])}\n"
-                      f"max entry error {float(fit.error_homography[i]):.1e}", fontsize=7)
+        ax.set_title(f"{shapes.names[i]}: {title}", fontsize=9)
+        ax.set_xlabel(f"fit {format_transform(fit.homography[i])}\n"
+                      f"max entry error {float(fit.error_homography[i]):.1e}", fontsize=9)
+        ax.set_xlim(low, high)
+        ax.set_ylim(low, high)
         ax.set_aspect("equal")
-        ax.tick_params(labelsize=7)
-    axes.flat[0].legend(fontsize=7, loc="upper right")
-    fig.suptitle("Report Table 3, recovered automatically: one batched fit_transform "
-                 "(homography, LM, from the identity)")
+        ax.tick_params(labelsize=8)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=10)
+    fig.suptitle("Table 3 recovered: one batched fit_transform (homography, LM, from identity)",
+                 fontsize=11)
     save(fig, Path(path))
 
 
@@ -76,12 +82,14 @@ def _report_shapes(path: Path) -> None:
     "estimation",
     "estimation_convergence.png",
     "Convergence of the three optimizers",
-    "Mean over 256 random homography problems (8 points, 0.5 px noise) of the squared "
-    "transfer error divided by the closed-form DLT's, per iteration, from the identity in the "
-    "Hartley-normalized frame. Levenberg-Marquardt reaches the DLT's cost in 2-3 iterations, "
-    "L-BFGS (on the summed loss of the batch) in tens, Adam (lr 0.05, cosine decay) in "
-    "~150 steps. Right: plain Adam on the 8 raw entries in pixel units, as the issue's anchor "
-    "says, does not converge.",
+    "How fast fit_transform fits homographies: 256 random problems of 8 point pairs "
+    "(0.5 px noise), all in one batch, started from the identity. The y axis is the squared "
+    "distance between the mapped and the target points, divided by that of the direct "
+    "least-squares solution (find_homography_dlt) and averaged over the problems, so 1 means "
+    "as good as the direct solution. Left: Levenberg-Marquardt gets there in 2-3 iterations, "
+    "L-BFGS in about 30 and Adam in about 150; fit_transform rescales the points to unit size "
+    "before optimising. Right: Adam on the 8 raw matrix entries in pixel units, without that "
+    "rescaling, stays 100,000 times worse.",
 )
 def _convergence(path: Path) -> None:
     gen = torch.Generator().manual_seed(0)
@@ -103,8 +111,9 @@ def _convergence(path: Path) -> None:
     ax.set_xlabel("iteration")
     ax.set_ylabel("mean loss / DLT loss")
     ax.set_xscale("symlog", linthresh=10)
+    ax.set_xlim(0, 200)
     ax.legend()
-    ax.set_title("fit_transform, Hartley-normalized parameters")
+    ax.set_title("fit_transform (points rescaled to unit size)")
     # plain Adam on the raw entries, pixel units
     theta = torch.zeros(256, 8, dtype=torch.float64, requires_grad=True)
     opt = torch.optim.Adam([theta], lr=0.05)
@@ -120,5 +129,6 @@ def _convergence(path: Path) -> None:
     ax2.semilogy(raw, "C3-")
     ax2.axhline(1.0, color="k", lw=0.8, ls=":")
     ax2.set_xlabel("step")
+    ax2.set_ylabel("mean loss / DLT loss")
     ax2.set_title("plain Adam on the 8 raw entries, pixel units")
     save(fig, path)

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import html
 import importlib
+import os
 import pkgutil
 from pathlib import Path
 
 from torchgeo_cg.viz.registry import GalleryFigure, registered_figures
 
-__all__ = ["build_gallery", "load_figure_modules"]
+__all__ = ["build_gallery", "check_output_folder", "check_sections", "load_figure_modules"]
 
 _SKIP = {"registry", "gallery", "style"}  # helpers, not figure modules
 
@@ -25,6 +26,72 @@ def load_figure_modules() -> list[str]:
         importlib.import_module(f"torchgeo_cg.viz.{info.name}")
         names.append(info.name)
     return names
+
+
+def check_output_folder(out_dir: str | Path) -> Path:
+    """The gallery's output folder, created if missing; it must be writable.
+
+    Raises:
+        ValueError: ``out_dir`` is empty (it would mean the current folder).
+        OSError: it is a file, lies under a file, or cannot be created or written
+            (``FileExistsError``, ``NotADirectoryError``, ``PermissionError``).
+
+    Example:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     check_output_folder(Path(tmp) / "a" / "b").is_dir()
+        True
+        >>> check_output_folder("")
+        Traceback (most recent call last):
+        ...
+        ValueError: the output folder is empty; give a folder such as 'gallery'
+    """
+    if str(out_dir).strip() == "":
+        raise ValueError("the output folder is empty; give a folder such as 'gallery'")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"the output folder {str(out)!r} is a file")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise NotADirectoryError(
+            f"cannot create the output folder {str(out)!r}: a part of its path is a file"
+        ) from None
+    except OSError as exc:
+        raise type(exc)(
+            f"cannot create the output folder {str(out)!r}: {exc.strerror or exc}"
+        ) from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise PermissionError(f"the output folder {str(out)!r} is not writable")
+    return out
+
+
+def check_sections(sections: list[str] | None) -> list[str]:
+    """The known gallery sections (imports the figure modules, so needs matplotlib).
+
+    Raises:
+        ValueError: a name in ``sections`` is not a section, or ``sections`` is empty.
+
+    Example:
+        >>> check_sections(["curves"])[:2]
+        ['curves', 'estimation']
+        >>> check_sections(["bogus"])  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ValueError: unknown gallery section 'bogus'; the sections are curves, estimation, ...
+    """
+    load_figure_modules()
+    known = sorted({f.section for f in registered_figures()})
+    if sections is not None and len(sections) == 0:
+        raise ValueError(f"no section given; the sections are {', '.join(known)}")
+    unknown = [s for s in sections or [] if s not in known]
+    if unknown:
+        names = ", ".join(repr(s) for s in unknown)
+        raise ValueError(
+            f"unknown gallery section{'s' if len(unknown) > 1 else ''} {names}; "
+            f"the sections are {', '.join(known)}"
+        )
+    return known
 
 
 def _write_index(out: Path, done: list[GalleryFigure], failed: list[tuple[GalleryFigure, str]]):
@@ -69,6 +136,8 @@ def build_gallery(
         The paths written, ``index.html`` last.
 
     Raises:
+        ValueError: ``out_dir`` is empty, or a section is unknown.
+        OSError: ``out_dir`` is a file, lies under a file or is not writable.
         RuntimeError: after writing the index, if any figure failed to render.
     """
     import matplotlib
@@ -76,9 +145,8 @@ def build_gallery(
     matplotlib.use("Agg")
     from tqdm.auto import tqdm
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    load_figure_modules()
+    out = check_output_folder(out_dir)
+    check_sections(sections)
     figures = [f for f in registered_figures() if sections is None or f.section in sections]
     figures.sort(key=lambda f: f.section)
     done: list[GalleryFigure] = []

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -103,27 +102,3 @@ def _soft(path: Path) -> None:
     mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, 1))
     fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="face weight")
     save(fig, path)
-
-
-def _load_example():
-    path = Path(__file__).resolve().parents[2] / "examples" / "fit_torus_marching_cubes.py"
-    if not path.exists():
-        raise FileNotFoundError(f"the example script is not at {path} (run from a checkout)")
-    spec = importlib.util.spec_from_file_location("fit_torus_marching_cubes", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-@figure(
-    "mesh",
-    "marching_cubes_fit_torus.png",
-    "Optimising through marching cubes: recovering a torus's radii",
-    "examples/fit_torus_marching_cubes.py: a torus SDF with learnable radii (start R = r = "
-    "0.4) is meshed by marching_cubes with soft weights, and a face-weighted chamfer "
-    "distance to 600 points of the target torus (R = 0.65, r = 0.25) is minimised with Adam.",
-)
-def _fit(path: Path) -> None:
-    example = _load_example()
-    result = example.fit(steps=40, verbose=False)
-    example.plot_before_after(result, path)

@@ -45,7 +45,7 @@ _HOUSE = torch.tensor(
     "y up) and uniform S(1.5): report Table 1 as homogeneous 3x3 matrices.",
 )
 def _basic(path: Path) -> None:
-    fig, axes = plt.subplots(1, 3, figsize=(12, 4))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), layout="constrained")
     cases = [
         ("T(2, 1)", translation(torch.tensor([2.0, 1.0], dtype=torch.float64))),
         ("R(30°)", rotation(torch.tensor(30.0, dtype=torch.float64))),
@@ -54,14 +54,16 @@ def _basic(path: Path) -> None:
     for ax, (name, m) in zip(axes, cases):
         moved = transform_points(m, _HOUSE)
         ax.fill(*closed(_HOUSE).T, color="0.8", label="start")
-        ax.plot(*closed(moved).T, "C0-", lw=2, label=name)
-        ax.plot(0, 0, "k+", ms=12)
+        ax.plot(*closed(moved).T, "C0-", lw=2, label="transformed")
+        ax.plot(0, 0, "k+", ms=12, label="origin")
         ax.set_aspect("equal")
         ax.set_xlim(-1.5, 3.5)
         ax.set_ylim(-0.5, 3)
         ax.grid(alpha=0.3)
         ax.set_title(name)
-        ax.legend(loc="upper right")
+    # one legend for the three panels, below them, so it covers no data
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=3)
     save(fig, path)
 
 
@@ -98,8 +100,10 @@ def _pre_post(path: Path) -> None:
     "solar_system.gif",
     "Articulated motion: a planet with three moons",
     "solar_system(): moon 1 at distance 2 once per cycle, moon 2 at distance 3 twice as fast, "
-    "moon 3 round moon 2 at distance 1 twice per cycle. All 48 frames come from one "
-    "world_transforms(theta) call: (4 nodes, 48 times, 3, 3).",
+    "and moon 3 at distance 1 round moon 2 by the report's T_moon3 = T_moon2(θ)·R(θ)·T([1, 0]): "
+    "once per cycle in moon 2's turning frame (the grey arm), so its trail loops round moon "
+    "2's orbit. All 48 frames come from one world_transforms(theta) call: "
+    "(4 nodes, 48 times, 3, 3).",
 )
 def _solar_gif(path: Path) -> None:
     from matplotlib.animation import FuncAnimation, PillowWriter
@@ -115,7 +119,13 @@ def _solar_gif(path: Path) -> None:
     fig, ax = plt.subplots(figsize=(4.5, 4.5))
     for k in range(1, 4):
         ax.plot(trail[k, :, 0], trail[k, :, 1], color=colors[k], lw=0.6, alpha=0.5)
+    arm = ax.plot([], [], "-", color="0.4", lw=1)[0]  # moon 2 -> moon 3, the child's frame
     dots = [ax.plot([], [], "o", color=c, ms=s)[0] for c, s in zip(colors, sizes)]
+    for k, name in enumerate(("planet", "moon 1", "moon 2", "moon 3")):
+        dots[k].set_label(name)
+    fig.legend(loc="lower center", fontsize=8, ncol=4, frameon=False, handlelength=1,
+               columnspacing=0.8)
+    fig.subplots_adjust(left=0.03, right=0.97, top=0.92, bottom=0.09)
     ax.set_xlim(-4.6, 4.6)
     ax.set_ylim(-4.6, 4.6)
     ax.set_aspect("equal")
@@ -124,10 +134,11 @@ def _solar_gif(path: Path) -> None:
     title = ax.set_title("")
 
     def draw(i):
+        arm.set_data(pos[2:, i, 0], pos[2:, i, 1])
         for k, dot in enumerate(dots):
             dot.set_data([pos[k, i, 0]], [pos[k, i, 1]])
         title.set_text(f"θ = {theta[i]:.2f} rad")
-        return dots
+        return [arm, *dots]
 
     anim = FuncAnimation(fig, draw, frames=frames, blit=False)
     anim.save(path, writer=PillowWriter(fps=16), dpi=70)

@@ -1,0 +1,224 @@
+"""The public API of torchgeo_cg, in one place: every public module and its ``__all__``.
+
+``tests/test_public_api.py`` checks the installed package against this table in
+both directions, so a name never disappears silently and a new one is never
+public by accident. To add a name, add it here in the same change. To see the
+current surface in this file's format (to paste, after reviewing the diff)::
+
+    python tests/api_inventory.py
+
+Modules whose dotted path has a part starting with ``_`` (private modules,
+``__main__``) are not public and are not listed.
+"""
+
+from __future__ import annotations
+
+#: module -> the names of its ``__all__`` (order does not matter; kept sorted).
+INVENTORY: dict[str, list[str]] = {
+    "torchgeo_cg": ["ShapeError", "__version__", "core", "curves", "mesh", "sdf", "transforms"],
+    "torchgeo_cg.cli": ["CommandError"],
+    "torchgeo_cg.cli.bench": [
+        "NEEDS_CHECKOUT", "add_parser", "find_benchmarks", "load_benchmarks"
+    ],
+    "torchgeo_cg.cli.fit_shapes": ["MAX_STEPS", "add_parser", "steps_argument"],
+    "torchgeo_cg.cli.gallery": ["add_parser"],
+    "torchgeo_cg.cli.info": ["add_parser", "collect_info"],
+    "torchgeo_cg.cli.main": ["OneLineParser", "build_parser", "main"],
+    "torchgeo_cg.core": [
+        "ShapeError", "check_broadcastable", "check_float", "check_shape", "check_tensor",
+        "clamp_away_from_zero", "safe_div", "safe_norm", "safe_sqrt"
+    ],
+    "torchgeo_cg.core.check": [
+        "ShapeError", "check_broadcastable", "check_float", "check_shape", "check_tensor",
+        "format_shape"
+    ],
+    "torchgeo_cg.core.numerics": ["clamp_away_from_zero", "safe_div", "safe_norm", "safe_sqrt"],
+    "torchgeo_cg.core.testing": [
+        "DTYPES", "TOLERANCES", "assert_close", "available_devices", "tolerance"
+    ],
+    "torchgeo_cg.curves": [
+        "BezierCurve", "BezierFit", "HermiteControls", "HermiteCurve", "HermiteSpline",
+        "MarchingSquaresResult", "PchipInterpolator", "SplitResult", "bernstein_basis",
+        "bezier", "bezier_arclength_params", "bezier_curvature", "bezier_derivative",
+        "bezier_length", "bezier_normal", "bezier_tangent", "bezier_to_hermite",
+        "cardinal_tangents", "catmull_rom_tangents", "check_knots", "circle", "cubic_bezier",
+        "cycloid", "de_casteljau", "elevate_bezier", "figure_eight_implicit",
+        "figure_eight_parametric", "fit_bezier", "fit_parameters", "grid_2d", "hermite",
+        "hermite_basis", "hermite_spline", "hermite_to_bezier", "implicit_circle",
+        "marching_squares", "pchip_interpolate", "pchip_tangents", "quartic_bezier",
+        "split_bezier"
+    ],
+    "torchgeo_cg.curves.bernstein": ["bernstein_basis"],
+    "torchgeo_cg.curves.bezier": [
+        "BezierCurve", "SplitResult", "bezier", "bezier_arclength_params", "bezier_curvature",
+        "bezier_derivative", "bezier_length", "bezier_normal", "bezier_tangent", "cubic_bezier",
+        "de_casteljau", "elevate_bezier", "quartic_bezier", "split_bezier"
+    ],
+    "torchgeo_cg.curves.fitting": ["BezierFit", "fit_bezier", "fit_parameters"],
+    "torchgeo_cg.curves.hermite": [
+        "HermiteControls", "HermiteCurve", "HermiteSpline", "PchipInterpolator",
+        "bezier_to_hermite", "cardinal_tangents", "catmull_rom_tangents", "check_knots",
+        "hermite", "hermite_basis", "hermite_spline", "hermite_to_bezier", "pchip_interpolate",
+        "pchip_tangents"
+    ],
+    "torchgeo_cg.curves.marching_squares": ["MarchingSquaresResult", "marching_squares"],
+    "torchgeo_cg.curves.parametric": [
+        "circle", "cycloid", "figure_eight_implicit", "figure_eight_parametric", "grid_2d",
+        "implicit_circle"
+    ],
+    "torchgeo_cg.mesh": [
+        "CatmullClark", "INFINITELY_SHARP", "LoopSubdivision", "MarchingCubes",
+        "MarchingCubesResult", "Mesh", "SubdivisionOperator", "SubdivisionTags",
+        "apply_operator", "catmull_clark", "catmull_clark_operator", "check_faces",
+        "face_sizes", "from_trimesh", "limit_positions", "load_mesh", "loop_operator",
+        "loop_subdivide", "marching_cubes", "pad_faces", "save_mesh", "to_trimesh",
+        "triangulate_faces", "unpad_faces"
+    ],
+    "torchgeo_cg.mesh.data": [],
+    "torchgeo_cg.mesh.data.make_rabbit": ["cube_sphere", "extrude", "main", "make_rabbit"],
+    "torchgeo_cg.mesh.faces": [
+        "check_faces", "face_sizes", "pad_faces", "triangulate_faces", "unpad_faces"
+    ],
+    "torchgeo_cg.mesh.io": ["Mesh", "from_trimesh", "load_mesh", "save_mesh", "to_trimesh"],
+    "torchgeo_cg.mesh.loop": ["LoopSubdivision", "loop_operator", "loop_subdivide"],
+    "torchgeo_cg.mesh.marching_cubes": [
+        "MarchingCubes", "MarchingCubesResult", "marching_cubes"
+    ],
+    "torchgeo_cg.mesh.subdivision": [
+        "CatmullClark", "SubdivisionOperator", "apply_operator", "catmull_clark",
+        "catmull_clark_operator", "limit_positions"
+    ],
+    "torchgeo_cg.mesh.tags": ["INFINITELY_SHARP", "SubdivisionTags"],
+    "torchgeo_cg.sdf": [
+        "Annulus", "Box", "Capsule", "Circle", "Difference", "Gyroid", "Intersection",
+        "LevelSetPoints", "MeshSDFResult", "Plane", "Product", "Rectangle", "Rotate",
+        "SDFSampler", "SDFSamples", "Scale", "SmoothIntersection", "SmoothUnion", "Sphere",
+        "Torus", "Translate", "TriangleClosestPoint", "Union", "Volume", "annulus", "box",
+        "capsule", "circle", "closest_point_on_triangle", "difference", "eikonal_loss",
+        "grid_interpolate", "grid_points", "grid_spacing", "gyroid", "index_to_world",
+        "intersection", "is_watertight", "load_samples", "mesh_sdf", "plane", "product",
+        "rectangle", "rotate", "sample_grid", "sample_mesh_surface", "save_samples", "scale",
+        "sdf_gradient", "sdf_normal", "smooth_intersection", "smooth_union", "sphere", "torus",
+        "translate", "union", "winding_number", "world_to_index", "zero_level_set"
+    ],
+    "torchgeo_cg.sdf.gradients": ["eikonal_loss", "sdf_gradient", "sdf_normal"],
+    "torchgeo_cg.sdf.grid": [
+        "Volume", "grid_interpolate", "grid_points", "grid_spacing", "index_to_world",
+        "sample_grid", "world_to_index"
+    ],
+    "torchgeo_cg.sdf.level_set": ["LevelSetPoints", "zero_level_set"],
+    "torchgeo_cg.sdf.mesh_distance": [
+        "MeshSDFResult", "TriangleClosestPoint", "closest_point_on_triangle", "is_watertight",
+        "mesh_sdf", "winding_number"
+    ],
+    "torchgeo_cg.sdf.operators": [
+        "Difference", "Intersection", "Product", "Rotate", "Scale", "SmoothIntersection",
+        "SmoothUnion", "Translate", "Union", "difference", "intersection", "product", "rotate",
+        "scale", "smooth_intersection", "smooth_union", "translate", "union"
+    ],
+    "torchgeo_cg.sdf.primitives": [
+        "Annulus", "Box", "Capsule", "Circle", "Gyroid", "Plane", "Rectangle", "Sphere",
+        "Torus", "annulus", "box", "capsule", "circle", "gyroid", "plane", "rectangle",
+        "sphere", "torus"
+    ],
+    "torchgeo_cg.sdf.sampler": [
+        "SDFSampler", "SDFSamples", "load_samples", "sample_mesh_surface", "save_samples"
+    ],
+    "torchgeo_cg.transforms": [
+        "AffineDecomposition", "FitResult", "FixedTransform", "HartleyNormalization",
+        "HomogeneousTransform", "HomographyFit", "HomographyModel", "Orbit", "ReportShapes",
+        "SceneGraph", "ShapeFit", "TRSTransform", "WorldTransforms", "compose", "compose_trs",
+        "decompose_affine", "find_affine", "find_euclidean", "find_homography_dlt",
+        "find_similarity", "find_translation", "fit_report_shapes", "fit_transform",
+        "hartley_normalize", "homography", "inverse", "matrix_to_parameters",
+        "parameters_to_matrix", "report_shapes", "reprojection_error", "rotation", "scale_x",
+        "scale_y", "scaling", "shear", "solar_system", "transform_points", "translation"
+    ],
+    "torchgeo_cg.transforms.decompose": ["AffineDecomposition", "decompose_affine"],
+    "torchgeo_cg.transforms.estimation": [
+        "HartleyNormalization", "HomographyFit", "find_affine", "find_euclidean",
+        "find_homography_dlt", "find_similarity", "find_translation", "hartley_normalize",
+        "reprojection_error"
+    ],
+    "torchgeo_cg.transforms.fitting": [
+        "FitResult", "HomographyModel", "MODELS", "PARAMETRIZATIONS", "fit_transform",
+        "matrix_to_parameters", "parameters_to_matrix"
+    ],
+    "torchgeo_cg.transforms.homogeneous": [
+        "compose", "compose_trs", "homography", "inverse", "rotation", "scale_x", "scale_y",
+        "scaling", "shear", "transform_points", "translation"
+    ],
+    "torchgeo_cg.transforms.modules": ["HomogeneousTransform", "TRSTransform"],
+    "torchgeo_cg.transforms.report_shapes": [
+        "REPORT_FORMULAS", "REPORT_NAMES", "ReportShapes", "ShapeFit", "fit_report_shapes",
+        "format_report_table", "format_transform", "report_shapes"
+    ],
+    "torchgeo_cg.transforms.scene_graph": [
+        "FixedTransform", "Orbit", "SceneGraph", "WorldTransforms", "solar_system"
+    ],
+    "torchgeo_cg.viz": ["GalleryFigure", "build_gallery", "figure", "registered_figures"],
+    "torchgeo_cg.viz.curves": [],
+    "torchgeo_cg.viz.estimation": ["plot_report_fits"],
+    "torchgeo_cg.viz.gallery": [
+        "build_gallery", "check_output_folder", "check_sections", "load_figure_modules"
+    ],
+    "torchgeo_cg.viz.glyph_fit": [
+        "GlyphFit", "GlyphPieces", "fit_glyph", "glyph_pieces", "glyph_polygon",
+        "plot_glyph_fit"
+    ],
+    "torchgeo_cg.viz.marching_cubes": [],
+    "torchgeo_cg.viz.registry": ["GalleryFigure", "figure", "registered_figures"],
+    "torchgeo_cg.viz.sdf": [],
+    "torchgeo_cg.viz.style": ["closed", "plt", "save"],
+    "torchgeo_cg.viz.subdivision": [],
+    "torchgeo_cg.viz.torus_fit": [
+        "START_RADII", "TRUE_RADII", "TorusFit", "extract_torus", "fit_torus_radii",
+        "plot_torus_fit", "sample_torus_surface", "soft_chamfer", "torus_grid_sdf"
+    ],
+    "torchgeo_cg.viz.transforms": [],
+}
+
+
+def public_modules() -> list[str]:
+    """Dotted names of every public module of the installed package, sorted."""
+    import pkgutil
+
+    import torchgeo_cg
+
+    names = ["torchgeo_cg"] + [
+        m.name for m in pkgutil.walk_packages(torchgeo_cg.__path__, prefix="torchgeo_cg.")
+    ]
+    return sorted(n for n in names if not any(p.startswith("_") for p in n.split(".")))
+
+
+def current_surface() -> dict[str, list[str]]:
+    """``{module: sorted(__all__)}`` of the package as imported now."""
+    import importlib
+
+    return {
+        name: sorted(getattr(importlib.import_module(name), "__all__", []))
+        for name in public_modules()
+    }
+
+
+def format_inventory(surface: dict[str, list[str]]) -> str:
+    """``surface`` as the body of :data:`INVENTORY` (one module per line or block)."""
+    import textwrap
+
+    lines = []
+    for module, names in surface.items():
+        body = ", ".join(f'"{n}"' for n in names)
+        one_line = f'    "{module}": [{body}],'
+        if len(one_line) <= 96:
+            lines.append(one_line)
+            continue
+        lines.append(f'    "{module}": [')
+        lines += [f"        {chunk}" for chunk in textwrap.wrap(body, 88)]
+        lines.append("    ],")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print("INVENTORY: dict[str, list[str]] = {")
+    print(format_inventory(current_surface()))
+    print("}")
