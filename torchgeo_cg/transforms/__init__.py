@@ -33,6 +33,7 @@ from torchgeo_cg.transforms.homogeneous import (
     translation,
 )
 from torchgeo_cg.transforms.modules import HomogeneousTransform, TRSTransform
+from torchgeo_cg.transforms.ransac import RobustFit, find_transform_ransac
 from torchgeo_cg.transforms.report_shapes import (
     ReportShapes,
     ShapeFit,
@@ -54,12 +55,14 @@ __all__ = [
     "HomographyFit",
     "HomographyModel",
     "ReportShapes",
+    "RobustFit",
     "ShapeFit",
     "decompose_affine",
     "find_affine",
     "find_euclidean",
     "find_homography_dlt",
     "find_similarity",
+    "find_transform_ransac",
     "find_translation",
     "fit_report_shapes",
     "fit_transform",

@@ -151,6 +151,7 @@ def point_norm(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
 
 
 def hartley_weighted(points: torch.Tensor, w: torch.Tensor) -> HartleyNormalization:
+    """:func:`hartley_normalize` with prepared weights w (*, N), non-negative, positive sum."""
     centroid = _weighted_mean(points, w)  # (*, 2)
     centered = points - centroid[..., None, :]  # (*, N, 2)
     radius = (point_norm(centered[..., 0], centered[..., 1]) * w).sum(-1) / w.sum(-1)  # (*)
@@ -263,7 +264,7 @@ def _dlt_blocks(moments: torch.Tensor) -> torch.Tensor:
 
 # Batch-last 3x3 algebra: a matrix is (3, 3, B), a vector (3, B). Each entry is then a
 # contiguous B-vector, about 10x faster on CPU than (B, 3, 3) reductions or bmm.
-def _mm3(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+def matmul3(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """(3, 3, B) @ (3, 3, B) -> (3, 3, B)."""
     return (a[:, :, None] * b[None]).sum(1)
 
@@ -273,7 +274,7 @@ def _mv3(a: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return (a * x[None]).sum(1)
 
 
-def _adjugate3(a: torch.Tensor) -> torch.Tensor:
+def adjugate3(a: torch.Tensor) -> torch.Tensor:
     """(3, 3, B) adjugate (transposed cofactors): ``adj(a) a = det(a) I``."""
     c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
     c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
@@ -289,7 +290,7 @@ def _adjugate3(a: torch.Tensor) -> torch.Tensor:
 
 def _inv3(a: torch.Tensor) -> torch.Tensor:
     """(3, 3, B) inverse by the adjugate; a zero determinant is replaced by a tiny one."""
-    adj = _adjugate3(a)
+    adj = adjugate3(a)
     det = (a[0] * adj[:, 0]).sum(0)
     tiny = torch.finfo(a.dtype).tiny
     det = torch.where(det.abs() > tiny, det, torch.full_like(det, tiny))
@@ -314,8 +315,8 @@ def _smallest_eigvec(blocks: torch.Tensor, iters: int, shift: float, start=None)
     eye = torch.eye(3, dtype=blocks.dtype, device=blocks.device)[..., None]  # (3, 3, 1)
     s0, su, sv, suv = blocks[0] + shift * eye, blocks[1], blocks[2], blocks[3] + shift * eye
     a1 = _inv3(s0)
-    gu, gv = _mm3(a1, su), _mm3(a1, sv)  # S0⁻¹ Su, S0⁻¹ Sv
-    r_inv = _inv3(suv - _mm3(su, gu) - _mm3(sv, gv))  # Schur complement inverse
+    gu, gv = matmul3(a1, su), matmul3(a1, sv)  # S0⁻¹ Su, S0⁻¹ Sv
+    r_inv = _inv3(suv - matmul3(su, gu) - matmul3(sv, gv))  # Schur complement inverse
     gu_t, gv_t = gu.transpose(0, 1), gv.transpose(0, 1)
 
     def solve(b: torch.Tensor) -> torch.Tensor:  # (9, B) -> (M + shift I)⁻¹ b
@@ -329,7 +330,7 @@ def _smallest_eigvec(blocks: torch.Tensor, iters: int, shift: float, start=None)
         vec = vec / vec.norm(dim=0, keepdim=True).clamp_min(1e-300)
     top = (vec * solve(vec)).sum(0)  # vᵀ Q v
     trace_q = (2 * a1.diagonal().sum(-1) + r_inv.diagonal().sum(-1)
-               + (_mm3(gu, r_inv) * gu).sum((0, 1)) + (_mm3(gv, r_inv) * gv).sum((0, 1)))
+               + (matmul3(gu, r_inv) * gu).sum((0, 1)) + (matmul3(gv, r_inv) * gv).sum((0, 1)))
     return vec.T, trace_q - top
 
 
@@ -529,7 +530,7 @@ def find_homography_dlt(
         h_vec = h_vec - corr.squeeze(-1)
     hn = h_vec.T.unflatten(0, (3, 3))  # (3, 3, B): Ĥ in normalized coordinates
     with torch.no_grad():  # 1 / κ_F(Ĥ) = |det Ĥ| / (‖Ĥ‖_F ‖adj Ĥ‖_F): singular fits fail
-        adj = _adjugate3(hn)
+        adj = adjugate3(hn)
         det = (hn[0] * adj[:, 0]).sum(0)
         inv_kappa = det.abs() / (hn.square().sum((0, 1)) * adj.square().sum((0, 1))).sqrt()
     rank_ok = rank_ok & (inv_kappa * max_condition >= 1)

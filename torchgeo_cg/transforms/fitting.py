@@ -548,7 +548,9 @@ def _first_order(kind, fn, theta, prob, objective, steps, lr, tol, patience, bar
                                 tolerance_grad=0.0, tolerance_change=0.0,
                                 line_search_fn="strong_wolfe")
         sched = None
-    best = None
+    with torch.no_grad():
+        best, _ = _loss_terms(fn(theta), prob_d, objective)
+    best_theta = theta.detach().clone()
     stale = 0
     for _ in bar:
         def closure():
@@ -566,12 +568,14 @@ def _first_order(kind, fn, theta, prob, objective, steps, lr, tol, patience, bar
             obj, loss = _loss_terms(fn(theta), prob_d, objective)
         history.append(loss)
         bar.set_postfix(loss=float(loss.mean()))
-        improved = obj < (best * (1 - tol) if best is not None else torch.full_like(obj, math.inf))
-        best = obj if best is None else torch.minimum(best, obj)
+        improved = obj < best * (1 - tol)
+        lower = obj < best  # keep the best iterate of each problem (Adam may overshoot)
+        best_theta = torch.where(lower[:, None], theta.detach(), best_theta)
+        best = torch.where(lower, obj, best)
         stale = 0 if bool(improved.any()) else stale + 1
         if stale >= patience or bool((obj <= 1e-30).all()):
             break
-    return theta.detach()
+    return best_theta
 
 
 class _ParamFn:
