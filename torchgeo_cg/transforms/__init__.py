@@ -34,6 +34,12 @@ from torchgeo_cg.transforms.homogeneous import (
 )
 from torchgeo_cg.transforms.modules import HomogeneousTransform, TRSTransform
 from torchgeo_cg.transforms.ransac import RobustFit, find_transform_ransac
+from torchgeo_cg.transforms.registration import (
+    RegistrationResult,
+    WarpedImage,
+    register_images,
+    warp_image,
+)
 from torchgeo_cg.transforms.report_shapes import (
     ReportShapes,
     ShapeFit,
@@ -54,6 +60,7 @@ __all__ = [
     "HartleyNormalization",
     "HomographyFit",
     "HomographyModel",
+    "RegistrationResult",
     "ReportShapes",
     "RobustFit",
     "ShapeFit",
@@ -70,7 +77,10 @@ __all__ = [
     "matrix_to_parameters",
     "parameters_to_matrix",
     "report_shapes",
+    "register_images",
     "reprojection_error",
+    "warp_image",
+    "WarpedImage",
     "FixedTransform",
     "HomogeneousTransform",
     "Orbit",
