@@ -427,6 +427,23 @@ def _svd_polish(eig: DLTEigen, p, q, w, trace) -> DLTEigen:
     return DLTEigen(vector, value, condition)
 
 
+def dlt_moments(p: torch.Tensor, q: torch.Tensor, w: torch.Tensor):
+    """Trace-normalized DLT moments (6, 4, B) and ``tr M`` (B,) (1 where it is 0).
+
+    p, q: (2, N, B) points (batch last), w: (N, B) weights. Rows: the entries
+    xx, xy, x, yy, y, 1 of ``P Pᵀ``; columns: ``c`` in (1, u, v, u² + v²).
+    """
+    x, y, u, v = p[0], p[1], q[0], q[1]  # (N, B) each
+    pp = torch.stack([x * x, x * y, x, y * y, y, torch.ones_like(x)])  # (6, N, B)
+    coef = torch.stack([w, w * u, w * v, w * (u * u + v * v)])  # (4, N, B)
+    moments = (pp[:, None] * coef[None]).sum(2)  # (6, 4, B): Σ_n w c P Pᵀ
+    # tr M = 2 tr S0 + tr Suv (entries xx, yy, 1 of P Pᵀ are rows 0, 3, 5)
+    trace = 2 * (moments[0, 0] + moments[3, 0] + moments[5, 0]) + (
+        moments[0, 3] + moments[3, 3] + moments[5, 3])  # (B,)
+    trace_safe = torch.where(trace > 0, trace, torch.ones_like(trace))
+    return moments / trace_safe, trace_safe  # M's eigenvalues in [0, 1]
+
+
 def find_homography_dlt(
     src: torch.Tensor,
     dst: torch.Tensor,
@@ -496,15 +513,7 @@ def find_homography_dlt(
         w = torch.where(w_in < 0, torch.zeros_like(w_in), w_in)  # NaN stays NaN
         w = torch.where(w.sum(0) == 0, torch.ones_like(w), w)  # all-zero: count every point
     (p, cs, ss), (q, cd, sd) = _hartley_last(p_in, w), _hartley_last(q_in, w)
-    x, y, u, v = p[0], p[1], q[0], q[1]  # (N, B) each
-    pp = torch.stack([x * x, x * y, x, y * y, y, torch.ones_like(x)])  # (6, N, B)
-    coef = torch.stack([w, w * u, w * v, w * (u * u + v * v)])  # (4, N, B)
-    moments = (pp[:, None] * coef[None]).sum(2)  # (6, 4, B): Σ_n w c P Pᵀ
-    # tr M = 2 tr S0 + tr Suv (entries xx, yy, 1 of P Pᵀ are rows 0, 3, 5)
-    trace = 2 * (moments[0, 0] + moments[3, 0] + moments[5, 0]) + (
-        moments[0, 3] + moments[3, 3] + moments[5, 3])  # (B,)
-    trace_safe = torch.where(trace > 0, trace, torch.ones_like(trace))
-    moments = moments / trace_safe  # M's eigenvalues in [0, 1]
+    moments, trace_safe = dlt_moments(p, q, w)
     shift = 1e-13 if work == torch.float64 else 1e-6
     with torch.no_grad():
         eig = dlt_smallest_eigenpair(moments.detach(), iters, shift)

@@ -34,9 +34,10 @@ import torch
 from torchgeo_cg.transforms.estimation import (
     adjugate3,
     check_pair,
+    dlt_moments,
+    dlt_smallest_eigenpair,
     find_affine,
     find_euclidean,
-    find_homography_dlt,
     find_similarity,
     hartley_weighted,
     matmul3,
@@ -146,17 +147,24 @@ def _minimal_fits(model: str, ps: torch.Tensor, qs: torch.Tensor):
 def _squared_errors(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
     """``‖π(H p) - q‖²`` (B, K, N) for hypotheses (B, K, 3, 3) and points (B, N, 2).
 
+    ``p`` may also be given homogeneous and transposed, (B, 3, N).
+
     One batched matmul maps all points by all hypotheses. A point mapped to
     infinity (``w = 0``) gives inf or NaN, which :func:`_msac` and the inlier
     test count as an outlier (no grad flows here, so no guard is needed).
     """
     b, k = h.shape[:2]
-    homog = torch.cat([p, torch.ones_like(p[..., :1])], -1).mT  # (B, 3, N)
+    homog = p if p.shape[-2] == 3 and p.shape[-1] != 2 else _homogeneous(p)  # (B, 3, N)
     uvw = (h.reshape(b, k * 3, 3) @ homog).unflatten(1, (k, 3))  # (B, K, 3, N)
     inv_w = uvw[:, :, 2].reciprocal()
     ex = torch.addcmul(-q[:, None, :, 0], uvw[:, :, 0], inv_w)
     ey = torch.addcmul(-q[:, None, :, 1], uvw[:, :, 1], inv_w)
     return torch.addcmul(ex * ex, ey, ey)
+
+
+def _homogeneous(p: torch.Tensor) -> torch.Tensor:
+    """(B, N, 2) -> (B, 3, N) homogeneous columns."""
+    return torch.cat([p, torch.ones_like(p[..., :1])], -1).mT
 
 
 def _msac(err2: torch.Tensor, thr2: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
@@ -204,7 +212,7 @@ def _round(frame: _Frame, model, k, preview, keep, weighted, generator):
 
 def _count(h, frame: _Frame):
     """Squared errors (B, N) of one hypothesis per problem (B, 3, 3), and the inlier mask."""
-    err = _squared_errors(h[:, None], frame.p, frame.q)[:, 0]
+    err = _squared_errors(h[:, None], _homogeneous(frame.p), frame.q)[:, 0]
     return err, (err <= frame.thr2[:, None]) & (frame.w > 0)
 
 
@@ -230,12 +238,16 @@ def _search(frame: _Frame, model, confidence, max_iterations, k, lo_iterations, 
         if active.numel() == 0:
             break
         sub = _Frame(*(t[active] for t in frame))
-        hyp, sc = _round(sub, model, k, min(32, frame.p.shape[1]), 4, weighted, generator)
+        # later rounds have few problems left: give each more samples (same work per round)
+        left = int((needed[active] - drawn[active]).max())
+        k_round = k * max(1, min(b // active.numel(), -(-left // k)))
+        hyp, sc = _round(sub, model, k_round, min(32, frame.p.shape[1]), 4, weighted,
+                         generator)
         hyp, sc = _local_optimization(sub, model, hyp, sc, lo_iterations)
         better = sc < score[active]
         best[active] = torch.where(better[:, None, None], hyp, best[active])
         score[active] = torch.where(better, sc, score[active])
-        drawn[active] += k
+        drawn[active] += k_round
         _, inl = _count(best[active], sub)
         eps = (inl.sum(-1) / n_eff[active]).to(frame.p.dtype).pow(m)
         log_miss = torch.log1p(-eps.clamp(max=1 - 1e-12))
@@ -245,13 +257,30 @@ def _search(frame: _Frame, model, confidence, max_iterations, k, lo_iterations, 
     return best, score
 
 
+def _dlt_in_frame(frame: _Frame, w_fit: torch.Tensor):
+    """Weighted DLT (B, 3, 3) directly in the (already normalized) RANSAC frame, and ok (B,).
+
+    The lean core of :func:`find_homography_dlt`: the exact smallest eigenvector
+    of the DLT matrix, no renormalization, no gradient path.
+    """
+    work = torch.float64
+    p = frame.p.to(work).permute(2, 1, 0)  # (2, N, B)
+    q = frame.q.to(work).permute(2, 1, 0)
+    moments, _ = dlt_moments(p, q, w_fit.to(work).T)
+    eig = dlt_smallest_eigenpair(moments, 4, 1e-13)
+    h = eig.vector.T.reshape(-1, 3, 3)
+    ok = ((w_fit > 0).sum(-1) >= 4) & (eig.condition <= 1e6) & torch.isfinite(h).flatten(-2).all(-1)
+    h33 = h[:, 2, 2]
+    return (h / torch.where(h33 != 0, h33, torch.ones_like(h33))[:, None, None]).to(
+        frame.p.dtype), ok
+
+
 def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, final: bool):
     """Least-squares refit on weights w_fit (B, N): DLT (or LM from ``init`` when ``final``)."""
     if model != "homography":
         return _CLOSED_FORMS[model](frame.p, frame.q, w_fit), (w_fit > 0).sum(-1) >= 2
     if not final:
-        fit = find_homography_dlt(frame.p, frame.q, w_fit)
-        return fit.matrix, fit.rank_ok
+        return _dlt_in_frame(frame, w_fit)
     from torchgeo_cg.transforms.fitting import fit_transform
 
     ok = (w_fit > 0).sum(-1) >= 4
@@ -275,15 +304,16 @@ def _local_optimization(frame: _Frame, model, best, score, lo_iterations: int):
 def _final_refit(frame: _Frame, model, best):
     """The maximum-likelihood refit of the winner.
 
-    The noise scale is estimated from the inliers (``σ = median e / sqrt(2 ln 2)``,
-    the median length of a 2D Gaussian error) and every point with
+    The noise scale is estimated from the inliers (``σ² = mean e² / 2``, as for a
+    2D Gaussian error; the truncation at the threshold biases it a little low)
+    and every point with
     ``e <= max(threshold, 5.26 σ)`` (the 1 - 1e-6 quantile) is fitted, so that no
     true inlier is cut at the threshold (MAGSAC's observation); homographies
     use LM on the transfer error, the other models their closed forms.
     """
     err, inl = _count(best, frame)
-    median = torch.where(inl, err, torch.full_like(err, math.nan)).nanmedian(-1).values
-    sigma2 = median / (2 * math.log(2))  # median e² of a 2D Gaussian is 2 ln 2 σ²
+    count = inl.sum(-1).clamp_min(1)
+    sigma2 = torch.where(inl, err, torch.zeros_like(err)).sum(-1) / (2 * count)  # E e² = 2σ²
     wide2 = torch.maximum(frame.thr2, -2 * math.log(1e-6) * sigma2.nan_to_num(0.0))
     wide = (err <= wide2[:, None]) & (frame.w > 0)
     refit, ok = _refit(model, frame, frame.w * wide, best, True)
