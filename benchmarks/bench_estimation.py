@@ -90,6 +90,8 @@ def _ransac_cases(quick: bool) -> list[Case]:
     import cv2
     import numpy as np
 
+    cv2.setNumThreads(1)  # the comparison is at 1 thread; OpenCV has its own pool
+
     gen = torch.Generator().manual_seed(1)
     b = 64 if quick else 256
     src, dst, h, corners = _ransac_problems(b, 200, gen)
@@ -142,6 +144,8 @@ def _registration_cases(quick: bool) -> list[Case]:
     import numpy as np
     from kornia.geometry.conversions import denormalize_homography
     from kornia.geometry.transform import ImageRegistrator
+
+    cv2.setNumThreads(1)
 
     gen = torch.Generator().manual_seed(2)
     b = 8 if quick else 32

@@ -108,7 +108,7 @@ def _pixel_grid(h: int, w: int, like: torch.Tensor) -> torch.Tensor:
     return torch.stack([xs, ys, torch.ones_like(xs)], -1).reshape(-1, 3)
 
 
-def _sampling_grid(matrix: torch.Tensor, out_hw, in_hw):
+def _sampling_grid(matrix: torch.Tensor, out_hw, in_hw, with_valid: bool = True):
     """``grid_sample`` grid (B, h, w, 2) of ``π(M p)`` over the output pixels, and validity.
 
     The output pixels form a lattice, so each homogeneous coordinate is a
@@ -128,12 +128,14 @@ def _sampling_grid(matrix: torch.Tensor, out_hw, in_hw):
     den = (matrix[:, 2, 0, None] * xs)[:, None, :] + (
         matrix[:, 2, 1, None] * ys + matrix[:, 2, 2, None])[:, :, None]
     grid = num / den[..., None]
-    edge = 1 + 4 * torch.finfo(matrix.dtype).eps  # pixel centres on the border count
-    inside = grid.abs() <= edge  # NaN -> False
-    valid = inside[..., 0] & inside[..., 1]
+    valid = None
+    if with_valid:
+        edge = 1 + 4 * torch.finfo(matrix.dtype).eps  # pixel centres on the border count
+        inside = grid.abs() <= edge  # NaN -> False
+        valid = (inside[..., 0] & inside[..., 1])[:, None]
     if not bool((den > 0).all()):  # points at or behind infinity: keep grid_sample finite
         grid = torch.nan_to_num(grid, nan=-2.0, posinf=-2.0, neginf=-2.0)
-    return grid, valid[:, None]
+    return grid, valid
 
 
 def _warp(image: torch.Tensor, matrix: torch.Tensor, out_hw) -> WarpedImage:
@@ -142,6 +144,20 @@ def _warp(image: torch.Tensor, matrix: torch.Tensor, out_hw) -> WarpedImage:
     warped = F.grid_sample(image, grid, mode="bilinear", padding_mode="zeros",
                            align_corners=True)
     return WarpedImage(warped, valid)
+
+
+def _warp_with_coverage(image_ones: torch.Tensor, matrix: torch.Tensor, out_hw) -> WarpedImage:
+    """:func:`_warp` of an image whose last channel is all ones (the registration's hot path).
+
+    The bilinear weights of in-image neighbours sum to 1 inside the image and
+    less within one pixel outside it, so the sampled ones channel gives the
+    validity without a second pass over the grid (a point counts when its
+    weights sum to more than ``1 - 1e-3``: at most 1e-3 px outside).
+    """
+    grid, _ = _sampling_grid(matrix, out_hw, image_ones.shape[-2:], with_valid=False)
+    warped = F.grid_sample(image_ones, grid, mode="bilinear", padding_mode="zeros",
+                           align_corners=True)
+    return WarpedImage(warped[:, :-1], warped[:, -1:] > 1 - 1e-3)
 
 
 def _project(matrix: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
@@ -220,76 +236,118 @@ def _pyramid(image: torch.Tensor, levels: int) -> list[torch.Tensor]:
 
 class _Level(NamedTuple):
     template: torch.Tensor  # (B, C, h, w) source at this level
-    target: torch.Tensor  # (B, C, h', w') target at this level
+    target: torch.Tensor  # (B, C + 1, h', w') target at this level and a channel of ones
     mask: torch.Tensor  # (B, 1, h, w) template pixels that may count
-    grid: torch.Tensor  # (h w, 3) pixel centres
-    jac: torch.Tensor  # (B, C h w, P) steepest-descent images in normalized units
+    gx: torch.Tensor  # (B, C, h w) ∂T/∂x̃ in normalized units
+    gy: torch.Tensor  # (B, C, h w) ∂T/∂ỹ
+    g2: torch.Tensor  # (B, 3, h w) Σ_C gx², gx gy, gy²
+    mono: torch.Tensor  # (15, h w) monomials x̃^i ỹ^j, i + j <= 4 (first 6: degree <= 2)
+    cu: torch.Tensor  # (P, 6) ∂ũ/∂Δ_k in the basis 1, x̃, ỹ, x̃², x̃ỹ, ỹ²
+    cv: torch.Tensor  # (P, 6) ∂ṽ/∂Δ_k
     norm: torch.Tensor  # (3, 3) N of this level
     gens: torch.Tensor  # (P, 3, 3)
 
 
-def _steepest_descent(template, gens, norm):
-    """``∇T · ∂W/∂Δ`` at Δ = 0, (B, C h w, P), with Δ in normalized coordinates.
+# Monomials x^i y^j of degree <= 4, degree <= 2 first; _PAIR[a][b] is the index of the
+# product of quadratic monomials a and b (the Hessian's moments, as in the DLT).
+_POWERS = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2), (3, 0), (2, 1), (1, 2), (0, 3),
+           (4, 0), (3, 1), (2, 2), (1, 3), (0, 4)]
+_PAIR = [[_POWERS.index((_POWERS[a][0] + _POWERS[b][0], _POWERS[a][1] + _POWERS[b][1]))
+          for b in range(6)] for a in range(6)]
 
-    Central differences give ``∇T`` (in pixels; times ``1 / N[0, 0]`` per
-    normalized unit); ``∂W/∂Δ_k = E_k p̃ - p̃ (E_k p̃)_z`` for the generator ``E_k``.
+
+def _warp_derivatives(gens: torch.Tensor):
+    """(P, 6) coefficients of ``∂W/∂Δ_k = E_k p̃ - p̃ (E_k p̃)_z`` in 1, x, y, x², xy, y².
+
+    ``∂u = E02 + (E00 - E22) x + E01 y - E20 x² - E21 xy``,
+    ``∂v = E12 + E10 x + (E11 - E22) y - E20 xy - E21 y²``.
     """
-    h, w = template.shape[-2:]
-    gx = torch.zeros_like(template)
-    gy = torch.zeros_like(template)
-    gx[..., 1:-1] = (template[..., 2:] - template[..., :-2]) / 2
-    gy[..., 1:-1, :] = (template[..., 2:, :] - template[..., :-2, :]) / 2
-    unit = 1.0 / float(norm[0, 0])  # pixels per normalized unit
-    pts = _pixel_grid(h, w, template) @ norm.mT  # (h w, 3) normalized (x̃, ỹ, 1)
-    ep = pts @ gens.transpose(-1, -2)  # (P, h w, 3): E_k p̃
-    du = ep[..., 0] - pts[:, 0] * ep[..., 2]  # (P, h w)
-    dv = ep[..., 1] - pts[:, 1] * ep[..., 2]
-    gx, gy = gx.flatten(-2) * unit, gy.flatten(-2) * unit  # (B, C, h w)
-    jac = torch.addcmul(gx[..., None] * du.T, gy[..., None], dv.T)  # (B, C, h w, P)
-    return jac.flatten(1, 2)
+    e = gens
+    zero = torch.zeros_like(e[:, 0, 0])
+    cu = torch.stack([e[:, 0, 2], e[:, 0, 0] - e[:, 2, 2], e[:, 0, 1], -e[:, 2, 0], -e[:, 2, 1],
+                      zero], -1)
+    cv = torch.stack([e[:, 1, 2], e[:, 1, 0], e[:, 1, 1] - e[:, 2, 2], zero, -e[:, 2, 0],
+                      -e[:, 2, 1]], -1)
+    return cu, cv
 
 
 def _make_level(template, target, mask, gens) -> _Level:
+    """The per-level constants: ``∇T`` (central differences) and the warp's monomials.
+
+    The steepest-descent images ``J_k = ∇T · ∂W/∂Δ_k`` are never formed: the
+    gradient ``Jᵀ r`` and the matrix ``Jᵀ diag(m) J`` are products of the images
+    ``r ∂T/∂x̃``, ``m (∂T/∂x̃)²``, ... with the monomials (a few GEMMs, no
+    ``(B, C h w, P)`` tensor).
+    """
     h, w = template.shape[-2:]
     border = torch.zeros_like(template[:, :1], dtype=torch.bool)
     border[..., 1:-1, 1:-1] = True  # the gradient needs both neighbours
     norm = _normalizer(h, w, template)
-    return _Level(template, target, mask & border, _pixel_grid(h, w, template),
-                  _steepest_descent(template, gens, norm), norm, gens)
+    unit = 1.0 / float(norm[0, 0])  # pixels per normalized unit
+    gx = torch.zeros_like(template)
+    gy = torch.zeros_like(template)
+    gx[..., 1:-1] = (template[..., 2:] - template[..., :-2]) * (unit / 2)
+    gy[..., 1:-1, :] = (template[..., 2:, :] - template[..., :-2, :]) * (unit / 2)
+    pts = _pixel_grid(h, w, template) @ norm.mT  # (h w, 3) normalized (x̃, ỹ, 1)
+    x, y = pts[:, 0], pts[:, 1]
+    mono = torch.stack([x.pow(i) * y.pow(j) for i, j in _POWERS])  # (15, h w)
+    cu, cv = _warp_derivatives(gens)
+    target = torch.cat([target, torch.ones_like(target[:, :1])], 1)
+    gx, gy = gx.flatten(-2), gy.flatten(-2)
+    g2 = torch.stack([(gx * gx).sum(1), (gx * gy).sum(1), (gy * gy).sum(1)], 1)
+    return _Level(template, target, mask & border, gx, gy, g2, mono, cu, cv, norm, gens)
 
 
 def _residual(level: _Level, matrix: torch.Tensor, loss: str):
-    """Residual (B, C h w), pixel weights (B, C h w) and loss (B,) at ``matrix``."""
-    out = _warp(level.target, matrix, tuple(level.template.shape[-2:]))
+    """Residual (B, C, h w) (0 outside), pixel weights (B, h w) and loss (B,) at ``matrix``."""
+    out = _warp_with_coverage(level.target, matrix, tuple(level.template.shape[-2:]))
     c = level.template.shape[1]
-    m = (out.valid & level.mask).expand(-1, c, -1, -1).flatten(1).to(matrix.dtype)
-    warped, tmpl = out.image.flatten(1), level.template.flatten(1)
-    count = m.sum(-1)
+    m = (out.valid & level.mask).flatten(1).to(matrix.dtype)  # (B, h w)
+    warped, tmpl = out.image.flatten(2), level.template.flatten(2)  # (B, C, h w)
+    count = m.sum(-1) * c
     count_safe = torch.where(count > 0, count, torch.ones_like(count))
+    mc = m[:, None]
     if loss == "ssd":
-        r = (warped - tmpl) * m
-        return r, m, r.square().sum(-1) / count_safe
-    dw = (warped - (warped * m).sum(-1, keepdim=True) / count_safe[:, None]) * m
-    dt = (tmpl - (tmpl * m).sum(-1, keepdim=True) / count_safe[:, None]) * m
-    cov, var_t, var_w = (dw * dt).sum(-1), dt.square().sum(-1), dw.square().sum(-1)
+        r = (warped - tmpl) * mc
+        return r, m, r.square().sum((1, 2)) / count_safe
+
+    def centred(img):
+        return (img - (img * mc).sum((1, 2), keepdim=True) / count_safe[:, None, None]) * mc
+
+    dw, dt = centred(warped), centred(tmpl)
+    cov, var_t, var_w = (dw * dt).sum((1, 2)), dt.square().sum((1, 2)), dw.square().sum((1, 2))
     alpha = cov / torch.where(var_t > 0, var_t, torch.ones_like(var_t))
     alpha = torch.where(alpha != 0, alpha, torch.ones_like(alpha))  # gain undefined: none
     den = (var_t * var_w).sqrt()
     zncc = cov / torch.where(den > 0, den, torch.ones_like(den))
-    return dw / alpha[:, None] - dt, m, 1 - zncc
+    return dw / alpha[:, None, None] - dt, m, 1 - zncc
 
 
 def _hessian(level: _Level, m: torch.Tensor) -> torch.Tensor:
-    """Masked Gauss-Newton matrix ``Jᵀ diag(m) J`` (B, P, P)."""
-    return (level.jac * m[..., None]).mT @ level.jac
+    """Masked Gauss-Newton matrix ``Jᵀ diag(m) J`` (B, P, P) from image moments.
+
+    ``J_k = gx ∂u_k + gy ∂v_k``, so ``JᵀJ = Cu A Cuᵀ + Cu X Cvᵀ + Cv X Cuᵀ + Cv Y Cvᵀ``
+    with ``A_ab = Σ m gx² q_a q_b`` (``q`` the quadratic monomials), ``X`` with
+    ``gx gy`` and ``Y`` with ``gy²``: one GEMM against the 15 quartic monomials.
+    """
+    moments = (level.g2 * m[:, None]) @ level.mono.T  # (B, 3, 15)
+    index = torch.tensor(_PAIR, device=m.device).flatten()
+    a, x, y = moments[..., index].unflatten(-1, (6, 6)).unbind(1)  # (B, 6, 6) each
+    cu, cv = level.cu, level.cv
+    cross = cu @ x @ cv.T
+    return cu @ a @ cu.T + cross + cross.mT + cv @ y @ cv.T
 
 
 def _gn_step(level: _Level, hess: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
     """Δ (B, P) of one inverse-compositional Gauss-Newton step (tiny relative damping).
 
-    ``r`` is already zero outside the valid pixels, so ``Jᵀ r`` is the masked gradient.
+    ``r`` is already zero outside the valid pixels, so ``Jᵀ r`` is the masked
+    gradient: ``Cu (Σ r gx q) + Cv (Σ r gy q)`` with the quadratic monomials ``q``.
     """
-    grad = (r[:, None, :] @ level.jac).squeeze(1)  # (B, P): row-vector GEMM, 5x a GEMV here
+    sx = (r * level.gx).sum(1)  # (B, h w)
+    sy = (r * level.gy).sum(1)
+    quad = level.mono[:6].T  # (h w, 6)
+    grad = (sx @ quad) @ level.cu.T + (sy @ quad) @ level.cv.T  # (B, P)
     p = hess.shape[-1]
     eye = torch.eye(p, dtype=hess.dtype, device=hess.device)
     trace = hess.diagonal(dim1=-2, dim2=-1).sum(-1)
@@ -377,9 +435,7 @@ def _check_inputs(source, target, init, mask):
             check_shape(init, ["3", "3"], "init")
         init = init.to(source.dtype).expand(b, 3, 3) if init.dim() == 2 else init
         check_shape(init, [str(b), "3", "3"], "init")
-    if mask is None:
-        mask = torch.ones_like(source[:, :1], dtype=torch.bool)
-    else:
+    if mask is not None:
         check_shape(mask, [str(b), "1", *map(str, source.shape[-2:])], "mask")
         mask = mask.bool()
     return init.to(source.dtype), mask
@@ -476,7 +532,10 @@ def register_images(
         levels -= 1
     its = its[len(its) - levels:]
     sources, targets = _pyramid(source, levels), _pyramid(target, levels)
-    masks = [m == 1 for m in _pyramid(mask.to(source.dtype), levels)]
+    if mask is None:
+        masks = [torch.ones_like(s[:, :1], dtype=torch.bool) for s in sources]
+    else:
+        masks = [m == 1 for m in _pyramid(mask.to(source.dtype), levels)]
     gens = _generators(model, source)
     scale = _level_scale(source)
     down = torch.linalg.matrix_power(scale, levels - 1)
