@@ -108,34 +108,39 @@ def _pixel_grid(h: int, w: int, like: torch.Tensor) -> torch.Tensor:
     return torch.stack([xs, ys, torch.ones_like(xs)], -1).reshape(-1, 3)
 
 
-def _sampling_grid(matrix: torch.Tensor, out_hw, in_hw, with_valid: bool = True):
+def _sampling_grid(matrix: torch.Tensor, out_hw, in_hw):
     """``grid_sample`` grid (B, h, w, 2) of ``π(M p)`` over the output pixels, and validity.
 
     The output pixels form a lattice, so each homogeneous coordinate is a
-    plane ``c0 x + c1 y + c2``: an outer sum of a row and a column (3 image-sized
-    operations instead of a matmul per pixel). The normalization to ``[-1, 1]``
-    (``align_corners=True``) is folded into the coefficients. Points mapped to
-    infinity or beyond the input are invalid (and sampled as 0).
+    plane ``c0 x + c1 y + c2``: an outer sum of a row and a column (one
+    image-sized operation each, instead of a matmul per pixel). The
+    normalization to ``[-1, 1]`` (``align_corners=True``) is folded into the
+    coefficients. Points mapped to infinity or beyond the input are invalid
+    (and sampled as 0).
     """
     (h, w), (height, width) = out_hw, in_hw
     xs = torch.arange(w, dtype=matrix.dtype, device=matrix.device)
     ys = torch.arange(h, dtype=matrix.dtype, device=matrix.device)
-    rows = torch.stack([matrix[:, 0] * (2.0 / (width - 1)) - matrix[:, 2],
-                        matrix[:, 1] * (2.0 / (height - 1)) - matrix[:, 2]], 1)  # (B, 2, 3)
-    # numerators (B, h, w, 2) = c0 x + (c1 y + c2) and the denominator (B, h, w, 1)
-    num = (rows[:, None, None, :, 0] * xs[None, None, :, None]) + (
-        rows[:, None, :, 1] * ys[None, :, None] + rows[:, None, :, 2])[:, :, None, :]
-    den = (matrix[:, 2, 0, None] * xs)[:, None, :] + (
-        matrix[:, 2, 1, None] * ys + matrix[:, 2, 2, None])[:, :, None]
-    grid = num / den[..., None]
-    valid = None
-    if with_valid:
-        edge = 1 + 4 * torch.finfo(matrix.dtype).eps  # pixel centres on the border count
-        inside = grid.abs() <= edge  # NaN -> False
-        valid = (inside[..., 0] & inside[..., 1])[:, None]
-    if not bool((den > 0).all()):  # points at or behind infinity: keep grid_sample finite
-        grid = torch.nan_to_num(grid, nan=-2.0, posinf=-2.0, neginf=-2.0)
-    return grid, valid
+
+    def plane(c):  # (B, 3) -> (B, h, w), contiguous along x
+        return torch.add((c[:, 0, None] * xs)[:, None, :], (c[:, 1, None] * ys + c[:, 2, None])[
+            :, :, None])
+
+    den = plane(matrix[:, 2])
+    inv = torch.where(den > 0, den, torch.full_like(den, math.nan)).reciprocal_()  # w <= 0: out
+    gx = plane(matrix[:, 0] * (2.0 / (width - 1)) - matrix[:, 2]).mul_(inv)
+    gy = plane(matrix[:, 1] * (2.0 / (height - 1)) - matrix[:, 2]).mul_(inv)
+    edge = 1 + 4 * torch.finfo(matrix.dtype).eps  # pixel centres on the border count
+    valid = (gx.abs() <= edge) & (gy.abs() <= edge)  # NaN -> False
+    if not bool((den > 0).all()):  # points at or behind infinity: sampled as 0, finite
+        gx, gy = (torch.nan_to_num(g, nan=-2.0, posinf=-2.0, neginf=-2.0) for g in (gx, gy))
+    # clamped (far points give no huge indices inside grid_sample) and interleaved
+    if torch.is_grad_enabled() and matrix.requires_grad:
+        return torch.stack([gx, gy], -1).clamp(-2.0, 2.0), valid[:, None]
+    grid = gx.new_empty(*gx.shape, 2)
+    torch.clamp(gx, -2.0, 2.0, out=grid[..., 0])  # written in place: no stack copy
+    torch.clamp(gy, -2.0, 2.0, out=grid[..., 1])
+    return grid, valid[:, None]
 
 
 def _warp(image: torch.Tensor, matrix: torch.Tensor, out_hw) -> WarpedImage:
@@ -144,20 +149,6 @@ def _warp(image: torch.Tensor, matrix: torch.Tensor, out_hw) -> WarpedImage:
     warped = F.grid_sample(image, grid, mode="bilinear", padding_mode="zeros",
                            align_corners=True)
     return WarpedImage(warped, valid)
-
-
-def _warp_with_coverage(image_ones: torch.Tensor, matrix: torch.Tensor, out_hw) -> WarpedImage:
-    """:func:`_warp` of an image whose last channel is all ones (the registration's hot path).
-
-    The bilinear weights of in-image neighbours sum to 1 inside the image and
-    less within one pixel outside it, so the sampled ones channel gives the
-    validity without a second pass over the grid (a point counts when its
-    weights sum to more than ``1 - 1e-3``: at most 1e-3 px outside).
-    """
-    grid, _ = _sampling_grid(matrix, out_hw, image_ones.shape[-2:], with_valid=False)
-    warped = F.grid_sample(image_ones, grid, mode="bilinear", padding_mode="zeros",
-                           align_corners=True)
-    return WarpedImage(warped[:, :-1], warped[:, -1:] > 1 - 1e-3)
 
 
 def _project(matrix: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
@@ -236,7 +227,7 @@ def _pyramid(image: torch.Tensor, levels: int) -> list[torch.Tensor]:
 
 class _Level(NamedTuple):
     template: torch.Tensor  # (B, C, h, w) source at this level
-    target: torch.Tensor  # (B, C + 1, h', w') target at this level and a channel of ones
+    target: torch.Tensor  # (B, C, h', w') target at this level
     mask: torch.Tensor  # (B, 1, h, w) template pixels that may count
     gx: torch.Tensor  # (B, C, h w) ∂T/∂x̃ in normalized units
     gy: torch.Tensor  # (B, C, h w) ∂T/∂ỹ
@@ -292,7 +283,6 @@ def _make_level(template, target, mask, gens) -> _Level:
     x, y = pts[:, 0], pts[:, 1]
     mono = torch.stack([x.pow(i) * y.pow(j) for i, j in _POWERS])  # (15, h w)
     cu, cv = _warp_derivatives(gens)
-    target = torch.cat([target, torch.ones_like(target[:, :1])], 1)
     gx, gy = gx.flatten(-2), gy.flatten(-2)
     g2 = torch.stack([(gx * gx).sum(1), (gx * gy).sum(1), (gy * gy).sum(1)], 1)
     return _Level(template, target, mask & border, gx, gy, g2, mono, cu, cv, norm, gens)
@@ -300,7 +290,7 @@ def _make_level(template, target, mask, gens) -> _Level:
 
 def _residual(level: _Level, matrix: torch.Tensor, loss: str):
     """Residual (B, C, h w) (0 outside), pixel weights (B, h w) and loss (B,) at ``matrix``."""
-    out = _warp_with_coverage(level.target, matrix, tuple(level.template.shape[-2:]))
+    out = _warp(level.target, matrix, tuple(level.template.shape[-2:]))
     c = level.template.shape[1]
     m = (out.valid & level.mask).flatten(1).to(matrix.dtype)  # (B, h w)
     warped, tmpl = out.image.flatten(2), level.template.flatten(2)  # (B, C, h w)
