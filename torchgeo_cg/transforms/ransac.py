@@ -238,8 +238,9 @@ def _search(frame: _Frame, model, confidence, max_iterations, k, lo_iterations, 
         if active.numel() == 0:
             break
         sub = _Frame(*(t[active] for t in frame))
-        # later rounds have few problems left: give each more samples (same work per round)
-        left = int((needed[active] - drawn[active]).max())
+        # later rounds have few problems left: give each more samples, as many as the
+        # median one still needs (at most the work of the first round)
+        left = int((needed[active] - drawn[active]).median())
         k_round = k * max(1, min(b // active.numel(), -(-left // k)))
         hyp, sc = _round(sub, model, k_round, min(32, frame.p.shape[1]), 4, weighted,
                          generator)
@@ -362,7 +363,7 @@ def find_transform_ransac(
     weights: torch.Tensor | None = None,
     generator: torch.Generator | None = None,
     hypotheses_per_round: int = 64,
-    lo_iterations: int = 1,
+    lo_iterations: int = 2,
     min_inliers: int | None = None,
 ) -> RobustFit:
     """Robust ``dst_from_src`` of a ``model`` from correspondences with outliers, batched.
