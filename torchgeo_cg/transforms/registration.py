@@ -64,7 +64,8 @@ class RegistrationResult(NamedTuple):
             mean squared difference (``loss="ssd"``) or ``1 - ZNCC`` (``"ncc"``).
             When every image converged with Gauss-Newton it is the loss before
             the last step (which moved no corner by ``tol``), sparing one warp.
-        history: ``(steps [+ 1], B)`` the loss before each step, all levels in
+        history: ``(steps [+ 1], B)`` the loss before each step (an image that has
+            converged at a level keeps its last value there), all levels in
             order, coarse to fine (at each level's scale), then the final loss
             unless it is the last entry already.
         converged: ``(B,)`` bool, the last step at full resolution moved every
@@ -360,27 +361,43 @@ def _exp_step(level: _Level, delta: torch.Tensor) -> torch.Tensor:
     return torch.linalg.solve(level.norm, torch.linalg.matrix_exp(gen) @ level.norm)
 
 
+def _subset(level: _Level, keep: torch.Tensor) -> _Level:
+    """The level restricted to the images ``keep`` (bool (B,))."""
+    return level._replace(template=level.template[keep], target=level.target[keep],
+                          mask=level.mask[keep], gx=level.gx[keep], gy=level.gy[keep],
+                          g2=level.g2[keep])
+
+
 def _run_gn(level: _Level, matrix, loss, iterations, tol, history):
-    """Inverse-compositional Gauss-Newton at one level: ``W ← W ∘ W(Δ)⁻¹``."""
+    """Inverse-compositional Gauss-Newton at one level: ``W ← W ∘ W(Δ)⁻¹``.
+
+    Images whose step moved no corner by ``tol`` stop (they leave the batch; their
+    loss is repeated in ``history``).
+    """
     h, w = level.template.shape[-2:]
     done = torch.zeros(matrix.shape[0], dtype=torch.bool, device=matrix.device)
+    last = torch.full_like(matrix[:, 0, 0], math.nan)
+    idx = torch.arange(matrix.shape[0], device=matrix.device)
     hess, counted = None, None
     for _ in range(iterations):
-        r, m, value = _residual(level, matrix, loss)
-        history.append(value)
+        r, m, value = _residual(level, matrix[idx], loss)
+        last = last.index_copy(0, idx, value)
+        history.append(last)
         count = m.sum(-1)
         # the fixed point only depends on the gradient Jᵀ r; the matrix is rebuilt
         # when the set of valid pixels has changed by more than 1%
         if hess is None or bool(((count - counted).abs() > 0.01 * counted).any()):
             hess, counted = _hessian(level, m), count
-        delta = _gn_step(level, hess, r)
-        delta = torch.where(done[:, None], torch.zeros_like(delta), delta)
-        step = _exp_step(level, -delta)  # W(Δ)⁻¹ = exp(-Σ Δ E)
-        matrix = matrix @ step
-        matrix = matrix / matrix[:, 2:, 2:]
-        done = done | (_corner_motion(step, h, w) < tol)
-        if bool(done.all()):
+        step = _exp_step(level, -_gn_step(level, hess, r))  # W(Δ)⁻¹ = exp(-Σ Δ E)
+        new = matrix[idx] @ step
+        matrix = matrix.index_copy(0, idx, new / new[:, 2:, 2:])
+        moved = _corner_motion(step, h, w) < tol
+        done = done.index_copy(0, idx, moved)
+        if bool(moved.all()):
             break
+        if bool(moved.any()):
+            keep = ~moved
+            idx, level, hess, counted = idx[keep], _subset(level, keep), hess[keep], count[keep]
     return matrix, done
 
 
