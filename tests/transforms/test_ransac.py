@@ -220,3 +220,9 @@ def test_errors_name_the_argument():
         find_transform_ransac(torch.rand(0, 2), torch.rand(0, 2))
     with pytest.raises(TypeError, match="src"):
         find_transform_ransac(pts.long(), pts.long())
+
+
+def test_empty_batch_gives_empty_results():
+    fit = find_transform_ransac(torch.zeros(0, 10, 2), torch.zeros(0, 10, 2))
+    assert fit.matrix.shape == (0, 3, 3) and fit.inliers.shape == (0, 10)
+    assert fit.num_inliers.shape == (0,) and fit.rank_ok.shape == (0,)

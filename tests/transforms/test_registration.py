@@ -184,3 +184,20 @@ def test_errors_name_the_argument():
         warp_image(img, torch.eye(2))
     with pytest.raises(TypeError, match="matrix"):
         warp_image(img, torch.eye(3, dtype=torch.float64))
+
+
+def test_y_up_convention_is_the_documented_flip():
+    # flipping both images upside down is the change of frame y -> H - 1 - y: F M F
+    gen = torch.Generator().manual_seed(7)
+    source, target, _ = camera_pairs(2, gen, size=64, move=2.0, dtype=torch.float64)
+    fit = register_images(source, target)
+    flipped = register_images(source.flip(-2), target.flip(-2))
+    f = torch.tensor([[1.0, 0, 0], [0, -1.0, 63.0], [0, 0, 1.0]], dtype=torch.float64)
+    expected = f @ fit.matrix @ f
+    assert torch.allclose(flipped.matrix, expected / expected[:, 2:, 2:], atol=1e-4)
+
+
+def test_empty_batch_gives_empty_results():
+    out = register_images(torch.zeros(0, 1, 32, 32), torch.zeros(0, 1, 32, 32))
+    assert out.matrix.shape == (0, 3, 3) and out.loss.shape == (0,)
+    assert warp_image(torch.zeros(0, 2, 8, 8), torch.zeros(0, 3, 3)).image.shape == (0, 2, 8, 8)
