@@ -407,3 +407,13 @@ def test_zero_points_raise_shape_error_and_empty_batch_is_empty():
 def test_homography_model_mixed_dtypes_name_both_arguments():
     with pytest.raises(TypeError, match="dst.*src"):
         HomographyModel(src=torch.rand(5, 2, dtype=torch.float64), dst=torch.rand(5, 2))
+
+
+@pytest.mark.parametrize("model", sorted(fitting.MODELS))
+def test_matrix_to_parameters_of_nan_is_nan(model):
+    m = torch.eye(3, dtype=torch.float64)
+    m[2, 2] = float("nan")  # issue 10: a NaN h33 was replaced by 1
+    assert torch.isnan(matrix_to_parameters(m, model)).any()
+    assert torch.isnan(matrix_to_parameters(torch.full((3, 3), float("nan")), "homography",
+                                            "sl3")).all()
+    assert (matrix_to_parameters(torch.eye(3), "homography", "sl3") == 0).all()

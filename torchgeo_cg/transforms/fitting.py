@@ -230,7 +230,7 @@ def matrix_to_parameters(
     check_shape(matrix, ["*", "3", "3"], "matrix")
     check_float(matrix, "matrix")
     h33 = matrix[..., 2, 2]
-    h33 = torch.where(h33.abs() > 1e-12, h33, torch.ones_like(h33))
+    h33 = torch.where(h33 == 0, torch.ones_like(h33), h33)  # only 0 is undefined; NaN stays
     m = matrix / h33[..., None, None]
     eye = torch.eye(3, dtype=m.dtype, device=m.device)
     if model == "homography":
@@ -239,7 +239,8 @@ def matrix_to_parameters(
         if parametrization == "corners":
             corners = torch.tensor(_CORNERS, dtype=m.dtype, device=m.device)
             return (transform_points(m, corners.expand(*m.shape[:-2], 4, 2)) - corners).flatten(-2)
-        return m.new_zeros(*m.shape[:-2], 8)
+        # zeros (the matrix goes into ``base``), NaN where the matrix has NaN
+        return m.new_zeros(*m.shape[:-2], 8) + (m * 0).sum((-2, -1))[..., None]
     if model == "affine":
         return (m - eye)[..., :2, :].flatten(-2)
     t = m[..., :2, 2]
