@@ -433,7 +433,7 @@ def _denormalize(hn: torch.Tensor, prob: _Problem) -> torch.Tensor:
     h = torch.stack([cols[:, 0] / sd + cd[:, :1] * cols[:, 2],
                      cols[:, 1] / sd + cd[:, 1:] * cols[:, 2], cols[:, 2]], dim=1)
     h33 = h[..., 2, 2]
-    ok = h33.abs() > 1e-12
+    ok = h33 != 0  # only 0 is undefined (pixel units: no absolute threshold)
     return h / torch.where(ok, h33, torch.ones_like(h33))[..., None, None]
 
 
@@ -815,7 +815,7 @@ class HomographyModel(nn.Module):
         hn = parameters_to_matrix(self.params, "homography", self.parametrization, self.base)
         h = inverse(self.dst_transform) @ hn @ self.src_transform
         h33 = h[..., 2, 2]
-        return h / torch.where(h33.abs() > 1e-12, h33, torch.ones_like(h33))[..., None, None]
+        return h / torch.where(h33 != 0, h33, torch.ones_like(h33))[..., None, None]
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         """Transform ``points`` ``(*batch_shape, N, 2)`` -> ``(*batch_shape, N, 2)``."""
