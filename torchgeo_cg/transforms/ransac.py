@@ -79,6 +79,7 @@ class _Frame(NamedTuple):
     t_dst: torch.Tensor  # (B, 3, 3) normalized_from_dst
     thr2: torch.Tensor  # (B,) squared threshold in normalized dst units
     w: torch.Tensor  # (B, N) weights (0 for non-finite points)
+    ph: torch.Tensor  # (B, 3, N) homogeneous normalized src, for the batched matmuls
 
 
 def _normalized_frame(src, dst, w, model: str, threshold: float) -> _Frame:
@@ -86,12 +87,13 @@ def _normalized_frame(src, dst, w, model: str, threshold: float) -> _Frame:
     ns, nd = hartley_weighted(src, w), hartley_weighted(dst, w)
     if model in ("homography", "affine"):
         return _Frame(ns.points, nd.points, ns.transform, nd.transform,
-                      (threshold * nd.scale).square(), w)
+                      (threshold * nd.scale).square(), w, _homogeneous(ns.points))
     scale = 2.0 / (1.0 / ns.scale + 1.0 / nd.scale)
     p = (src - ns.centroid[..., None, :]) * scale[..., None, None]
     q = (dst - nd.centroid[..., None, :]) * scale[..., None, None]
     return _Frame(p, q, similarity_matrix(scale, ns.centroid),
-                  similarity_matrix(scale, nd.centroid), (threshold * scale).square(), w)
+                  similarity_matrix(scale, nd.centroid), (threshold * scale).square(), w,
+                  _homogeneous(p))
 
 
 def _cross(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
@@ -203,7 +205,7 @@ def _round(frame: _Frame, model, k, preview, keep, weighted, generator):
         top = rough.topk(min(keep, k), dim=1, largest=False).indices  # (B', T)
         hyp = torch.gather(hyp, 1, top[..., None, None].expand(-1, -1, 3, 3))
         valid = torch.gather(valid, 1, top)
-    score = _msac(_squared_errors(hyp, p, q), thr2, w)
+    score = _msac(_squared_errors(hyp, frame.ph, q), thr2, w)
     score = torch.where(valid, score, torch.full_like(score, math.inf))
     best = score.argmin(1)  # (B',)
     rows = torch.arange(b, device=p.device)
@@ -212,7 +214,7 @@ def _round(frame: _Frame, model, k, preview, keep, weighted, generator):
 
 def _count(h, frame: _Frame):
     """Squared errors (B, N) of one hypothesis per problem (B, 3, 3), and the inlier mask."""
-    err = _squared_errors(h[:, None], _homogeneous(frame.p), frame.q)[:, 0]
+    err = _squared_errors(h[:, None], frame.ph, frame.q)[:, 0]
     return err, (err <= frame.thr2[:, None]) & (frame.w > 0)
 
 
@@ -295,7 +297,8 @@ def _local_optimization(frame: _Frame, model, best, score, lo_iterations: int):
     for _ in range(lo_iterations):
         _, inl = _count(best, frame)
         refit, ok = _refit(model, frame, frame.w * inl, best, False)
-        new = _msac(_squared_errors(refit[:, None], frame.p, frame.q), frame.thr2, frame.w)[:, 0]
+        new = _msac(_squared_errors(refit[:, None], frame.ph, frame.q), frame.thr2,
+                    frame.w)[:, 0]
         better = ok & (new < score) & torch.isfinite(refit).flatten(-2).all(-1)
         best = torch.where(better[:, None, None], refit, best)
         score = torch.where(better, new, score)
