@@ -45,8 +45,8 @@ pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 def test_public_surface():
     assert set(fitting.__all__) == {
-        "FitResult", "MODELS", "PARAMETRIZATIONS", "fit_transform", "parameters_to_matrix",
-        "matrix_to_parameters", "HomographyModel",
+        "FitResult", "LOSSES", "MODELS", "PARAMETRIZATIONS", "fit_transform",
+        "parameters_to_matrix", "matrix_to_parameters", "HomographyModel",
     }
 
 
@@ -374,3 +374,40 @@ def test_errors():
         HomographyModel(batch_shape=(2,), src=torch.rand(3, 5, 2))
     with pytest.raises(ShapeError, match="points"):
         HomographyModel()(torch.rand(5, 3))
+
+
+# ------------------------------------------------------------------ issue 10 regressions
+
+
+def test_nan_weight_propagates_through_fit_transform():
+    gen = torch.Generator().manual_seed(30)
+    src, dst, _ = random_problem(2, 8, gen)
+    w = torch.ones(2, 8, dtype=torch.float64)
+    w[0, 3] = float("nan")
+    fit = fit_transform(src, dst, weights=w)
+    assert torch.isnan(fit.matrix[0]).any() and torch.isnan(fit.loss[0])
+    assert torch.isfinite(fit.matrix[1]).all()
+
+
+def test_zero_points_raise_shape_error_and_empty_batch_is_empty():
+    empty = torch.zeros(2, 0, 2, dtype=torch.float64)
+    with pytest.raises(ShapeError, match="src.*N >= 1"):
+        fit_transform(empty, empty)
+    none = torch.zeros(0, 6, 2, dtype=torch.float64)
+    fit = fit_transform(none, none)
+    assert fit.matrix.shape == (0, 3, 3) and fit.loss.shape == (0,)
+
+
+def test_homography_model_mixed_dtypes_name_both_arguments():
+    with pytest.raises(TypeError, match="dst.*src"):
+        HomographyModel(src=torch.rand(5, 2, dtype=torch.float64), dst=torch.rand(5, 2))
+
+
+@pytest.mark.parametrize("model", sorted(fitting.MODELS))
+def test_matrix_to_parameters_of_nan_is_nan(model):
+    m = torch.eye(3, dtype=torch.float64)
+    m[2, 2] = float("nan")  # issue 10: a NaN h33 was replaced by 1
+    assert torch.isnan(matrix_to_parameters(m, model)).any()
+    assert torch.isnan(matrix_to_parameters(torch.full((3, 3), float("nan")), "homography",
+                                            "sl3")).all()
+    assert (matrix_to_parameters(torch.eye(3), "homography", "sl3") == 0).all()

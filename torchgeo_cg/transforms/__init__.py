@@ -33,6 +33,13 @@ from torchgeo_cg.transforms.homogeneous import (
     translation,
 )
 from torchgeo_cg.transforms.modules import HomogeneousTransform, TRSTransform
+from torchgeo_cg.transforms.ransac import RobustFit, find_transform_ransac
+from torchgeo_cg.transforms.registration import (
+    RegistrationResult,
+    WarpedImage,
+    register_images,
+    warp_image,
+)
 from torchgeo_cg.transforms.report_shapes import (
     ReportShapes,
     ShapeFit,
@@ -53,13 +60,16 @@ __all__ = [
     "HartleyNormalization",
     "HomographyFit",
     "HomographyModel",
+    "RegistrationResult",
     "ReportShapes",
+    "RobustFit",
     "ShapeFit",
     "decompose_affine",
     "find_affine",
     "find_euclidean",
     "find_homography_dlt",
     "find_similarity",
+    "find_transform_ransac",
     "find_translation",
     "fit_report_shapes",
     "fit_transform",
@@ -67,7 +77,10 @@ __all__ = [
     "matrix_to_parameters",
     "parameters_to_matrix",
     "report_shapes",
+    "register_images",
     "reprojection_error",
+    "warp_image",
+    "WarpedImage",
     "FixedTransform",
     "HomogeneousTransform",
     "Orbit",

@@ -30,17 +30,18 @@ from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.transforms.estimation import (
-    _M_INDEX,
-    _M_SIGN,
-    _check_pair,
-    _effective_weights,
-    _hartley,
-    _similarity_matrix,
+    DLT_M_INDEX,
+    DLT_M_SIGN,
+    check_pair,
+    effective_weights,
+    hartley_weighted,
+    similarity_matrix,
 )
 from torchgeo_cg.transforms.homogeneous import inverse, transform_points
 
 __all__ = [
     "FitResult",
+    "LOSSES",
     "MODELS",
     "PARAMETRIZATIONS",
     "fit_transform",
@@ -72,7 +73,7 @@ class FitResult(NamedTuple):
         params: ``(*, P)`` parameters of the normalized transform (see
             :func:`parameters_to_matrix`).
         loss: ``(*)`` final loss in input units squared (mean squared transfer
-            error, plus the backward one for ``loss="symmetric"``).
+            error, robust ``ρ`` of ``loss``, plus the backward one if ``symmetric``).
         history: ``(steps_run + 1, *)`` the loss at the start and after each step.
     """
 
@@ -229,7 +230,7 @@ def matrix_to_parameters(
     check_shape(matrix, ["*", "3", "3"], "matrix")
     check_float(matrix, "matrix")
     h33 = matrix[..., 2, 2]
-    h33 = torch.where(h33.abs() > 1e-12, h33, torch.ones_like(h33))
+    h33 = torch.where(h33 == 0, torch.ones_like(h33), h33)  # only 0 is undefined; NaN stays
     m = matrix / h33[..., None, None]
     eye = torch.eye(3, dtype=m.dtype, device=m.device)
     if model == "homography":
@@ -238,7 +239,8 @@ def matrix_to_parameters(
         if parametrization == "corners":
             corners = torch.tensor(_CORNERS, dtype=m.dtype, device=m.device)
             return (transform_points(m, corners.expand(*m.shape[:-2], 4, 2)) - corners).flatten(-2)
-        return m.new_zeros(*m.shape[:-2], 8)
+        # zeros (the matrix goes into ``base``), NaN where the matrix has NaN
+        return m.new_zeros(*m.shape[:-2], 8) + (m * 0).sum((-2, -1))[..., None]
     if model == "affine":
         return (m - eye)[..., :2, :].flatten(-2)
     t = m[..., :2, 2]
@@ -275,10 +277,48 @@ def _project(h: torch.Tensor, p: torch.Tensor):
     return (e[0, 0] * x + e[0, 1] * y + e[0, 2]) / w, (e[1, 0] * x + e[1, 1] * y + e[1, 2]) / w, w
 
 
-def _transfer(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor, wn: torch.Tensor):
-    """Weighted mean squared transfer error (B,); p, q (2, N, B), ``wn`` (N, B) sums to 1."""
+def _squared_transfer(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """Squared transfer error per point (N, B) of ``π(H p) - q``; p, q (2, N, B)."""
     xp, yp, _ = _project(h, p)
-    return (((xp - q[0]).square() + (yp - q[1]).square()) * wn).sum(0)
+    return (xp - q[0]).square() + (yp - q[1]).square()
+
+
+#: Robust losses of :func:`fit_transform`, as functions of the squared residual.
+LOSSES: tuple[str, ...] = ("l2", "huber", "cauchy", "tukey")
+
+
+def robust_rho(sq: torch.Tensor, kind: str, c2: torch.Tensor) -> torch.Tensor:
+    """``ρ(s)`` of squared residuals ``sq`` (N, B) with squared scale ``c2`` (B,).
+
+    With ``s = r²`` and scale ``c`` (Triggs et al. 2000, table of M-estimators):
+    l2 ``s``; huber ``s`` for ``s <= c²`` else ``2 c √s - c²``; cauchy
+    ``c² log(1 + s / c²)``; tukey ``c²/3 (1 - (1 - s/c²)³)``, constant ``c²/3``
+    beyond ``c``. Each is ``s`` near 0 and homogeneous: ``ρ(k² s; k c) = k² ρ(s; c)``.
+    """
+    if kind == "l2":
+        return sq
+    t = sq / c2
+    if kind == "huber":
+        inside = t <= 1
+        t_safe = torch.where(inside, torch.ones_like(t), t)  # sqrt only where t > 1
+        return torch.where(inside, sq, c2 * (2 * t_safe.sqrt() - 1))
+    if kind == "cauchy":
+        return c2 * torch.log1p(t)
+    return c2 / 3 * (1 - (1 - t.clamp(max=1)).pow(3))
+
+
+def robust_weight(sq: torch.Tensor, kind: str, c2: torch.Tensor) -> torch.Tensor:
+    """IRLS weight ``ρ'(s)`` (N, B): the weight of each squared residual in one GN step."""
+    if kind == "l2":
+        return torch.ones_like(sq)
+    t = sq / c2
+    if kind == "huber":
+        inside = t <= 1
+        t_safe = torch.where(inside, torch.ones_like(t), t)
+        return torch.where(inside, torch.ones_like(t), t_safe.rsqrt())
+    if kind == "cauchy":
+        return 1 / (1 + t)
+    return (1 - t.clamp(max=1)).square()
 
 
 def _normal_equations(h, p, q, wn):
@@ -300,8 +340,8 @@ def _normal_equations(h, p, q, wn):
     coef = torch.stack([a, a * xp, a * yp, a * (xp * xp + yp * yp)])  # (4, N, B)
     moments = (pp[:, None] * coef[None]).sum(2).flatten(0, 1)  # (24, B)
     moments = torch.cat([moments, torch.zeros_like(moments[:1])])  # (25, B)
-    index = torch.tensor(_M_INDEX, device=x.device)
-    sign = torch.tensor(_M_SIGN, dtype=x.dtype, device=x.device)
+    index = torch.tensor(DLT_M_INDEX, device=x.device)
+    sign = torch.tensor(DLT_M_SIGN, dtype=x.dtype, device=x.device)
     jtj = (torch.index_select(moments, 0, index) * sign[:, None]).T.unflatten(-1, (9, 9))
     c = torch.stack([b * rx, b * ry, -b * (xp * rx + yp * ry)])  # (3, N, B)
     ph = torch.stack([x, y, one])  # (3, N, B)
@@ -309,12 +349,29 @@ def _normal_equations(h, p, q, wn):
     return jtj, jtr
 
 
-def _system(hn, prob, symmetric: bool):
-    """``JᵀJ`` (B, 9, 9) and ``Jᵀr`` (B, 9) of the objective wrt vec(Ĥ)."""
-    jtj, jtr = _normal_equations(hn, prob.p, prob.q, prob.wn)
-    if symmetric:
+class _Objective(NamedTuple):
+    symmetric: bool
+    kind: str  # one of LOSSES
+    c2_dst: torch.Tensor | None  # (B,) squared robust scale in the normalized dst frame
+    c2_src: torch.Tensor | None  # (B,) the same in the normalized src frame
+
+
+def _irls(h, p, q, wn, kind, c2):
+    """Weights (N, B) of the IRLS step at ``h``: ``wn ρ'(s)``."""
+    if kind == "l2":
+        return wn
+    return wn * robust_weight(_squared_transfer(h, p, q), kind, c2)
+
+
+def _system(hn, prob, objective: _Objective):
+    """``JᵀJ`` (B, 9, 9) and ``Jᵀr`` (B, 9) of the (IRLS-reweighted) objective wrt vec(Ĥ)."""
+    kind = objective.kind
+    wn = _irls(hn, prob.p, prob.q, prob.wn, kind, objective.c2_dst)
+    jtj, jtr = _normal_equations(hn, prob.p, prob.q, wn)
+    if objective.symmetric:
         g = inverse(hn)
-        jtj_b, jtr_b = _normal_equations(g, prob.q, prob.p, prob.wn)
+        wn_b = _irls(g, prob.q, prob.p, prob.wn, kind, objective.c2_src)
+        jtj_b, jtr_b = _normal_equations(g, prob.q, prob.p, wn_b)
         # dG = -G dĤ G: d vec(G)_ij / d vec(Ĥ)_kl = -G_ik G_lj
         dg = -torch.einsum("bik,blj->bijkl", g, g).flatten(1, 2).flatten(2, 3)  # (B, 9, 9)
         jtj = jtj + dg.mT @ jtj_b @ dg
@@ -333,7 +390,7 @@ class _Problem(NamedTuple):
 
 
 def _normalize(src, dst, w, model: str) -> _Problem:
-    ns, nd = _hartley(src, w), _hartley(dst, w)
+    ns, nd = hartley_weighted(src, w), hartley_weighted(dst, w)
     wn = (w / w.sum(-1, keepdim=True)).T.contiguous()  # (N, B)
 
     def last(points):  # (B, N, 2) -> (2, N, B)
@@ -344,18 +401,21 @@ def _normalize(src, dst, w, model: str) -> _Problem:
                         ns.scale, nd.scale)
     # one shared scale keeps similarity/euclidean/translation/trs in their class
     scale = 2.0 / (1.0 / ns.scale + 1.0 / nd.scale)
-    t_src, t_dst = _similarity_matrix(scale, ns.centroid), _similarity_matrix(scale, nd.centroid)
+    t_src, t_dst = similarity_matrix(scale, ns.centroid), similarity_matrix(scale, nd.centroid)
     p = (src - ns.centroid[..., None, :]) * scale[..., None, None]
     q = (dst - nd.centroid[..., None, :]) * scale[..., None, None]
     return _Problem(last(p), last(q), wn, t_src, t_dst, scale, scale)
 
 
-def _loss_terms(hn, prob: _Problem, symmetric: bool):
+def _loss_terms(hn, prob: _Problem, objective: _Objective):
     """(objective (B,) in normalized units, loss (B,) in input units)."""
-    fwd = _transfer(hn, prob.p, prob.q, prob.wn)
+    kind = objective.kind
+    fwd = (robust_rho(_squared_transfer(hn, prob.p, prob.q), kind, objective.c2_dst)
+           * prob.wn).sum(0)
     loss = fwd / prob.scale_dst.square()
-    if symmetric:
-        bwd = _transfer(inverse(hn), prob.q, prob.p, prob.wn)
+    if objective.symmetric:
+        bwd = (robust_rho(_squared_transfer(inverse(hn), prob.q, prob.p), kind,
+                          objective.c2_src) * prob.wn).sum(0)
         return fwd + bwd, loss + bwd / prob.scale_src.square()
     return fwd, loss
 
@@ -373,7 +433,7 @@ def _denormalize(hn: torch.Tensor, prob: _Problem) -> torch.Tensor:
     h = torch.stack([cols[:, 0] / sd + cd[:, :1] * cols[:, 2],
                      cols[:, 1] / sd + cd[:, 1:] * cols[:, 2], cols[:, 2]], dim=1)
     h33 = h[..., 2, 2]
-    ok = h33.abs() > 1e-12
+    ok = h33 != 0  # only 0 is undefined (pixel units: no absolute threshold)
     return h / torch.where(ok, h33, torch.ones_like(h33))[..., None, None]
 
 
@@ -420,13 +480,13 @@ def _spd_solve(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return torch.stack(x, dim=-1)
 
 
-def _lm(fn, theta, prob, symmetric, steps, mu0, tol, bar, history):
+def _lm(fn, theta, prob, objective, steps, mu0, tol, bar, history):
     """Levenberg-Marquardt (Marquardt's diagonal scaling), per problem, unrolled."""
     constant_jac = None
     mu = torch.full_like(theta[:, 0], mu0)
-    obj, loss = _loss_terms(fn(theta), prob, symmetric)
+    obj, loss = _loss_terms(fn(theta), prob, objective)
     for _ in bar:
-        jtj, jtr = _system(fn(theta), prob, symmetric)  # wrt vec(Ĥ)
+        jtj, jtr = _system(fn(theta), prob, objective)  # wrt vec(Ĥ)
         if fn.model == "homography" and fn.parametrization == "entries":
             a, g = jtj[:, :8, :8], jtr[:, :8, None]  # d vec(Ĥ) / dθ selects 8 entries
         elif fn.linear:  # one constant (9, P) Jacobian: plain GEMMs, no tiny bmm
@@ -444,7 +504,7 @@ def _lm(fn, theta, prob, symmetric, steps, mu0, tol, bar, history):
         step = -_spd_solve(a + torch.diag_embed(damp), g.squeeze(-1))  # (B, P)
         step = torch.where(torch.isfinite(step), step, torch.zeros_like(step))
         trial = theta + step
-        obj_new, loss_new = _loss_terms(fn(trial), prob, symmetric)
+        obj_new, loss_new = _loss_terms(fn(trial), prob, objective)
         accept = obj_new < obj
         theta = torch.where(accept[:, None], trial, theta)
         decrease = torch.where(accept, obj - obj_new, torch.zeros_like(obj))
@@ -460,23 +520,25 @@ def _lm(fn, theta, prob, symmetric, steps, mu0, tol, bar, history):
     return theta
 
 
-def _gauss_newton_step(fn, theta, prob, symmetric):
+def _gauss_newton_step(fn, theta, prob, objective):
     """One Gauss-Newton step from a detached optimum: carries the implicit gradient."""
     theta = theta.detach()
     with torch.no_grad():
         d = _param_jacobian(fn, theta)  # (B, 9, P)
-        jtj, _ = _system(fn(theta), prob, symmetric)
+        jtj, _ = _system(fn(theta), prob, objective)
         a = d.mT @ jtj @ d
         diag = a.diagonal(dim1=-2, dim2=-1)
         eye = torch.eye(theta.shape[-1], dtype=theta.dtype, device=theta.device)
         chol, _ = torch.linalg.cholesky_ex(a + 1e-12 * diag.sum(-1)[:, None, None] * eye)
-    _, jtr = _system(fn(theta), prob, symmetric)  # attached to the inputs
+    _, jtr = _system(fn(theta), prob, objective)  # attached to the inputs
     return theta - torch.cholesky_solve(d.mT @ jtr[..., None], chol).squeeze(-1)
 
 
-def _first_order(kind, fn, theta, prob, symmetric, steps, lr, tol, patience, bar, history):
+def _first_order(kind, fn, theta, prob, objective, steps, lr, tol, patience, bar, history):
     theta = theta.detach().clone().requires_grad_(True)
     prob_d = _Problem(*(t.detach() for t in prob))
+    objective = objective._replace(c2_dst=objective.c2_dst.detach(),
+                                   c2_src=objective.c2_src.detach())
     if kind == "adam":
         opt = torch.optim.Adam([theta], lr=lr)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(steps, 1),
@@ -487,12 +549,14 @@ def _first_order(kind, fn, theta, prob, symmetric, steps, lr, tol, patience, bar
                                 tolerance_grad=0.0, tolerance_change=0.0,
                                 line_search_fn="strong_wolfe")
         sched = None
-    best = None
+    with torch.no_grad():
+        best, _ = _loss_terms(fn(theta), prob_d, objective)
+    best_theta = theta.detach().clone()
     stale = 0
     for _ in bar:
         def closure():
             opt.zero_grad()
-            obj, _ = _loss_terms(fn(theta), prob_d, symmetric)
+            obj, _ = _loss_terms(fn(theta), prob_d, objective)
             total = obj.sum()
             total.backward()
             return total
@@ -502,15 +566,17 @@ def _first_order(kind, fn, theta, prob, symmetric, steps, lr, tol, patience, bar
         if sched is not None:
             sched.step()
         with torch.no_grad():
-            obj, loss = _loss_terms(fn(theta), prob_d, symmetric)
+            obj, loss = _loss_terms(fn(theta), prob_d, objective)
         history.append(loss)
         bar.set_postfix(loss=float(loss.mean()))
-        improved = obj < (best * (1 - tol) if best is not None else torch.full_like(obj, math.inf))
-        best = obj if best is None else torch.minimum(best, obj)
+        improved = obj < best * (1 - tol)
+        lower = obj < best  # keep the best iterate of each problem (Adam may overshoot)
+        best_theta = torch.where(lower[:, None], theta.detach(), best_theta)
+        best = torch.where(lower, obj, best)
         stale = 0 if bool(improved.any()) else stale + 1
         if stale >= patience or bool((obj <= 1e-30).all()):
             break
-    return theta.detach()
+    return best_theta
 
 
 class _ParamFn:
@@ -534,12 +600,14 @@ def fit_transform(
     steps: int | None = None,
     init: torch.Tensor | None = None,
     parametrization: str = "entries",
-    loss: str = "transfer",
+    loss: str = "l2",
     weights: torch.Tensor | None = None,
     lr: float | None = None,
     tol: float | None = None,
     patience: int = 20,
     progress: bool = False,
+    scale: float = 1.0,
+    symmetric: bool = False,
 ) -> FitResult:
     """Fit ``dst_from_src`` of a ``model`` to correspondences by iterative optimization, batched.
 
@@ -548,9 +616,17 @@ def fit_transform(
 
     Convention:
         Column vectors; ``dst ~ matrix @ [x, y, 1]ᵀ``. The loss is the weighted
-        mean squared transfer error ``Σ w ‖π(M p) - q‖² / Σ w`` (``"transfer"``)
-        or that plus ``Σ w ‖π(M⁻¹ q) - p‖² / Σ w`` (``"symmetric"``), optimized in
-        the Hartley-normalized frame and reported in input units. ``init=None``
+        mean robust transfer error ``Σ w ρ(‖π(M p) - q‖²) / Σ w`` (plus
+        ``Σ w ρ(‖π(M⁻¹ q) - p‖²) / Σ w`` if ``symmetric``), with ``ρ`` of
+        ``robust_rho`` (this module) at ``scale`` (input units, pixels): ``"l2"`` is the
+        plain mean squared error. It is optimized in the Hartley-normalized
+        frame (the scale moves with it) and reported in input units squared.
+        ``"lm"`` solves robust losses by iteratively reweighted least squares
+        (the weights ``ρ'(r²)`` are recomputed at every LM iteration, and a step
+        is accepted only if the robust cost decreases); ``"adam"``/``"lbfgs"``
+        descend the robust cost directly. Robust losses need a good start
+        (``init``, e.g. from :func:`find_transform_ransac`): Cauchy and Tukey
+        are not convex. ``init=None``
         starts from the identity of the normalized frame (which maps the src
         centroid to the dst centroid). Differentiable with respect to ``src``,
         ``dst`` and ``weights``: ``"lm"`` is unrolled (exact derivative of the
@@ -568,13 +644,17 @@ def fit_transform(
         init: optional ``(*, 3, 3)`` starting ``dst_from_src``.
         parametrization: for ``model="homography"``: ``"entries"``, ``"corners"``
             (4-corner offsets) or ``"sl3"`` (Lie-algebra exponential).
-        loss: ``"transfer"`` or ``"symmetric"``.
+        loss: ``"l2"``, ``"huber"``, ``"cauchy"`` or ``"tukey"`` (:data:`LOSSES`);
+            ``"transfer"`` (= ``"l2"``) and ``"symmetric"`` (= ``"l2"`` with
+            ``symmetric=True``) are kept for compatibility.
         weights: optional ``(*, N)`` non-negative weights.
         lr: learning rate (adam 0.05, lbfgs 1) or initial LM damping (1e-3).
         tol: relative improvement below which a problem counts as converged
             (default ``1000 * eps`` of the dtype: 2.2e-13 in float64, 1.2e-4 in float32).
         patience: adam/lbfgs stop after this many steps without improvement.
         progress: show a tqdm progress bar.
+        scale: robust scale ``c`` in input units (pixels), > 0; unused by ``"l2"``.
+        symmetric: add the backward transfer error.
 
     Returns:
         :class:`FitResult` ``(matrix (*, 3, 3), params (*, P), loss (*),
@@ -589,11 +669,14 @@ def fit_transform(
         >>> torch.allclose(fit.matrix, h, atol=1e-9), fit.history.shape[0] <= 11
         (True, True)
     """
-    weights = _check_pair(src, dst, weights)
+    weights = check_pair(src, dst, weights)
     _check_choice(model, MODELS, "model")
     _check_choice(optimizer, _DEFAULT_STEPS, "optimizer")
     _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
-    _check_choice(loss, ("transfer", "symmetric"), "loss")
+    _check_choice(loss, (*LOSSES, "transfer", "symmetric"), "loss")
+    scale = float(scale)
+    if not (math.isfinite(scale) and scale > 0):
+        raise ValueError(f"scale: expected a finite positive number of pixels, got {scale!r}")
     steps = _DEFAULT_STEPS[optimizer] if steps is None else steps
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
         raise ValueError(f"steps: expected a non-negative int, got {steps!r}")
@@ -601,7 +684,7 @@ def fit_transform(
     tol = 1000 * torch.finfo(src.dtype).eps if tol is None else float(tol)
     batch, n = src.shape[:-2], src.shape[-2]
     p_in, q_in = src.reshape(-1, n, 2), dst.reshape(-1, n, 2)
-    w = _effective_weights(p_in, None if weights is None else weights.reshape(-1, n))
+    w = effective_weights(p_in, None if weights is None else weights.reshape(-1, n))
     prob = _normalize(p_in, q_in, w, model)
     base = None
     if init is not None:
@@ -615,30 +698,33 @@ def fit_transform(
     else:
         theta = src.new_zeros(p_in.shape[0], MODELS[model])
     fn = _ParamFn(model, parametrization, base)
-    symmetric = loss == "symmetric"
+    symmetric = bool(symmetric) or loss == "symmetric"
+    kind = "l2" if loss in ("transfer", "symmetric") else loss
+    objective = _Objective(symmetric, kind, (scale * prob.scale_dst).square(),
+                           (scale * prob.scale_src).square())
     from tqdm.auto import tqdm
 
     bar = tqdm(range(steps), disable=not progress, desc=f"fit {model} ({optimizer})")
     with torch.no_grad():
-        history = [_loss_terms(fn(theta), prob, symmetric)[1]]
+        history = [_loss_terms(fn(theta), prob, objective)[1]]
     if optimizer == "lm":
-        theta = _lm(fn, theta, prob, symmetric, steps, lr, tol, bar, history)
+        theta = _lm(fn, theta, prob, objective, steps, lr, tol, bar, history)
     else:
-        theta = _first_order(optimizer, fn, theta, prob, symmetric, steps, lr, tol, patience,
+        theta = _first_order(optimizer, fn, theta, prob, objective, steps, lr, tol, patience,
                              bar, history)
         if torch.is_grad_enabled() and any(
             t.requires_grad for t in (src, dst, weights) if t is not None
         ):
-            theta = _gauss_newton_step(fn, theta, prob, symmetric)
+            theta = _gauss_newton_step(fn, theta, prob, objective)
     bar.close()
     hn = fn(theta)
     matrix = _denormalize(hn, prob)
-    _, final = _loss_terms(hn, prob, symmetric)
+    _, final = _loss_terms(hn, prob, objective)
     return FitResult(
         matrix.reshape(*batch, 3, 3),
-        theta.reshape(*batch, -1),
+        theta.reshape(*batch, theta.shape[-1]),
         final.reshape(batch),
-        torch.stack([h.detach() for h in history]).reshape(-1, *batch),
+        torch.stack([h.detach() for h in history]).reshape(len(history), *batch),
     )
 
 
@@ -686,7 +772,13 @@ class HomographyModel(nn.Module):
         super().__init__()
         _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
         self.parametrization = parametrization
-        ref = next((t for t in (src, dst, init) if t is not None), None)
+        given = [(name, t) for name, t in (("src", src), ("dst", dst), ("init", init))
+                 if t is not None]
+        for name, t in given[1:]:
+            if t.dtype != given[0][1].dtype:
+                raise TypeError(f"{name}: expected the dtype of {given[0][0]} "
+                                f"({given[0][1].dtype}), got {t.dtype}")
+        ref = given[0][1] if given else None
         kw = {"device": device if ref is None else ref.device,
               "dtype": (dtype or torch.get_default_dtype()) if ref is None else ref.dtype}
         batch_shape = tuple(batch_shape)
@@ -697,7 +789,7 @@ class HomographyModel(nn.Module):
                 continue
             check_shape(pts, [*map(str, batch_shape), "N", "2"], name)
             check_float(pts, name)
-            t = _hartley(pts, torch.ones_like(pts[..., 0])).transform
+            t = hartley_weighted(pts, torch.ones_like(pts[..., 0])).transform
             t_src, t_dst = (t, t_dst) if name == "src" else (t_src, t)
         self.register_buffer("src_transform", t_src.clone(), persistent=False)
         self.register_buffer("dst_transform", t_dst.clone(), persistent=False)
@@ -723,7 +815,7 @@ class HomographyModel(nn.Module):
         hn = parameters_to_matrix(self.params, "homography", self.parametrization, self.base)
         h = inverse(self.dst_transform) @ hn @ self.src_transform
         h33 = h[..., 2, 2]
-        return h / torch.where(h33.abs() > 1e-12, h33, torch.ones_like(h33))[..., None, None]
+        return h / torch.where(h33 != 0, h33, torch.ones_like(h33))[..., None, None]
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         """Transform ``points`` ``(*batch_shape, N, 2)`` -> ``(*batch_shape, N, 2)``."""

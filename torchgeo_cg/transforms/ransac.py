@@ -1,0 +1,449 @@
+"""Robust, batched estimation of 2D transforms: LO-RANSAC with MSAC scoring.
+
+:func:`find_transform_ransac` fits one transform per problem of a batch to
+correspondences with outliers. Every round draws ``K`` minimal samples for
+every unfinished problem at once, solves them in closed form, drops
+degenerate samples, ranks the hypotheses on a random preview of the points
+(preemptive scoring, Nistér 2005), scores the best few on all points with the
+truncated quadratic of MSAC (Torr & Zisserman 2000), and keeps the best per
+problem. The winner is then refined as in LO-RANSAC (Chum et al. 2003):
+refit on its inliers (least squares), rescore, repeat; homographies end with a
+few Levenberg-Marquardt steps on the geometric transfer error of the inliers.
+There is no Python loop over problems or hypotheses, only over rounds and LO
+iterations.
+
+Convention:
+    - Column vectors: ``matrix`` is ``dst_from_src``, ``dst ~ M @ [x, y, 1]ᵀ``
+      with the perspective divide, as :func:`find_homography_dlt`.
+    - Residual: the one-way transfer error ``e = ‖π(M p) - q‖`` in ``dst``
+      units (pixels). A point is an inlier when ``e <= threshold`` and its
+      weight is positive. Score (lower is better):
+      ``Σ w min(e², threshold²)``.
+    - Sampling, minimal solvers and scoring run in Hartley-normalized
+      coordinates (the threshold is scaled with them), so the result does not
+      depend on the units of the points.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import torch
+
+from torchgeo_cg.transforms.estimation import (
+    adjugate3,
+    check_pair,
+    dlt_moments,
+    dlt_smallest_eigenpair,
+    find_affine,
+    find_euclidean,
+    find_similarity,
+    hartley_weighted,
+    matmul3,
+    similarity_matrix,
+)
+
+__all__ = ["RobustFit", "SAMPLE_SIZES", "find_transform_ransac"]
+
+#: Minimal sample size of each model.
+SAMPLE_SIZES: dict[str, int] = {"homography": 4, "affine": 3, "similarity": 2, "euclidean": 2}
+_CLOSED_FORMS = {"affine": find_affine, "similarity": find_similarity,
+                 "euclidean": find_euclidean}
+
+
+class RobustFit(NamedTuple):
+    """Result of :func:`find_transform_ransac`.
+
+    Attributes:
+        matrix: ``(*, 3, 3)`` ``dst_from_src`` (``matrix[..., 2, 2] = 1`` for
+            homographies); the identity where no model was found. Never NaN for
+            finite input.
+        inliers: ``(*, N)`` bool, ``‖π(M p) - q‖ <= threshold`` (and positive weight).
+        num_inliers: ``(*)`` int64, the number of inliers.
+        rank_ok: ``(*)`` bool, False where the problem is not solved: too few
+            points, fewer than ``min_inliers`` inliers (all-outlier data), or a
+            degenerate refit.
+    """
+
+    matrix: torch.Tensor
+    inliers: torch.Tensor
+    num_inliers: torch.Tensor
+    rank_ok: torch.Tensor
+
+
+class _Frame(NamedTuple):
+    p: torch.Tensor  # (B, N, 2) normalized src
+    q: torch.Tensor  # (B, N, 2) normalized dst
+    t_src: torch.Tensor  # (B, 3, 3) normalized_from_src
+    t_dst: torch.Tensor  # (B, 3, 3) normalized_from_dst
+    thr2: torch.Tensor  # (B,) squared threshold in normalized dst units
+    w: torch.Tensor  # (B, N) weights (0 for non-finite points)
+    ph: torch.Tensor  # (B, 3, N) homogeneous normalized src, for the batched matmuls
+
+
+def _normalized_frame(src, dst, w, model: str, threshold: float) -> _Frame:
+    """Hartley frames; similarity-class models share one scale between src and dst."""
+    ns, nd = hartley_weighted(src, w), hartley_weighted(dst, w)
+    if model in ("homography", "affine"):
+        return _Frame(ns.points, nd.points, ns.transform, nd.transform,
+                      (threshold * nd.scale).square(), w, _homogeneous(ns.points))
+    scale = 2.0 / (1.0 / ns.scale + 1.0 / nd.scale)
+    p = (src - ns.centroid[..., None, :]) * scale[..., None, None]
+    q = (dst - nd.centroid[..., None, :]) * scale[..., None, None]
+    return _Frame(p, q, similarity_matrix(scale, ns.centroid),
+                  similarity_matrix(scale, nd.centroid), (threshold * scale).square(), w,
+                  _homogeneous(p))
+
+
+def _cross(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+    """Twice the signed area of triangles a, b, c (..., 2) -> (...)."""
+    return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (
+        b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+
+
+def _homography_4pt(ps: torch.Tensor, qs: torch.Tensor):
+    """Homographies (..., 3, 3) through 4 correspondences (..., 4, 2), and a validity mask.
+
+    ``Q = [λ1 p1, λ2 p2, λ3 p3]`` with ``[p1 p2 p3] λ = p4`` maps the projective
+    basis to the points; ``H = Q_dst adj(Q_src)``. A sample is rejected when
+    three of its points are (nearly) collinear, in src or dst (triangle area
+    below ``sqrt(eps)`` in the normalized frame), or when the orientations of
+    its four triangles are not preserved consistently (no homography without a
+    point at infinity between them maps them: OpenCV's USAC does the same check).
+    """
+    triples = ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3))
+    area_s = torch.stack([_cross(ps[..., i, :], ps[..., j, :], ps[..., k, :])
+                          for i, j, k in triples])  # (4, ...)
+    area_d = torch.stack([_cross(qs[..., i, :], qs[..., j, :], qs[..., k, :])
+                          for i, j, k in triples])
+    tol = math.sqrt(torch.finfo(ps.dtype).eps)
+    sign = torch.sign(area_s * area_d)
+    valid = ((area_s.abs() > tol) & (area_d.abs() > tol)).all(0) & (sign == sign[:1]).all(0)
+
+    def basis(pts):  # (..., 4, 2) -> (3, 3, ...) batch-last Q
+        homog = torch.cat([pts, torch.ones_like(pts[..., :1])], -1)  # (..., 4, 3)
+        cols = homog.movedim(-1, 0).movedim(-1, 0)  # (4, 3, ...): cols[i] = p_i
+        p3 = torch.stack([cols[0], cols[1], cols[2]], dim=1)  # (3, 3, ...) columns p1 p2 p3
+        lam = (adjugate3(p3) * cols[3][None]).sum(1)  # (3, ...) = det · [p1 p2 p3]⁻¹ p4
+        return p3 * lam[None]
+
+    h = matmul3(basis(qs), adjugate3(basis(ps)))  # (3, 3, ...)
+    return h.movedim(0, -1).movedim(0, -1), valid  # (..., 3, 3)
+
+
+def _minimal_fits(model: str, ps: torch.Tensor, qs: torch.Tensor):
+    """Hypotheses (B, K, 3, 3) and validity (B, K) from samples (B, K, m, 2)."""
+    if model == "homography":
+        return _homography_4pt(ps, qs)
+    tol = math.sqrt(torch.finfo(ps.dtype).eps)
+    if model == "affine":
+        valid = (_cross(ps[..., 0, :], ps[..., 1, :], ps[..., 2, :]).abs() > tol) & (
+            _cross(qs[..., 0, :], qs[..., 1, :], qs[..., 2, :]).abs() > tol)
+    else:
+        dp, dq = ps[..., 1, :] - ps[..., 0, :], qs[..., 1, :] - qs[..., 0, :]
+        valid = (dp.square().sum(-1) > tol) & (dq.square().sum(-1) > tol)
+    return _CLOSED_FORMS[model](ps, qs), valid
+
+
+def _squared_errors(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """``‖π(H p) - q‖²`` (B, K, N) for hypotheses (B, K, 3, 3) and points (B, N, 2).
+
+    ``p`` may also be given homogeneous and transposed, (B, 3, N).
+
+    One batched matmul maps all points by all hypotheses. A point mapped to
+    infinity (``w = 0``) gives inf or NaN, which :func:`_msac` and the inlier
+    test count as an outlier (no grad flows here, so no guard is needed).
+    """
+    b, k = h.shape[:2]
+    homog = p if p.shape[-2] == 3 and p.shape[-1] != 2 else _homogeneous(p)  # (B, 3, N)
+    uvw = (h.reshape(b, k * 3, 3) @ homog).unflatten(1, (k, 3))  # (B, K, 3, N)
+    inv_w = uvw[:, :, 2].reciprocal()
+    ex = torch.addcmul(-q[:, None, :, 0], uvw[:, :, 0], inv_w)
+    ey = torch.addcmul(-q[:, None, :, 1], uvw[:, :, 1], inv_w)
+    return torch.addcmul(ex * ex, ey, ey)
+
+
+def _homogeneous(p: torch.Tensor) -> torch.Tensor:
+    """(B, N, 2) -> (B, 3, N) homogeneous columns."""
+    return torch.cat([p, torch.ones_like(p[..., :1])], -1).mT
+
+
+def _msac(err2: torch.Tensor, thr2: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+    """MSAC score (B, K): ``Σ w min(e², t²)``; err2 (B, K, N), thr2 (B,), w (B, N)."""
+    t2 = thr2[:, None, None].expand_as(err2)
+    return (torch.where(err2 < t2, err2, t2) @ w[:, :, None]).squeeze(-1)  # NaN -> t²
+
+
+def _sample(frame: _Frame, m: int, k: int, weighted: bool, generator):
+    """Minimal samples (B, K, m, 2) of src and dst."""
+    p, q, w = frame.p, frame.q, frame.w
+    b, n = p.shape[:2]
+    if weighted:
+        idx = torch.multinomial(w, k * m, replacement=True, generator=generator)
+    else:
+        idx = torch.randint(0, n, (b, k * m), generator=generator, device=p.device)
+    idx = idx.reshape(b, k * m, 1).expand(b, k * m, 2)
+    return (torch.gather(p, 1, idx).reshape(b, k, m, 2),
+            torch.gather(q, 1, idx).reshape(b, k, m, 2))
+
+
+def _round(frame: _Frame, model, k, preview, keep, weighted, generator):
+    """One round: best hypothesis (B, 3, 3) of K samples per problem and its score (B,)."""
+    m = SAMPLE_SIZES[model]
+    ps, qs = _sample(frame, m, k, weighted, generator)
+    hyp, valid = _minimal_fits(model, ps, qs)  # (B, K, 3, 3), (B, K)
+    hyp = torch.where(valid[..., None, None], hyp, torch.zeros_like(hyp))
+    p, q, w, thr2 = frame.p, frame.q, frame.w, frame.thr2
+    b, n = p.shape[:2]
+    if preview < n:  # preemptive ranking on a random subset of the points
+        sub = torch.randint(0, n, (b, preview), generator=generator, device=p.device)
+        sub2 = sub[..., None].expand(b, preview, 2)
+        rough = _msac(_squared_errors(hyp, torch.gather(p, 1, sub2), torch.gather(q, 1, sub2)),
+                      thr2, torch.gather(w, 1, sub))
+        rough = torch.where(valid, rough, torch.full_like(rough, math.inf))
+        top = rough.topk(min(keep, k), dim=1, largest=False).indices  # (B', T)
+        hyp = torch.gather(hyp, 1, top[..., None, None].expand(-1, -1, 3, 3))
+        valid = torch.gather(valid, 1, top)
+    score = _msac(_squared_errors(hyp, frame.ph, q), thr2, w)
+    score = torch.where(valid, score, torch.full_like(score, math.inf))
+    best = score.argmin(1)  # (B',)
+    rows = torch.arange(b, device=p.device)
+    return hyp[rows, best], score[rows, best]
+
+
+def _count(h, frame: _Frame):
+    """Squared errors (B, N) of one hypothesis per problem (B, 3, 3), and the inlier mask."""
+    err = _squared_errors(h[:, None], frame.ph, frame.q)[:, 0]
+    return err, (err <= frame.thr2[:, None]) & (frame.w > 0)
+
+
+def _search(frame: _Frame, model, confidence, max_iterations, k, lo_iterations, weighted,
+            generator, start):
+    """Adaptive rounds of :func:`_round` + LO: best hypothesis (B, 3, 3) and score (B,).
+
+    After each round the round's winner is locally optimized (LO-RANSAC), and a
+    problem stops once ``K · rounds >= log(1 - confidence) / log(1 - ε^m)``
+    with ``ε`` its best inlier fraction so far (the classical RANSAC bound).
+    """
+    b = frame.p.shape[0]
+    m = SAMPLE_SIZES[model]
+    eye = torch.eye(3, dtype=frame.p.dtype, device=frame.p.device)
+    best = eye.expand(b, 3, 3).clone()
+    score = torch.full_like(frame.thr2, math.inf)
+    drawn = torch.zeros(b, dtype=torch.long, device=frame.p.device)
+    needed = torch.where(start, max_iterations, 0)
+    n_eff = (frame.w > 0).sum(-1).clamp_min(1)
+    log_fail = math.log1p(-confidence)
+    while True:
+        active = (drawn < needed).nonzero().squeeze(-1)
+        if active.numel() == 0:
+            break
+        sub = _Frame(*(t[active] for t in frame))
+        # later rounds have few problems left: give each more samples, as many as the
+        # median one still needs (at most the work of the first round)
+        left = int((needed[active] - drawn[active]).median())
+        k_round = k * max(1, min(b // active.numel(), -(-left // k)))
+        hyp, sc = _round(sub, model, k_round, min(32, frame.p.shape[1]), 4, weighted,
+                         generator)
+        hyp, sc = _local_optimization(sub, model, hyp, sc, lo_iterations)
+        better = sc < score[active]
+        best[active] = torch.where(better[:, None, None], hyp, best[active])
+        score[active] = torch.where(better, sc, score[active])
+        drawn[active] += k_round
+        _, inl = _count(best[active], sub)
+        eps = (inl.sum(-1) / n_eff[active]).to(frame.p.dtype).pow(m)
+        log_miss = torch.log1p(-eps.clamp(max=1 - 1e-12))
+        bound = torch.where(eps > 0, torch.ceil(log_fail / log_miss.clamp(max=-1e-300)),
+                            torch.full_like(eps, max_iterations))
+        needed[active] = bound.clamp(max=max_iterations).long()
+    return best, score
+
+
+def _dlt_in_frame(frame: _Frame, w_fit: torch.Tensor):
+    """Weighted DLT (B, 3, 3) directly in the (already normalized) RANSAC frame, and ok (B,).
+
+    The lean core of :func:`find_homography_dlt`: the exact smallest eigenvector
+    of the DLT matrix, no renormalization, no gradient path.
+    """
+    work = torch.float64
+    p = frame.p.to(work).permute(2, 1, 0)  # (2, N, B)
+    q = frame.q.to(work).permute(2, 1, 0)
+    moments, _ = dlt_moments(p, q, w_fit.to(work).T)
+    eig = dlt_smallest_eigenpair(moments, 4, 1e-13)
+    h = eig.vector.T.reshape(-1, 3, 3)
+    ok = ((w_fit > 0).sum(-1) >= 4) & (eig.condition <= 1e6) & torch.isfinite(h).flatten(-2).all(-1)
+    h33 = h[:, 2, 2]
+    return (h / torch.where(h33 != 0, h33, torch.ones_like(h33))[:, None, None]).to(
+        frame.p.dtype), ok
+
+
+def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, final: bool):
+    """Least-squares refit on weights w_fit (B, N): DLT (or LM from ``init`` when ``final``)."""
+    if model != "homography":
+        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit), (w_fit > 0).sum(-1) >= 2
+    if not final:
+        return _dlt_in_frame(frame, w_fit)
+    from torchgeo_cg.transforms.fitting import fit_transform
+
+    ok = (w_fit > 0).sum(-1) >= 4
+    safe_w = torch.where(ok[:, None], w_fit, frame.w)
+    return fit_transform(frame.p, frame.q, "homography", "lm", steps=5, init=init,
+                         weights=safe_w).matrix, ok
+
+
+def _local_optimization(frame: _Frame, model, best, score, lo_iterations: int):
+    """LO-RANSAC: refit on the inliers by least squares, keep it where MSAC improves."""
+    for _ in range(lo_iterations):
+        _, inl = _count(best, frame)
+        refit, ok = _refit(model, frame, frame.w * inl, best, False)
+        new = _msac(_squared_errors(refit[:, None], frame.ph, frame.q), frame.thr2,
+                    frame.w)[:, 0]
+        better = ok & (new < score) & torch.isfinite(refit).flatten(-2).all(-1)
+        best = torch.where(better[:, None, None], refit, best)
+        score = torch.where(better, new, score)
+    return best, score
+
+
+def _final_refit(frame: _Frame, model, best):
+    """The maximum-likelihood refit of the winner.
+
+    The noise scale is estimated from the inliers (``σ² = mean e² / 2``, as for a
+    2D Gaussian error; the truncation at the threshold biases it a little low)
+    and every point with
+    ``e <= max(threshold, 5.26 σ)`` (the 1 - 1e-6 quantile) is fitted, so that no
+    true inlier is cut at the threshold (MAGSAC's observation); homographies
+    use LM on the transfer error, the other models their closed forms.
+    """
+    err, inl = _count(best, frame)
+    count = inl.sum(-1).clamp_min(1)
+    sigma2 = torch.where(inl, err, torch.zeros_like(err)).sum(-1) / (2 * count)  # E e² = 2σ²
+    wide2 = torch.maximum(frame.thr2, -2 * math.log(1e-6) * sigma2.nan_to_num(0.0))
+    wide = (err <= wide2[:, None]) & (frame.w > 0)
+    refit, ok = _refit(model, frame, frame.w * wide, best, True)
+    ok = ok & torch.isfinite(refit).flatten(-2).all(-1)
+    return torch.where(ok[:, None, None], refit, best)
+
+
+def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
+              lo_iterations, min_inliers):
+    if model not in SAMPLE_SIZES:
+        raise ValueError(f"model: expected one of {sorted(SAMPLE_SIZES)}, got {model!r}")
+    if not (isinstance(threshold, (int, float)) and math.isfinite(threshold) and threshold > 0):
+        raise ValueError(f"threshold: expected a finite positive number, got {threshold!r}")
+    if not (isinstance(confidence, (int, float)) and 0 < confidence < 1):
+        raise ValueError(f"confidence: expected a number in (0, 1), got {confidence!r}")
+    for name, value, low in (("max_iterations", max_iterations, 1),
+                             ("hypotheses_per_round", hypotheses_per_round, 1),
+                             ("lo_iterations", lo_iterations, 0),
+                             ("min_inliers", min_inliers, 0)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int)
+                                  or value < low):
+            raise ValueError(f"{name}: expected an int >= {low}, got {value!r}")
+
+
+
+def _prepare(src, dst, weights):
+    """Flattened (B, N, 2) points with non-finite ones zeroed, weights (B, N), NaN-weight flag."""
+    n = src.shape[-2]
+    p, q = src.reshape(-1, n, 2), dst.reshape(-1, n, 2)
+    finite = torch.isfinite(p).all(-1) & torch.isfinite(q).all(-1)  # (B, N)
+    w = torch.ones_like(p[..., 0]) if weights is None else weights.reshape(-1, n)
+    nan_weight = torch.isnan(w).any(-1)
+    w = torch.where(finite & (w > 0), w, torch.zeros_like(w))  # NaN and negatives -> 0
+    zero = torch.zeros_like(p)
+    return torch.where(finite[..., None], p, zero), torch.where(finite[..., None], q, zero), \
+        w, nan_weight
+
+
+def find_transform_ransac(
+    src: torch.Tensor,
+    dst: torch.Tensor,
+    model: str = "homography",
+    threshold: float = 3.0,
+    confidence: float = 0.999,
+    max_iterations: int = 1000,
+    weights: torch.Tensor | None = None,
+    generator: torch.Generator | None = None,
+    hypotheses_per_round: int = 64,
+    lo_iterations: int = 2,
+    min_inliers: int | None = None,
+) -> RobustFit:
+    """Robust ``dst_from_src`` of a ``model`` from correspondences with outliers, batched.
+
+    LO-RANSAC with MSAC scoring (see the module docstring): rounds of
+    ``hypotheses_per_round`` minimal samples per problem, all problems and
+    hypotheses solved and scored together; samples with three collinear points
+    (or, for homographies, inconsistent orientations) are rejected before
+    scoring; the winner is refit on its inliers ``lo_iterations`` times (DLT
+    or closed-form least squares), and a homography finally gets 5 LM steps on
+    the transfer error of its inliers (:func:`fit_transform`).
+
+    Convention:
+        Column vectors, ``dst ~ M @ [x, y, 1]ᵀ``; ``threshold`` is in ``dst``
+        units (pixels) on the one-way transfer error ``‖π(M p) - q‖``.
+        ``weights`` scale each point's sampling probability and MSAC term;
+        zero-weight and non-finite points are never sampled and never inliers
+        (a robust estimator treats them as outliers). A NaN weight makes the
+        problem's ``matrix`` NaN and ``rank_ok`` False. Problems that cannot
+        be solved (fewer than ``m`` usable points, fewer than ``min_inliers``
+        inliers) get ``rank_ok = False`` and a finite matrix (the identity if
+        no hypothesis was valid). Reproducible: all randomness comes from
+        ``generator``. Not differentiable (refit the inliers with
+        :func:`fit_transform` for gradients).
+
+    Args:
+        src: ``(*, N, 2)`` source points.
+        dst: ``(*, N, 2)`` destination points.
+        model: ``"homography"``, ``"affine"``, ``"similarity"`` or ``"euclidean"``
+            (minimal samples of 4, 3, 2, 2 points: :data:`SAMPLE_SIZES`).
+        threshold: inlier threshold on the transfer error, input units, > 0.
+        confidence: probability of drawing at least one all-inlier sample, in (0, 1).
+        max_iterations: most minimal samples drawn per problem.
+        weights: optional ``(*, N)`` non-negative weights.
+        generator: ``torch.Generator`` for the samples (default: the global one).
+        hypotheses_per_round: samples per problem per round.
+        lo_iterations: local-optimization refits.
+        min_inliers: fewest inliers of a solved problem (default ``3 m + 2``:
+            14 for homographies, more than random outliers reach).
+
+    Returns:
+        :class:`RobustFit` ``(matrix (*, 3, 3), inliers (*, N), num_inliers (*),
+        rank_ok (*))``.
+
+    Example:
+        >>> from torchgeo_cg.transforms import homography, transform_points
+        >>> gen = torch.Generator().manual_seed(0)
+        >>> h = homography(torch.tensor([0.9, 0.1, 5.0, -0.1, 1.1, -3.0, 1e-3, 0.0]))
+        >>> src = torch.rand(2, 100, 2, generator=gen) * 100
+        >>> dst = transform_points(h, src)
+        >>> dst[:, :40] = torch.rand(2, 40, 2, generator=gen) * 100  # 40% outliers
+        >>> fit = find_transform_ransac(src, dst, generator=gen)
+        >>> fit.num_inliers, fit.rank_ok
+        (tensor([60, 60]), tensor([True, True]))
+        >>> bool(fit.inliers[:, 40:].all()), torch.allclose(fit.matrix, h.expand(2, 3, 3),
+        ...                                                 atol=1e-3)
+        (True, True)
+    """
+    weights = check_pair(src, dst, weights)
+    _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
+              lo_iterations, min_inliers)
+    m = SAMPLE_SIZES[model]
+    min_inliers = 3 * m + 2 if min_inliers is None else min_inliers
+    batch, n = src.shape[:-2], src.shape[-2]
+    p, q, w, nan_weight = _prepare(src, dst, weights)
+    usable = (w > 0).sum(-1) >= m
+    w_frame = torch.where(usable[:, None], w, torch.ones_like(w))  # normalization only
+    frame = _normalized_frame(p, q, w_frame, model, float(threshold))._replace(w=w)
+    best, score = _search(frame, model, confidence, max_iterations, hypotheses_per_round,
+                          lo_iterations, weights is not None, generator, usable)
+    best = _final_refit(frame, model, best)
+    _, inliers = _count(best, frame)
+    matrix = torch.linalg.solve(frame.t_dst, best @ frame.t_src)  # T_dst⁻¹ Ĥ T_src
+    h33 = matrix[..., 2, 2]
+    matrix = matrix / torch.where(h33 != 0, h33, torch.ones_like(h33))[..., None, None]
+    num = inliers.sum(-1)
+    rank_ok = usable & (num >= min_inliers) & torch.isfinite(score) & ~nan_weight
+    matrix = torch.where(nan_weight[:, None, None], torch.full_like(matrix, math.nan), matrix)
+    return RobustFit(matrix.reshape(*batch, 3, 3), inliers.reshape(*batch, n),
+                     num.reshape(batch), rank_ok.reshape(batch))
