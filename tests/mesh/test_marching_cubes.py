@@ -24,6 +24,7 @@ from torchgeo_cg.mesh._marching_cubes_tables import (
     TRIANGLES,
     face_segments,
 )
+from torchgeo_cg.sdf.grid import Volume
 
 skimage_measure = pytest.importorskip("skimage.measure")
 trimesh = pytest.importorskip("trimesh")
@@ -557,7 +558,18 @@ def test_public_api():
         ({"iso": torch.zeros(2, 2)}, ShapeError, "iso"),
         ({"iso": torch.zeros(3)}, ShapeError, "iso"),
         ({"iso": torch.zeros((), dtype=torch.long)}, TypeError, "iso"),
-        ({"origin": (0.0, 0.0)}, TypeError, "origin"),
+        ({"origin": (0.0, 0.0)}, ShapeError, "origin"),
+        ({"origin": "abc"}, TypeError, "origin"),
+        ({"spacing": (1, 2)}, ShapeError, "spacing"),
+        ({"spacing": torch.ones(2)}, ShapeError, "spacing"),
+        ({"spacing": (1.0, float("nan"), 1.0)}, ValueError, "spacing"),
+        ({"spacing": (1.0, float("inf"), 1.0)}, ValueError, "spacing"),
+        ({"spacing": (1.0, -1.0, 1.0)}, ValueError, "spacing"),
+        ({"mask": torch.ones(3, 3, 3)}, TypeError, "mask"),
+        ({"mask": torch.ones(3, 3, 2, dtype=torch.bool)}, ShapeError, "mask"),
+        ({"ambiguity": "lewiner"}, ValueError, "ambiguity"),
+        ({"volume": Volume(torch.zeros(3, 3, 3), torch.zeros(3), torch.ones(3)),
+          "origin": (0.0, 0.0, 0.0)}, TypeError, "origin"),
         ({"origin": torch.zeros(4)}, ShapeError, "origin"),
         ({"spacing": (1.0, 0.0, 1.0)}, ValueError, "spacing"),
         ({"spacing": torch.ones(3, 3)}, ShapeError, "spacing"),
@@ -573,12 +585,12 @@ def test_bad_input_raises(kwargs, error, match):
 
 def test_slab_seams_do_not_change_the_result(monkeypatch):
     # the volume is processed in slabs along x; one-layer slabs must give the same mesh
-    impl = importlib.import_module("torchgeo_cg.mesh.marching_cubes")
+    impl = importlib.import_module("torchgeo_cg.mesh._marching_cubes_steps")
     X, Y, Z, h, lo = grid(14)
     vols = torch.stack([torus(X, Y, Z), sphere(X, Y, Z), X + 0.1 * Y])
     want = marching_cubes(vols, temperature=0.3)
-    monkeypatch.setattr(impl, "_SLAB_CELLS", 1)
-    monkeypatch.setattr(impl, "_MAP_CELLS", 1)
+    monkeypatch.setattr(impl, "SLAB_CELLS", 1)
+    monkeypatch.setattr(impl, "MAP_CELLS", 1)
     got = marching_cubes(vols, temperature=0.3)
     for a, b in zip(got, want):
         torch.testing.assert_close(a, b)
@@ -596,3 +608,109 @@ def test_to_trimesh_gives_a_watertight_sphere_and_round_trips():
     back = from_trimesh(tm, dtype=torch.float64)
     torch.testing.assert_close(back.verts, result.verts)
     torch.testing.assert_close(back.faces, result.faces)
+
+
+# ------------------------------------------- arguments, Volume, mask, scale, half (issue 13)
+def test_volume_input_uses_its_origin_and_spacing():
+    from torchgeo_cg.sdf.grid import sample_grid
+
+    vol = sample_grid(lambda p: p.norm(dim=-1) - 0.7, (12, 10, 9),
+                      ((-1.0, -0.9, -1.1), (1.0, 1.1, 0.9)), dtype=torch.float64)
+    got = marching_cubes(vol)
+    want = marching_cubes(vol.values, origin=vol.origin, spacing=vol.spacing)
+    for a, b in zip(got, want):
+        torch.testing.assert_close(a, b)
+    want_tuple = marching_cubes(vol.values, origin=tuple(vol.origin.tolist()),
+                                spacing=tuple(vol.spacing.tolist()))
+    torch.testing.assert_close(got.verts, want_tuple.verts)
+    radius = got.verts.norm(dim=1)
+    assert (radius - 0.7).abs().max() < 0.02  # world units: the frame was applied
+
+
+def test_numbers_numpy_and_tensors_are_accepted_alike():
+    X, Y, Z, h, lo = grid(9)
+    vol = sphere(X, Y, Z)
+    want = marching_cubes(vol, iso=0.1, origin=(lo, lo, lo), spacing=(h, h, h))
+    variants = [
+        dict(iso=np.float64(0.1), origin=np.array([lo] * 3), spacing=np.array([h] * 3)),
+        dict(iso=np.array(0.1), origin=[lo, lo, lo], spacing=(h, h, np.float32(h).item())),
+        dict(iso=torch.tensor(0.1, dtype=torch.float64), origin=torch.full((3,), lo),
+             spacing=torch.full((1, 3), h)),
+    ]
+    for kwargs in variants:
+        got = marching_cubes(vol, **kwargs)
+        torch.testing.assert_close(got.verts, want.verts)
+        assert torch.equal(got.faces, want.faces)
+
+
+def test_mask_matches_skimage_far_corner_rule():
+    rng = np.random.default_rng(3)
+    vol = gaussian_filter(rng.standard_normal((12, 11, 10)), 1.5)
+    mask = rng.random(vol.shape) < 0.6
+    ours = marching_cubes(torch.from_numpy(vol), mask=torch.from_numpy(mask), ambiguity="separate")
+    sk_v, sk_f, _, _ = skimage_measure.marching_cubes(vol, 0.0, mask=mask, method="lewiner")
+    v = ours.verts.numpy()
+    # every vertex is used, and the set of vertices equals scikit-image's
+    assert np.unique(ours.faces.numpy()).shape[0] == v.shape[0]
+    dist, _ = cKDTree(sk_v).query(v)
+    back, _ = cKDTree(v).query(sk_v)
+    assert dist.max() < 1e-5 and back.max() < 1e-5
+    # cells whose far corner is masked out make no face
+    cell = np.floor(v[ours.faces.numpy()].mean(1)).astype(int)
+    assert mask[cell[:, 0] + 1, cell[:, 1] + 1, cell[:, 2] + 1].all()
+    # batch with a shared mask equals single calls
+    both = marching_cubes(torch.from_numpy(np.stack([vol, -vol])), mask=torch.from_numpy(mask))
+    assert both.faces_per_mesh[0] == ours.faces.shape[0]
+    assert np.array_equal(both.split()[0].faces.numpy(), ours.faces.numpy())
+
+
+@pytest.mark.parametrize(
+    "dtype,scales",
+    [(torch.float64, [1e-12, 1e-6, 1e6, 1e12]), (torch.float32, [1e-6, 1e-3, 1e3, 1e6])],
+)
+def test_scale_invariance_of_vertices_and_faces(dtype, scales):
+    gen = torch.Generator().manual_seed(5)
+    vol = pad_outside(torch.randint(-2, 3, (7, 7, 7), generator=gen).to(dtype) + 0.25, 1.0)
+    ref = marching_cubes(vol, iso=0.5)
+    X, Y, Z, h, lo = grid(12, dtype=dtype)
+    smooth = torus(X, Y, Z)
+    ref_smooth = marching_cubes(smooth)
+    tol = dict(rtol=0, atol=4 * torch.finfo(dtype).eps * 12)
+    for s in scales:
+        got = marching_cubes(vol * s, iso=0.5 * s)
+        assert torch.equal(got.faces, ref.faces)
+        torch.testing.assert_close(got.verts, ref.verts, **tol)
+        torch.testing.assert_close(got.normals, ref.normals, **tol)
+        got = marching_cubes(smooth * s)
+        assert torch.equal(got.faces, ref_smooth.faces)
+        torch.testing.assert_close(got.verts, ref_smooth.verts, **tol)
+        torch.testing.assert_close(got.normals, ref_smooth.normals, rtol=0, atol=1e-4)
+        assert torch.allclose(got.normals.norm(dim=1), got.normals.new_ones(()))
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_gradients_finite_for_tiny_fields_with_spacing_grad(dtype):
+    X, Y, Z, h, lo = grid(8, dtype=dtype)
+    vol = (sphere(X, Y, Z) * 1e-20).requires_grad_()
+    spacing = torch.full((3,), h, dtype=dtype, requires_grad=True)
+    r = marching_cubes(vol, spacing=spacing)
+    (r.verts.sum() + r.normals.sum()).backward()
+    assert torch.isfinite(vol.grad).all() and torch.isfinite(spacing.grad).all()
+    assert vol.grad.abs().max() > 0
+    assert torch.allclose(r.normals.norm(dim=1), r.normals.new_ones(()))
+
+
+@pytest.mark.parametrize("half", [torch.float16, torch.bfloat16])
+def test_half_precision_classified_as_is_and_interpolated_in_float32(half):
+    X, Y, Z, h, lo = grid(40, dtype=torch.float32)
+    vol = sphere(X, Y, Z).to(half)
+    got = marching_cubes(vol, origin=(lo, lo, lo), spacing=(h, h, h))
+    want = marching_cubes(vol.float(), origin=(lo, lo, lo), spacing=(h, h, h))
+    assert got.verts.dtype == half and got.normals.dtype == half
+    assert torch.equal(got.faces, want.faces)  # same topology as the float32 samples
+    torch.testing.assert_close(got.verts.float(), want.verts,
+                               rtol=2 * torch.finfo(half).eps, atol=0)
+    # the float32 positions keep the guarantees (no duplicates, no zero-area faces)
+    v = want.verts.numpy()
+    assert np.unique(v, axis=0).shape[0] == v.shape[0]
+    assert triangle_areas(v.astype(np.float64), want.faces.numpy()).min() > 0

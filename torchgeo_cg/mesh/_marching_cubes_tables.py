@@ -61,6 +61,7 @@ __all__ = [
     "AMBIGUOUS",
     "MAX_TRIANGLES",
     "table_tensors",
+    "corner_tables",
 ]
 
 #: (8, 3) offsets (dx, dy, dz) of corner c = 4*dx + 2*dy + dz.
@@ -304,3 +305,14 @@ def table_tensors(device: torch.device | str | None = None) -> tuple[torch.Tenso
         )
     return _TENSOR_CACHE[device]
 
+
+
+def corner_tables(device: torch.device | str | None = None) -> tuple[torch.Tensor, ...]:
+    """``(edge_dir (12,), edge_offset (12, 3), corner_offset (8, 3))`` long tensors on ``device``.
+
+    Example:
+        >>> edge_dir, edge_offset, corner_offset = corner_tables()
+        >>> edge_dir[4].item(), edge_offset[5].tolist(), corner_offset[3].tolist()
+        (1, [0, 0, 1], [0, 1, 1])
+    """
+    return table_tensors(device)[2:]
