@@ -32,6 +32,9 @@ __all__ = [
     "Welded",
     "weld",
     "triangulate",
+    "Centres",
+    "find_centres",
+    "place_centres",
     "EdgeFraction",
     "interpolate",
     "soft_weights",
@@ -169,7 +172,9 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
         sizes: ``(X, Y, Z)``; batch: ``B``.
 
     Returns:
-        ``(faces (F, 3) long, cell_of_face (F,))``.
+        ``(faces (F, 3) long, cell_of_face (F,), tri_row (F,))``: ``tri_row`` indexes
+        ``tri_table.view(-1, 3)``; entries of the centre vertex (edge 12) are left for
+        :func:`add_centres` to fill.
     """
     X, Y, Z = sizes
     YZ = Y * Z
@@ -177,6 +182,7 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
     edge_dir, edge_off = corner_tables(device)[:2]
     strides = torch.tensor([YZ, Z, 1], device=device)
     key_delta = (edge_off * strides).sum(-1) * 3 + edge_dir  # (12,)
+    key_delta = torch.cat([key_delta, key_delta.new_zeros(1)])  # the centre: fixed later
     tri_delta = torch.where(tri_table >= 0, key_delta[tri_table.clamp_min(0)], -1)
     tri_delta = tri_delta.view(-1, 3)  # (R * T, 3)
     cell_of_face = torch.repeat_interleave(n_tri)  # (F,) sorted
@@ -203,7 +209,69 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
         id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
         face_key = take(tri_delta, tri_row[f0:f1]).add_((face_cell3[f0:f1] - base)[:, None])
         faces[f0:f1] = take(id_map, face_key.view(-1)).view(-1, 3)
-    return faces, cell_of_face
+    return faces, cell_of_face, tri_row
+
+
+class Centres(NamedTuple):
+    """Cell-centre vertices: ``members (C, 12)`` long vertex ids of the edges each
+    averages (0 where ``weight`` is 0), ``weight (C, 12)`` 1 / count or 0, ``b (C,)``
+    volume of each."""
+
+    members: torch.Tensor
+    weight: torch.Tensor
+    b: torch.Tensor
+
+
+def find_centres(cell_id, rows, n_tri, centre_mask, vert_key, cell_of_face, tri_slots, faces,
+                 sizes):
+    """Give the centre entries of ``faces`` their vertex ids (after the welded ones).
+
+    Args:
+        cell_id, rows, n_tri: ``(A,)`` per active cell.
+        centre_mask: ``(R,)`` edge mask of each table row's centre (0: none).
+        vert_key: ``(V,)`` sorted welded vertex keys.
+        cell_of_face: ``(F,)``; tri_slots: ``(F, 3)`` bool, entries that are the centre.
+        faces: ``(F, 3)``, updated in place.
+        sizes: ``(X, Y, Z)``.
+
+    Returns:
+        :class:`Centres`, or None when no cell has one.
+    """
+    X, Y, Z = sizes
+    mask_a = torch.where(n_tri > 0, take(centre_mask, rows), 0)  # (A,)
+    has = mask_a != 0
+    if not bool(has.any()):
+        return None
+    device = cell_id.device
+    rank = has.long().cumsum(0) - 1  # (A,) centre number of each cell with one
+    centre_of_face = take(rank, cell_of_face)[:, None].expand_as(faces)
+    faces[tri_slots] = vert_key.shape[0] + centre_of_face[tri_slots]
+    cells = has.nonzero().squeeze(1)
+    bits = (take(mask_a, cells)[:, None] >> torch.arange(12, device=device)) & 1  # (C, 12)
+    edge_dir, edge_off = corner_tables(device)[:2]
+    strides = torch.tensor([Y * Z, Z, 1], device=device)
+    key_delta = (edge_off * strides).sum(-1) * 3 + edge_dir  # (12,)
+    keys = take(cell_id, cells)[:, None] * 3 + key_delta  # (C, 12)
+    members = torch.searchsorted(vert_key, keys).clamp_max(vert_key.shape[0] - 1)
+    weight = bits / bits.sum(1, keepdim=True)
+    return Centres(members * bits, weight, take(cell_id, cells) // (X * Y * Z))
+
+
+def place_centres(verts, normals, centres: Centres):
+    """Positions (mean of the members) and unit normals (of the members' sum) of the centres.
+
+    Returns:
+        ``(verts (V + C, 3), normals (V + C, 3))``.
+    """
+    w = centres.weight.to(verts.dtype)[..., None]  # (C, 12, 1)
+    pos = (verts[centres.members] * w).sum(1)
+    nrm = (normals[centres.members] * w).sum(1)
+    big = nrm.abs().amax(dim=1, keepdim=True)
+    nonzero = big > 0
+    nrm = nrm / torch.where(nonzero, big, torch.ones_like(big))
+    length = torch.linalg.vector_norm(nrm, dim=1, keepdim=True)
+    nrm = nrm / torch.where(nonzero, length, torch.ones_like(length))
+    return torch.cat([verts, pos]), torch.cat([normals, nrm])
 
 
 class EdgeFraction(torch.autograd.Function):

@@ -55,24 +55,27 @@ import torch
 from torch import nn
 
 from torchgeo_cg.mesh._marching_cubes_args import parse_arguments
+from torchgeo_cg.mesh._marching_cubes_decider import asymptotic_rows
 from torchgeo_cg.mesh._marching_cubes_steps import (
     Welded,
     classify,
+    find_centres,
     interpolate,
+    place_centres,
     soft_weights,
     take,
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh._marching_cubes_tables import table_tensors
+from torchgeo_cg.mesh._marching_cubes_tables import CENTRE, table_tensors
 from torchgeo_cg.sdf.grid import Volume, index_to_world
 
 __all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES"]
 
 #: The accepted values of ``ambiguity``.
-AMBIGUITY_RULES = ("separate",)
+AMBIGUITY_RULES = ("asymptotic", "separate")
 #: The default ``ambiguity`` rule.
-DEFAULT_AMBIGUITY = "separate"
+DEFAULT_AMBIGUITY = "asymptotic"
 
 
 class MarchingCubesResult(NamedTuple):
@@ -214,15 +217,34 @@ def marching_cubes(
     with torch.no_grad():
         cell_id, cases_a = classify(vol.detach(), args.iso.detach())
         welded = weld(cell_id, cases_a, (X, Y, Z))
-        rows, n_tri, tri_table = _cell_rows(vol.detach(), args, cell_id, cases_a, ambiguity)
-        faces, cell_of_face = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
-                                          (X, Y, Z), B)
+        rows, n_tri, tri_table, centre_mask = _cell_rows(vol.detach(), args, cell_id, cases_a,
+                                                         ambiguity)
+        faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
+                                                   (X, Y, Z), B)
+        centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
+        faces[centre_slot] = 0  # filled by find_centres
         b_a = cell_id // (X * Y * Z)  # (A,) volume of each active cell
         b_v = take(b_a, welded.cell) if B > 1 else None
         if args.mask is not None:  # drop the vertices only unmasked cells used
-            welded, b_v, faces = _drop_unused(welded, b_v, faces)
-        counts = _counts(b_v, take(b_a, cell_of_face) if B > 1 else None, welded, faces, B)
+            welded, b_v, faces = _drop_unused(welded, b_v, faces, centre_slot)
+        centres = None
+        if centre_mask is not None:
+            centres = find_centres(cell_id, rows, n_tri, centre_mask, welded.key, cell_of_face,
+                                   centre_slot, faces, (X, Y, Z))
     verts, normals = interpolate(vol, welded, b_v, args, _world_map(args))
+    if centres is not None:
+        verts, normals = place_centres(verts, normals, centres)
+        if B > 1:  # keep the vertices grouped by volume
+            with torch.no_grad():
+                b_v = torch.cat([b_v, centres.b])
+                order = torch.argsort(b_v, stable=True)
+                new_id = torch.empty_like(order)
+                new_id[order] = torch.arange(order.shape[0], device=order.device)
+                faces = take(new_id, faces.view(-1)).view(-1, 3)
+                b_v = take(b_v, order)
+            verts, normals = take(verts, order), take(normals, order)
+    with torch.no_grad():
+        counts = _counts(b_v, take(b_a, cell_of_face) if B > 1 else None, verts, faces, B)
     if args.tau is None:
         face_weights = verts.new_ones(faces.shape[0])
     else:
@@ -231,26 +253,36 @@ def marching_cubes(
     return MarchingCubesResult(verts.to(out), faces, normals.to(out), face_weights.to(out),
                                *counts)
 
-
 def _cell_rows(vol, args, cell_id, cases, ambiguity):
     """Table rows, triangle counts (0 where a cell makes none) and the table, per active cell."""
     B, X, Y, Z = vol.shape
-    device = vol.device
-    tri_table, num_tris = table_tensors(device)[:2]
-    rows = cases
     k, j, layer = cell_id % Z, (cell_id // Z) % Y, cell_id // (Y * Z)
     real = (layer % X < X - 1) & (j < Y - 1) & (k < Z - 1)  # padded cells make nothing
     if args.mask is not None:  # the cell's far corner (corner 7) decides, as scikit-image
         far = cell_id + (Y * Z + Z + 1)
         real &= take(args.mask.view(-1), far.clamp_max(args.mask.numel() - 1))
+    centre_mask = None
+    if ambiguity == "separate":
+        tri_table, num_tris = table_tensors(vol.device)[:2]
+        rows = cases
+    else:
+        rows = torch.zeros_like(cases)
+        pick = real.nonzero().squeeze(1)
+        rows_real = torch.empty_like(pick)
+        tables = asymptotic_rows(vol, args.iso.detach(), take(cell_id, pick),
+                                 take(cases, pick), rows_real)
+        rows[pick] = rows_real
+        tri_table, num_tris = tables.triangles, tables.num_triangles
+        centre_mask = tables.centre_mask
     n_tri = torch.where(real, take(num_tris, rows), 0)
-    return rows, n_tri, tri_table
+    return rows, n_tri, tri_table, centre_mask
 
 
-def _drop_unused(welded: Welded, b_v, faces):
-    """Keep only the vertices some face uses (after masking), re-indexing ``faces``."""
+def _drop_unused(welded: Welded, b_v, faces, centre_slot):
+    """Keep only the vertices some face uses (after masking), re-indexing ``faces``
+    (centre entries are filled later)."""
     used = torch.zeros(welded.key.shape[0], dtype=torch.bool, device=faces.device)
-    used[faces.view(-1)] = True
+    used[faces[~centre_slot]] = True
     new_id = used.long().cumsum(0) - 1
     keep = used.nonzero().squeeze(1)
     welded = Welded(*(take(x, keep) for x in welded))
@@ -258,11 +290,11 @@ def _drop_unused(welded: Welded, b_v, faces):
     return welded, None if b_v is None else take(b_v, keep), faces
 
 
-def _counts(b_v, b_f, welded, faces, batch):
+def _counts(b_v, b_f, verts, faces, batch):
     """``(verts_per_mesh (B,), faces_per_mesh (B,))``."""
     device = faces.device
     if batch == 1:
-        return (torch.tensor([welded.key.shape[0]], device=device),
+        return (torch.tensor([verts.shape[0]], device=device),
                 torch.tensor([faces.shape[0]], device=device))
     return torch.bincount(b_v, minlength=batch), torch.bincount(b_f, minlength=batch)
 
