@@ -86,28 +86,29 @@ def interior_decisions(g: torch.Tensor, config: torch.Tensor, tables: Configurat
 
 
 def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tensor,
-                    cases: torch.Tensor, rows_out: torch.Tensor) -> ConfigurationTables:
-    """Write the configuration row of every active cell into ``rows_out`` ``(A,)``.
+                    cases: torch.Tensor, real: torch.Tensor):
+    """The configuration row of every active cell.
 
-    Only cells whose case has an ambiguous face or a possible tube read their corner
-    values; the others take the row of their case.
+    Only real cells whose case has an ambiguous face or a possible tube read their
+    corner values; the others take the row of their case (no decision to take).
 
     Args:
         vol: ``(B, X, Y, Z)`` samples (detached); iso_b: ``(B,)``.
-        cell_id, cases: ``(A,)`` from :func:`~._marching_cubes_steps.classify` (real cells).
-        rows_out: ``(A,)`` long, filled in place.
+        cell_id, cases: ``(A,)`` from :func:`~._marching_cubes_steps.classify`.
+        real: ``(A,)`` bool, cells that make triangles (padded cells read no values).
 
     Returns:
-        The configuration tables (for their triangles).
+        ``(rows (A,) long, decided (N,) long sorted indices of the cells that took
+        decisions, tables)``.
     """
     B, X, Y, Z = vol.shape
     device = vol.device
     tables = configuration_tensors(device)
     needs_values = (tables.face_mask != 0) | tables.needs_interior.view(256, 64).any(1)
-    rows_out.copy_(take(tables.row, cases * (64 * MAX_TUBES)))
-    pick = take(needs_values, cases).nonzero().squeeze(1)
+    rows = take(tables.row.view(256, -1)[:, 0], cases)
+    pick = (take(needs_values, cases) & real).nonzero().squeeze(1)
     if pick.numel() == 0:
-        return tables
+        return rows, pick, tables
     corner_off = corner_tables(device)[2]
     corner_delta = (corner_off * torch.tensor([Y * Z, Z, 1], device=device)).sum(-1)
     cells = take(cell_id, pick)
@@ -121,5 +122,5 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
     ask = take(tables.needs_interior, config).nonzero().squeeze(1)
     if ask.numel():
         tube[ask] = interior_decisions(take(g, ask), take(config, ask), tables)
-    rows_out[pick] = take(tables.row, config * MAX_TUBES + tube)
-    return tables
+    rows[pick] = take(tables.row, config * MAX_TUBES + tube)
+    return rows, pick, tables

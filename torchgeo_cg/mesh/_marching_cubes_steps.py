@@ -222,13 +222,15 @@ class Centres(NamedTuple):
     b: torch.Tensor
 
 
-def find_centres(cell_id, rows, n_tri, centre_mask, vert_key, cell_of_face, tri_slots, faces,
+def find_centres(cell_id, rows, centre_mask, decided, vert_key, cell_of_face, tri_slots, faces,
                  sizes):
     """Give the centre entries of ``faces`` their vertex ids (after the welded ones).
 
     Args:
-        cell_id, rows, n_tri: ``(A,)`` per active cell.
+        cell_id, rows: ``(A,)`` per active cell.
         centre_mask: ``(R,)`` edge mask of each table row's centre (0: none).
+        decided: ``(N,)`` sorted indices of the cells that took decisions (only they
+            can have a centre).
         vert_key: ``(V,)`` sorted welded vertex keys.
         cell_of_face: ``(F,)``; tri_slots: ``(F, 3)`` bool, entries that are the centre.
         faces: ``(F, 3)``, updated in place.
@@ -238,23 +240,28 @@ def find_centres(cell_id, rows, n_tri, centre_mask, vert_key, cell_of_face, tri_
         :class:`Centres`, or None when no cell has one.
     """
     X, Y, Z = sizes
-    mask_a = torch.where(n_tri > 0, take(centre_mask, rows), 0)  # (A,)
-    has = mask_a != 0
+    mask_d = take(centre_mask, take(rows, decided))  # (N,)
+    has = mask_d != 0
     if not bool(has.any()):
         return None
     device = cell_id.device
-    rank = has.long().cumsum(0) - 1  # (A,) centre number of each cell with one
-    centre_of_face = take(rank, cell_of_face)[:, None].expand_as(faces)
-    faces[tri_slots] = vert_key.shape[0] + centre_of_face[tri_slots]
-    cells = has.nonzero().squeeze(1)
-    bits = (take(mask_a, cells)[:, None] >> torch.arange(12, device=device)) & 1  # (C, 12)
+    centre_cells = decided[has]  # (C,) sorted active-cell indices
+    slot_faces = tri_slots.any(1).nonzero().squeeze(1)
+    number = torch.searchsorted(centre_cells, take(cell_of_face, slot_faces))  # (S,)
+    sub = faces[slot_faces]
+    sub[tri_slots[slot_faces]] = (vert_key.shape[0] + number)[:, None].expand_as(sub)[
+        tri_slots[slot_faces]]
+    faces[slot_faces] = sub
+    mask_c = mask_d[has]
+    bits = (mask_c[:, None] >> torch.arange(12, device=device)) & 1  # (C, 12)
     edge_dir, edge_off = corner_tables(device)[:2]
     strides = torch.tensor([Y * Z, Z, 1], device=device)
     key_delta = (edge_off * strides).sum(-1) * 3 + edge_dir  # (12,)
-    keys = take(cell_id, cells)[:, None] * 3 + key_delta  # (C, 12)
+    cells = take(cell_id, centre_cells)
+    keys = cells[:, None] * 3 + key_delta  # (C, 12)
     members = torch.searchsorted(vert_key, keys).clamp_max(vert_key.shape[0] - 1)
     weight = bits / bits.sum(1, keepdim=True)
-    return Centres(members * bits, weight, take(cell_id, cells) // (X * Y * Z))
+    return Centres(members * bits, weight, cells // (X * Y * Z))
 
 
 def place_centres(verts, normals, centres: Centres):
@@ -386,14 +393,14 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
     return verts, normals
 
 
-def soft_weights(vol, cell_id, cases, cell_of_face, b_a, args) -> torch.Tensor:
+def soft_weights(vol, cell_id, cases, cell_of_face, args) -> torch.Tensor:
     """``(F,)`` probability of each face's cell configuration under independent corners.
 
     Each corner is inside with probability ``p = sigmoid((iso - f) / tau)`` (Liao et al.
     2018, Deep Marching Cubes); a face gets ``prod p^inside (1 - p)^outside`` of its cell.
     """
     device = vol.device
-    Y, Z = vol.shape[2], vol.shape[3]
+    X, Y, Z = vol.shape[1:]
     corner_off = corner_tables(device)[2]
     strides = torch.tensor([Y * Z, Z, 1], device=device)
     cells, face_to_cell = torch.unique_consecutive(cell_of_face, return_inverse=True)
@@ -403,7 +410,7 @@ def soft_weights(vol, cell_id, cases, cell_of_face, b_a, args) -> torch.Tensor:
     f_corners = f_corners.view(-1, 8).to(args.work)  # (C, 8)
     inside_bits = (take(cases, cells)[:, None] >> torch.arange(8, device=device)) & 1
     sign = (2 * inside_bits - 1).to(args.work)  # (C, 8): +1 inside, -1 outside
-    b_c = take(b_a, cells)
+    b_c = take(cell_id, cells) // (X * Y * Z)
     logits = sign * (take(args.iso, b_c)[:, None] - f_corners) / take(args.tau, b_c)[:, None]
     cell_weight = torch.nn.functional.logsigmoid(logits).sum(-1).exp()  # (C,)
     return take(cell_weight, face_to_cell)

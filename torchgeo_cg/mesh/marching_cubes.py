@@ -217,19 +217,19 @@ def marching_cubes(
     with torch.no_grad():
         cell_id, cases_a = classify(vol.detach(), args.iso.detach())
         welded = weld(cell_id, cases_a, (X, Y, Z))
-        rows, n_tri, tri_table, centre_mask = _cell_rows(vol.detach(), args, cell_id, cases_a,
-                                                         ambiguity)
+        rows, n_tri, tri_table, centre = _cell_rows(vol.detach(), args, cell_id, cases_a,
+                                                    ambiguity)
         faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
                                                    (X, Y, Z), B)
         centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
         faces[centre_slot] = 0  # filled by find_centres
-        b_a = cell_id // (X * Y * Z)  # (A,) volume of each active cell
+        b_a = cell_id // (X * Y * Z) if B > 1 else None  # (A,) volume of each active cell
         b_v = take(b_a, welded.cell) if B > 1 else None
         if args.mask is not None:  # drop the vertices only unmasked cells used
             welded, b_v, faces = _drop_unused(welded, b_v, faces, centre_slot)
         centres = None
-        if centre_mask is not None:
-            centres = find_centres(cell_id, rows, n_tri, centre_mask, welded.key, cell_of_face,
+        if centre is not None:
+            centres = find_centres(cell_id, rows, *centre, welded.key, cell_of_face,
                                    centre_slot, faces, (X, Y, Z))
     verts, normals = interpolate(vol, welded, b_v, args, _world_map(args))
     if centres is not None:
@@ -248,7 +248,7 @@ def marching_cubes(
     if args.tau is None:
         face_weights = verts.new_ones(faces.shape[0])
     else:
-        face_weights = soft_weights(vol, cell_id, cases_a, cell_of_face, b_a, args)
+        face_weights = soft_weights(vol, cell_id, cases_a, cell_of_face, args)
     out = vol.dtype
     return MarchingCubesResult(verts.to(out), faces, normals.to(out), face_weights.to(out),
                                *counts)
@@ -261,21 +261,16 @@ def _cell_rows(vol, args, cell_id, cases, ambiguity):
     if args.mask is not None:  # the cell's far corner (corner 7) decides, as scikit-image
         far = cell_id + (Y * Z + Z + 1)
         real &= take(args.mask.view(-1), far.clamp_max(args.mask.numel() - 1))
-    centre_mask = None
+    centre = None
     if ambiguity == "separate":
         tri_table, num_tris = table_tensors(vol.device)[:2]
         rows = cases
     else:
-        rows = torch.zeros_like(cases)
-        pick = real.nonzero().squeeze(1)
-        rows_real = torch.empty_like(pick)
-        tables = asymptotic_rows(vol, args.iso.detach(), take(cell_id, pick),
-                                 take(cases, pick), rows_real)
-        rows[pick] = rows_real
+        rows, decided, tables = asymptotic_rows(vol, args.iso.detach(), cell_id, cases, real)
         tri_table, num_tris = tables.triangles, tables.num_triangles
-        centre_mask = tables.centre_mask
+        centre = (tables.centre_mask, decided)  # only decided cells can have a centre
     n_tri = torch.where(real, take(num_tris, rows), 0)
-    return rows, n_tri, tri_table, centre_mask
+    return rows, n_tri, tri_table, centre
 
 
 def _drop_unused(welded: Welded, b_v, faces, centre_slot):

@@ -14,7 +14,7 @@ from torchgeo_cg.sdf.primitives import torus
 from torchgeo_cg.viz.registry import figure
 from torchgeo_cg.viz.style import plt, save
 
-__all__: list[str] = []
+__all__: list[str] = ["mri_phantom"]
 
 _LIGHT = np.array([0.4, -0.6, 0.7]) / np.linalg.norm([0.4, -0.6, 0.7])
 _LO, _HI = -1.2, 1.2
@@ -129,10 +129,17 @@ def _fit(path: Path) -> None:
     example.plot_before_after(result, path)
 
 
-def _mri_phantom(shape=(10, 96, 96), seed: int = 0) -> np.ndarray:
+def mri_phantom(shape=(10, 96, 96), seed: int = 0) -> np.ndarray:
     """A realistic MRI-like volume: 10 thick slices of a head-shaped ellipsoid with a smooth
     tissue texture, quantised to uint16 like scanner data (many exact ties, so many
-    ambiguous faces at half-integer levels). ``(Z, Y, X)`` like ``skimage.data.brain()``."""
+    ambiguous faces at half-integer levels). ``(Z, Y, X)`` like ``skimage.data.brain()``,
+    padded by one zero sample on every side.
+
+    Example:
+        >>> phantom = mri_phantom((4, 8, 8))
+        >>> phantom.shape, phantom.dtype, int(phantom.max()) > 30000
+        ((6, 10, 10), dtype('uint16'), True)
+    """
     from scipy.ndimage import gaussian_filter
 
     rng = np.random.default_rng(seed)
@@ -164,7 +171,7 @@ def _area(mesh) -> float:
 def _ambiguity(path: Path) -> None:
     from torchgeo_cg.mesh._marching_cubes_tables import AMBIGUOUS
 
-    phantom = _mri_phantom()
+    phantom = mri_phantom()
     values = torch.from_numpy(phantom.astype(np.float64)).permute(2, 1, 0).contiguous()  # x y z
     volume = Volume(values, torch.zeros(3, dtype=torch.float64),
                     torch.tensor([1.0, 1.0, 4.0], dtype=torch.float64))  # thick slices
