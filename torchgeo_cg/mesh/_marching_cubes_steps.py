@@ -385,8 +385,8 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)
     delta = math.sqrt(torch.finfo(args.work).eps)
     t = EdgeFraction.apply(samples[0], samples[1], iso_v, delta)  # (V,)
-    unit = torch.nn.functional.one_hot(welded.d, 3).to(args.work)
-    index_pos = welded.corner_ijk.to(args.work) + unit * t[:, None]  # (V, 3) index space
+    index_pos = welded.corner_ijk.to(args.work).scatter_add(  # (V, 3) index space
+        1, welded.d[:, None], t[:, None])
     spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)
     verts = to_world(index_pos, b_v)
     normals = _unit_normals(samples, t, welded.d, axes, steps, spacing_v)

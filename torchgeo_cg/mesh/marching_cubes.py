@@ -24,6 +24,17 @@ Convention:
       slope of the interpolant, across it central differences (one-sided at the
       border) blended with ``t``, in world units; unit at any gradient magnitude, and
       exactly zero where the gradient is zero.
+    - ``ambiguity="asymptotic"`` (default): an ambiguous face (corners alternating in
+      class) joins its inside corners when its bilinear saddle value
+      ``(f00 f11 - f01 f10) / (f00 + f11 - f01 - f10)`` is below ``iso``, decided as the
+      sign of ``g00 g11 - g01 g10`` (``g = f - iso``, float64, no epsilon; a saddle exactly
+      at ``iso`` is outside, like a sample); both cells sharing the face compute it from
+      the same samples, so the surface is closed and edge-manifold by construction.
+      Where two loops of a cell could be joined by a tube, Marching Cubes 33's interior
+      test decides (see :mod:`._marching_cubes_decider`). Per-cell outlines then equal
+      scikit-image's Lewiner method outside exact-iso ties; the triangles inside a cell
+      may differ (diagonals, tube strips; a nine-edge loop is fanned around a vertex at
+      the mean of its vertices, as Lewiner et al. fan around the cell centre).
     - ``ambiguity="separate"``: ambiguous cube faces separate the inside corners (see
       the tables module). The rule reads only the face's corners' classes, so the
       surface is closed and edge-manifold wherever it stays inside the volume.
