@@ -140,12 +140,13 @@ def mri_phantom(shape=(10, 96, 96), seed: int = 0) -> np.ndarray:
         >>> phantom.shape, phantom.dtype, int(phantom.max()) > 30000
         ((6, 10, 10), dtype('uint16'), True)
     """
-    from scipy.ndimage import gaussian_filter
-
-    rng = np.random.default_rng(seed)
+    gen = torch.Generator().manual_seed(seed)
+    coarse = torch.randn(1, 1, shape[0], shape[1] // 2, shape[2] // 2, generator=gen,
+                         dtype=torch.float64)
+    texture = torch.nn.functional.interpolate(coarse, size=shape, mode="trilinear",
+                                              align_corners=True)[0, 0].numpy()
     z, y, x = np.meshgrid(*(np.linspace(-1, 1, n) for n in shape), indexing="ij")
     head = 1.0 - (x / 0.85) ** 2 - (y / 0.95) ** 2 - (z / 1.6) ** 2
-    texture = gaussian_filter(rng.standard_normal(shape), (0.5, 1.5, 1.5))
     values = np.clip(head, 0, None) ** 0.5 * (0.6 + 0.5 * texture / texture.std())
     values = np.clip(values, 0, None) / values.max() * 60000.0
     return np.pad(np.round(values).astype(np.uint16), 1)
