@@ -15,6 +15,7 @@ from torchgeo_cg.curves import (
     marching_squares,
 )
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
+from torchgeo_cg.sdf.grid import Volume
 
 
 def _directed_edges(polylines) -> np.ndarray:
@@ -150,3 +151,107 @@ def test_bad_input():
         marching_squares(torch.zeros(3, 3), origin=(0.0, 0.0, 0.0))
     with pytest.raises(TypeError, match="spacing"):
         marching_squares(torch.zeros(3, 3), spacing="wide")
+    for bad in [(0.0, 1.0), (1.0, -1.0), -2.0, (1.0, float("nan")), (float("inf"), 1.0)]:
+        with pytest.raises(ValueError, match="spacing"):
+            marching_squares(torch.zeros(3, 3), spacing=bad)
+    with pytest.raises(ShapeError, match="spacing"):
+        marching_squares(torch.zeros(3, 3), spacing=torch.ones(3))
+    with pytest.raises(TypeError, match="iso"):
+        marching_squares(torch.zeros(3, 3), iso="0")
+    volume = Volume(torch.zeros(3, 3), torch.zeros(2), torch.ones(2))
+    with pytest.raises(TypeError, match="origin"):
+        marching_squares(volume, origin=(0.0, 0.0))
+    with pytest.raises(ShapeError, match="field"):
+        marching_squares(Volume(torch.zeros(3, 3, 2), torch.zeros(3), torch.ones(3)))
+
+
+# ------------------------------------------------ tie rule and asymptotic decider (issue 13)
+def _is_degenerate(poly: np.ndarray) -> bool:
+    return bool(np.all(poly == poly[0]) or (np.diff(poly, axis=0) == 0).all(1).any())
+
+
+def test_sample_equal_to_the_level_is_high_like_marching_cubes():
+    lone = torch.tensor([[1.0, 1.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0]])
+    assert marching_squares(lone, 0.0).lengths.numel() == 0  # 0 is high: no crossing
+    assert len(find_contours(lone.numpy(), 0.0)) == 0  # skimage: none either
+    cell = torch.tensor([[-0.08, 0.24], [0.24, 0.0]], dtype=torch.float64)
+    assert len(marching_squares(cell, 0.0).polylines()) == 1 == len(find_contours(cell.numpy(), 0))
+    hole = -lone  # a high sample exactly at the level among low ones: a tiny closed loop
+    result = marching_squares(hole, 0.0)
+    (poly,) = [p.numpy() for p in result.polylines()]
+    assert result.closed.tolist() == [True] and not _is_degenerate(poly)
+    assert np.abs(poly - 1.0).max() < 1e-3  # around the sample (1, 1)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_fields_with_ties_have_no_degenerate_polylines_and_close_inside(seed):
+    rng = np.random.default_rng(seed)
+    field = torch.tensor(rng.integers(-1, 2, (9, 8)).astype(np.float64))
+    result = marching_squares(field, 0.0)
+    polys = [p.numpy() for p in result.polylines()]
+    assert all(not _is_degenerate(p) for p in polys)
+    for poly, closed in zip(polys, result.closed.tolist()):
+        on_border = lambda q: q[0] in (0, 8) or q[1] in (0, 7)  # noqa: E731
+        if closed:
+            assert np.array_equal(poly[0], poly[-1])
+        else:  # an open polyline runs from border to border
+            assert on_border(poly[0]) and on_border(poly[-1])
+    # the level set of a field padded with high values is closed everywhere
+    padded = torch.nn.functional.pad(field, (1, 1, 1, 1), value=1.0)
+    assert marching_squares(padded, 0.0).closed.all()
+
+
+def _saddle_value(cell: np.ndarray) -> float:
+    """Value of the bilinear interpolant at its critical point (brute force: solve grad = 0)."""
+    (a, b), (c, d) = cell  # f(x, y) = a (1-x)(1-y) + b (1-x) y + c x (1-y) + d x y
+    k = a - b - c + d
+    x, y = (a - b) / k, (a - c) / k  # df/dy = 0 and df/dx = 0
+    return a * (1 - x) * (1 - y) + b * (1 - x) * y + c * x * (1 - y) + d * x * y
+
+
+def test_asymptotic_decider_on_random_saddle_cells_against_skimage_rules():
+    rng = np.random.default_rng(0)
+    checked = 0
+    for _ in range(200):
+        mag = rng.uniform(0.05, 1.0, 4)
+        sign = np.array([-1, 1, 1, -1]) * rng.choice([-1, 1])
+        cell = (mag * sign).reshape(2, 2)
+        iso = 0.0
+        rule = "low" if _saddle_value(cell) < iso else "high"
+        ref = find_contours(cell, iso, fully_connected=rule)
+        ours = marching_squares(torch.tensor(cell), iso).polylines()
+        assert len(ours) == 2
+        assert _edge_distance([o.numpy() for o in ours], ref) < 1e-12
+        checked += 1
+    assert checked == 200
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_asymptotic_matches_skimage_on_smooth_fields_without_saddle_cells(seed):
+    field = _smooth_field(seed)
+    iso = 0.05 * seed
+    result = marching_squares(torch.tensor(field), iso)
+    for rule in ("low", "high"):
+        ref = find_contours(field, iso, fully_connected=rule)
+        assert _edge_distance([p.numpy() for p in result.polylines()], ref) < 1e-6
+
+
+def test_volume_input_and_scale_invariance():
+    xs = torch.linspace(-2, 2, 41, dtype=torch.float64)
+    xy = torch.stack(torch.meshgrid(xs, xs, indexing="ij"), dim=-1)
+    field = implicit_circle(xy, (0.4, -0.2), 1.13)
+    origin, spacing = torch.full((2,), -2.0, dtype=torch.float64), torch.full((2,), 0.1,
+                                                                              dtype=torch.float64)
+    want = marching_squares(field, 0.0, origin=origin, spacing=spacing)
+    got = marching_squares(Volume(field, origin, spacing))
+    torch.testing.assert_close(got.vertices, want.vertices)
+    one_slice = Volume(field[..., None], torch.tensor([-2.0, -2.0, 5.0], dtype=torch.float64),
+                       torch.tensor([0.1, 0.1, 1.0], dtype=torch.float64))
+    torch.testing.assert_close(marching_squares(one_slice).vertices, want.vertices)
+    rng = np.random.default_rng(3)
+    noisy = torch.tensor(rng.standard_normal((20, 20)))
+    ref = marching_squares(noisy, 0.0)
+    for s in (1e-12, 1e-6, 1e6, 1e12):
+        scaled = marching_squares(noisy * s, 0.0)
+        assert torch.equal(scaled.lengths, ref.lengths)
+        torch.testing.assert_close(scaled.vertices, ref.vertices, rtol=0, atol=1e-12)

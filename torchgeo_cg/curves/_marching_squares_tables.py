@@ -9,7 +9,8 @@ corners and edges numbered::
               |                                  |
         ll=f[i+1, j] -- edge 2 (bottom) -- lr=f[i+1, j+1]
 
-Case bits: ``1 * (ul > iso) + 2 * (ur > iso) + 4 * (ll > iso) + 8 * (lr > iso)``.
+Case bits: ``1 * (ul >= iso) + 2 * (ur >= iso) + 4 * (ll >= iso) + 8 * (lr >= iso)``
+(a sample equal to ``iso`` is high, the tie rule of marching cubes).
 Each case lists up to two directed segments ``(from_edge, to_edge)``, ``-1``
 padded, oriented so the region above ``iso`` lies on one fixed side, which is
 what makes every crossing vertex have one incoming and one outgoing segment.

@@ -8,17 +8,25 @@ Convention:
       exactly skimage's ``(row, col)``: ``skimage.measure.find_contours(f[b])``
       returns the same numbers (tested to 1e-6), with no axis swap, because
       skimage's row axis *is* our axis 0.
-    - A corner is "above" when ``value > iso``; the vertex on a crossing edge is
-      the linear interpolation ``a + (iso - f_a) / (f_b - f_a) (b - a)``.
-    - Orientation and saddle handling follow skimage (``positive_orientation=
-      "low"``): polylines keep values below ``iso`` on their left in (row, col)
-      index space. ``fully_connected="low"`` joins diagonal low corners in saddle
-      cells; ``"high"`` the high ones.
+    - Tie rule, the one of :func:`torchgeo_cg.mesh.marching_cubes`: a corner is
+      *low* (inside) when ``value < iso`` and *high* otherwise, so a sample exactly
+      equal to ``iso`` is high. (scikit-image counts it differently, so results
+      legitimately differ from ``find_contours`` where samples equal the level.)
+    - The vertex on a crossing edge is the linear interpolation
+      ``a + t (b - a)``, ``t = (iso - f_a) / (f_b - f_a)`` clamped to ``[delta, 1 -
+      delta]``, ``delta = sqrt(finfo(dtype).eps)`` (a relative guard: no unit), so
+      samples equal to ``iso`` never make two vertices coincide and no polyline is
+      degenerate (zero length); where the clamp is active the gradient is zero.
+    - Saddle cells (diagonal corners of one class): ``fully_connected="asymptotic"``
+      (default) joins the low corners when the bilinear saddle value
+      ``(f00 f11 - f01 f10) / (f00 + f11 - f01 - f10)`` is below ``iso``, decided
+      exactly as the sign of ``g00 g11 - g01 g10`` with ``g = f - iso`` (no unit, no
+      epsilon; a saddle exactly at ``iso`` is high, like a sample). ``"low"`` /
+      ``"high"`` are scikit-image's fixed rules (join the low / high corners).
+    - Orientation follows skimage (``positive_orientation="low"``): polylines keep
+      values below ``iso`` on their left in (row, col) index space.
     - Closed polylines repeat their first vertex at the end, like skimage.
     - Cells with a NaN corner produce nothing (skimage skips them too).
-    - A corner exactly equal to ``iso`` gives vertices of zero length apart on
-      two edges; skimage merges those by coordinate, we keep both (so vertex
-      counts can differ from skimage only on such exact ties).
 
 Topology (which edges cross and how segments chain into polylines) is computed
 without gradients, from a 16-case table (``_marching_squares_tables.py``);
@@ -30,14 +38,18 @@ pointer jumping (``O(log V)`` vectorised rounds), never by a loop over vertices.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import NamedTuple
 
+import numpy as np
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
+from torchgeo_cg.mesh._marching_cubes_steps import EdgeFraction
+from torchgeo_cg.sdf.grid import Volume
 
-__all__ = ["MarchingSquaresResult", "marching_squares"]
+__all__ = ["MarchingSquaresResult", "marching_squares", "SADDLE_RULES"]
 
 
 class MarchingSquaresResult(NamedTuple):
@@ -68,22 +80,61 @@ class MarchingSquaresResult(NamedTuple):
 
 
 def _pair(value, like: torch.Tensor, name: str) -> torch.Tensor:
+    """One number, two numbers (sequence, numpy) or a ``(2,)`` tensor -> ``(2,)`` like ``like``."""
     if isinstance(value, torch.Tensor):
         check_float(value, name)
-        check_shape(value, ["2"], name)
-        return value.to(like.dtype)
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        value = (value, value)
-    try:
-        out = torch.as_tensor(value, dtype=like.dtype, device=like.device)
-    except (TypeError, ValueError, RuntimeError) as err:
-        raise TypeError(f"{name}: expected two numbers or a (2,) tensor, got {value!r}") from err
+        out = value.to(device=like.device, dtype=like.dtype)
+    else:
+        if isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"{name}: expected two numbers or a (2,) tensor, got {value!r}")
+        if isinstance(value, (numbers.Real, np.generic)) or np.ndim(value) == 0:
+            value = (value, value)
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            raise TypeError(f"{name}: expected two numbers or a (2,) tensor, "
+                            f"got {value!r}") from err
+        out = torch.as_tensor(array, device=like.device).to(like.dtype)
     check_shape(out, ["2"], name)
     return out
 
 
+def _frame(field, origin, spacing):
+    """Values, origin and spacing of a plain tensor or of a 2D (or one-slice 3D) Volume."""
+    if not isinstance(field, Volume):
+        return field, (0.0, 0.0) if origin is None else origin, (
+            (1.0, 1.0) if spacing is None else spacing)
+    for name, value in (("origin", origin), ("spacing", spacing)):
+        if value is not None:
+            raise TypeError(f"{name}: given with a Volume, which carries its own {name}")
+    values, origin, spacing = field
+    if origin.shape == (3,) and spacing.shape == (3,):
+        if values.shape[-1] != 1:
+            raise ShapeError(f"field: a 3D Volume must have one z sample, (*, H, W, 1), "
+                             f"got {tuple(values.shape)}")
+        return values[..., 0], origin[:2], spacing[:2]
+    return values, origin, spacing
+
+
 def _segment_table(fully_connected: str, device) -> torch.Tensor:
     return torch.tensor(SEGMENTS[fully_connected], dtype=torch.long, device=device)  # (16, 2, 2)
+
+
+def _cell_segments(f, iso: float, b, i, j, case, rule: str) -> torch.Tensor:
+    """``(N, 2, 2)`` directed segments of the active cells under the saddle ``rule``.
+
+    Asymptotic decider: the low corners of a saddle cell are joined when its bilinear
+    saddle value is below ``iso``, i.e. when ``g_ul g_lr - g_ur g_ll`` (``g = f - iso``,
+    float64) is positive with ``ul`` low, or negative with ``ur`` low.
+    """
+    if rule != "asymptotic":
+        return _segment_table(rule, f.device)[case]
+    low_table, high_table = _segment_table("low", f.device), _segment_table("high", f.device)
+    g = f.double() - iso
+    ul, ur, ll, lr = g[b, i, j], g[b, i, j + 1], g[b, i + 1, j], g[b, i + 1, j + 1]
+    det = ul * lr - ur * ll
+    join_low = ((ul < 0) & (det > 0)) | ((ur < 0) & (det < 0))
+    return torch.where(join_low[:, None, None], low_table[case], high_table[case])
 
 
 def _chain(next_vertex: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -118,34 +169,46 @@ def _chain(next_vertex: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch
     return order, tail[order], cut
 
 
+#: The saddle rules of :func:`marching_squares`.
+SADDLE_RULES = ("asymptotic", "low", "high")
+
+
 def marching_squares(
-    field: torch.Tensor,
+    field: torch.Tensor | Volume,
     iso: float = 0.0,
-    origin=(0.0, 0.0),
-    spacing=(1.0, 1.0),
-    fully_connected: str = "low",
+    origin=None,
+    spacing=None,
+    fully_connected: str = "asymptotic",
 ) -> MarchingSquaresResult:
     """Extract the ``iso`` level lines of ``(*, H, W)`` fields as polylines.
 
     Convention:
         See the module docstring: ``indexing="ij"`` (axis 0 is x), vertices
-        ``origin + index * spacing`` in ``(x, y)``, skimage's orientation and
-        saddle rule, closed polylines repeat their first vertex.
+        ``origin + index * spacing`` in ``(x, y)``; a sample equal to ``iso`` is
+        high (as in marching cubes); saddles by the asymptotic decider; skimage's
+        orientation; closed polylines repeat their first vertex.
 
     Args:
-        field: ``(*, H, W)`` float values, ``H, W >= 2``.
-        iso: the level.
-        origin: ``(2,)`` position of ``field[..., 0, 0]``.
-        spacing: ``(2,)`` (or one number) grid step along axis 0 (x) and axis 1 (y).
-        fully_connected: ``"low"`` or ``"high"``: which diagonal corners join in saddles.
+        field: ``(*, H, W)`` float values, ``H, W >= 2``, or a
+            :class:`~torchgeo_cg.sdf.grid.Volume` with ``(2,)`` origin and spacing (or
+            a one-slice 3D Volume, values ``(*, H, W, 1)``): origin and spacing then
+            come from it and must not be given.
+        iso: the level (a number).
+        origin: position of ``field[..., 0, 0]``: two numbers or a ``(2,)`` tensor;
+            default ``(0, 0)``.
+        spacing: finite positive grid step along axis 0 (x) and axis 1 (y): two
+            numbers, one number or a ``(2,)`` tensor; default ``(1, 1)``.
+        fully_connected: the saddle rule, one of :data:`SADDLE_RULES`.
 
     Returns:
         :class:`MarchingSquaresResult` ``(vertices (V, 2), lengths (P,), batch (P,),
         closed (P,))``; ``vertices`` is differentiable with respect to ``field``.
 
     Raises:
-        ShapeError: ``field`` is not at least 2D with ``H, W >= 2``.
-        ValueError: unknown ``fully_connected``.
+        TypeError: ``field`` is not a float tensor or Volume, or a bad argument type.
+        ShapeError: ``field`` is not at least 2D with ``H, W >= 2``, or ``origin`` /
+            ``spacing`` do not have two entries.
+        ValueError: unknown ``fully_connected``, or ``spacing`` not finite and positive.
 
     Example:
         >>> f = torch.tensor([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0]])
@@ -159,29 +222,40 @@ def marching_squares(
         >>> result.lengths, result.closed
         (tensor([5]), tensor([True]))
     """
+    field, origin, spacing = _frame(field, origin, spacing)
+    if not isinstance(field, torch.Tensor):
+        raise TypeError(f"field: expected a float tensor or a Volume, got {type(field).__name__}")
     check_float(field, "field")
     sizes = check_shape(field, ["*", "H", "W"], "field")
     height, width = sizes["H"], sizes["W"]
     if height < 2 or width < 2:
         raise ShapeError(
             f"field: expected H, W >= 2, got shape {tuple(field.shape)}")
-    if fully_connected not in SEGMENTS:
-        raise ValueError(f"fully_connected: expected 'low' or 'high', got {fully_connected!r}")
+    if fully_connected not in SADDLE_RULES:
+        raise ValueError(f"fully_connected: expected one of {SADDLE_RULES}, "
+                         f"got {fully_connected!r}")
+    if isinstance(iso, torch.Tensor):
+        iso = float(iso)
+    if isinstance(iso, bool) or not isinstance(iso, (numbers.Real, np.generic)):
+        raise TypeError(f"iso: expected a number, got {type(iso).__name__}")
+    iso = float(iso)
     origin = _pair(origin, field, "origin")
     spacing = _pair(spacing, field, "spacing")
+    if not bool((torch.isfinite(spacing) & (spacing > 0)).all()):
+        raise ValueError(f"spacing: expected finite positive values, got {spacing.tolist()}")
     values = field.reshape(-1, height, width)  # (B, H, W)
     n_h = height * (width - 1)  # edges along axis 1 ("horizontal" in index space)
     n_edges = n_h + (height - 1) * width
     with torch.no_grad():
         f = values.detach()
-        above = f > iso
+        above = ~(f < iso)  # the tie rule: equal to iso is high
         case = (above[:, :-1, :-1].long() + 2 * above[:, :-1, 1:].long()
                 + 4 * above[:, 1:, :-1].long() + 8 * above[:, 1:, 1:].long())  # (B, H-1, W-1)
         nan = f.isnan()
         nan_cell = nan[:, :-1, :-1] | nan[:, :-1, 1:] | nan[:, 1:, :-1] | nan[:, 1:, 1:]
         case = torch.where(nan_cell, torch.zeros_like(case), case)
         b, i, j = ((case > 0) & (case < 15)).nonzero(as_tuple=True)  # active cells
-        segments = _segment_table(fully_connected, f.device)[case[b, i, j]]  # (N, 2, 2)
+        segments = _cell_segments(f, iso, b, i, j, case[b, i, j], fully_connected)
         valid = segments[..., 0] >= 0  # (N, 2)
         cell, slot = valid.nonzero(as_tuple=True)
         ends = segments[cell, slot]  # (S, 2) edge codes
@@ -219,10 +293,8 @@ def marching_squares(
         polyline_batch = batch_of[order[starts]] if counts.numel() else counts
     fa = values[batch_of, i0, j0]  # differentiable gathers
     fb = values[batch_of, i1, j1]
-    den = fb - fa
-    zero = den == 0
-    fraction = torch.where(zero, torch.zeros_like(den),
-                           (iso - fa) / torch.where(zero, torch.ones_like(den), den))
+    delta = math.sqrt(torch.finfo(values.dtype).eps)
+    fraction = EdgeFraction.apply(fa, fb, fa.new_tensor(iso).expand_as(fa), delta)
     index_xy = torch.stack([i0.to(values.dtype) + torch.where(is_h, 0.0, 1.0) * fraction,
                             j0.to(values.dtype) + torch.where(is_h, 1.0, 0.0) * fraction], dim=-1)
     points = origin + index_xy * spacing  # (U, 2)

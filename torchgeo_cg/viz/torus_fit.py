@@ -21,6 +21,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.mesh.marching_cubes import MarchingCubesResult, marching_cubes
+from torchgeo_cg.sdf.grid import Volume, grid_spacing
 from torchgeo_cg.viz.registry import figure
 
 __all__ = [
@@ -95,9 +96,8 @@ def sample_torus_surface(R: float, r: float, count: int, seed: int = 0) -> torch
 
 def extract_torus(R: torch.Tensor, r: torch.Tensor, temperature: float) -> MarchingCubesResult:
     """Marching cubes of :func:`torus_grid_sdf` with soft face weights at ``temperature``."""
-    h = (HI - LO) / (N - 1)
-    return marching_cubes(torus_grid_sdf(R, r), origin=(LO,) * 3, spacing=(h,) * 3,
-                          temperature=temperature)
+    origin, spacing = grid_spacing(N, (LO, HI), device=R.device, dtype=R.dtype)
+    return marching_cubes(Volume(torus_grid_sdf(R, r), origin, spacing), temperature=temperature)
 
 
 def soft_chamfer(mesh: MarchingCubesResult, target: torch.Tensor) -> torch.Tensor:
