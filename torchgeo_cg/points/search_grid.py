@@ -1,0 +1,358 @@
+"""Exact k-nearest-neighbour indices on the CPU with a uniform grid of sorted cells.
+
+No quadratic distance matrix is formed. The references of every batch item are binned
+into a uniform grid (cell size ``h``, chosen so that an occupied cell holds about
+``k + 1`` points; the size adapts to point sets on surfaces or curves), sorted by cell
+key, and indexed by a dense table of cell starts (``bincount`` + ``cumsum``) or, for
+sparse grids, by ``searchsorted`` on the occupied keys. Every query then scans rings of
+cells around its own cell (clamped to the grid): first the ``3^D`` block, then the
+shells at Chebyshev radius 2, 3, ...; the candidates of all active queries are expanded
+at once (``repeat_interleave``) and merged into a running top-k.
+
+Proof of exactness: after the rings up to radius ``r`` a point in any unvisited cell is
+at distance at least ``b = sqrt(out^2 + (r h + delta)^2)`` from the query, where ``out``
+is the query's distance to the grid box and ``delta`` its distance to the walls of its
+own cell along the axes where it lies inside the box. A query stops once its k-th
+distance is below ``b`` (shrunk by a rounding margin relative to the coordinates), or
+once the rings cover the whole grid. Queries still running after ``MAX_RING`` rings
+(far outside the grid, or in huge empty regions) continue on a grid 4 times coarser,
+from scratch, so the number of rounds stays logarithmic in the spread of the data.
+
+Convention:
+    - Squared Euclidean distances; ties broken by the smaller reference index, so the
+      result equals :func:`~torchgeo_cg.points.search_brute.brute_knn_indices`.
+    - Inputs must be finite (the caller masks non-finite rows).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+__all__ = ["GridIndex", "build_grid", "ring_offsets", "segment_ids", "grid_knn_indices", "MAX_RING"]
+
+#: Rings scanned on one grid before the remaining queries move to a coarser grid.
+MAX_RING = 2
+#: Largest number of (query, cell) pairs expanded at once.
+CHUNK_PAIRS = 1 << 14
+_BIG = torch.iinfo(torch.long).max
+
+
+class GridIndex(NamedTuple):
+    """References sorted by cell, for every item ``b`` of a flattened batch.
+
+    The grid of item ``b`` has ``dims_bd[b]`` cells per axis, surrounded by ``MAX_RING``
+    empty cells on every side so that ring offsets never leave it; the key of padded
+    cell ``c`` is ``base_b[b] + sum_a c_a * stride_bd[b, a]``.
+
+    Attributes:
+        lo_bd, h_b, dims_bd, base_b, stride_bd: origin, cell size, cells per axis (without
+            the border), key offset and key strides of each batch item.
+        points_dt: references sorted by key, coordinates first ``(D, T)``.
+        index_t: their row in their batch item ``(T,)``.
+        start_c, count_c: first sorted reference and count of each key (dense table), or
+            of each occupied key listed in ``keys_c`` (sparse).
+        keys_c: ``None`` for the dense table, else the sorted occupied keys.
+        slack_b: rounding margin of the distance bounds.
+    """
+
+    lo_bd: torch.Tensor
+    h_b: torch.Tensor
+    dims_bd: torch.Tensor
+    base_b: torch.Tensor
+    stride_bd: torch.Tensor
+    points_dt: torch.Tensor
+    index_t: torch.Tensor
+    start_c: torch.Tensor
+    count_c: torch.Tensor
+    keys_c: torch.Tensor | None
+    slack_b: torch.Tensor
+
+
+def ring_offsets(r: int, d: int, device=None) -> torch.Tensor:
+    """Integer cell offsets ``(S, d)``: the ``(2r+1)^d`` block for ``r <= 1``, else the shell.
+
+    Example:
+        >>> ring_offsets(2, 1)
+        tensor([[-2],
+                [ 2]])
+        >>> ring_offsets(1, 2).shape
+        torch.Size([9, 2])
+    """
+    axis = torch.arange(-r, r + 1, device=device)
+    block = torch.cartesian_prod(*([axis] * d)).reshape(-1, d)
+    if r <= 1:
+        return block
+    return block[block.abs().amax(-1) == r]
+
+
+def _grid_keys(points_td, batch_t, lo_bd, extent_bd, h_b, cap):
+    """Sorted cell keys of the points and the padded grid layout for cell sizes ``h_b``."""
+    D = lo_bd.shape[1]
+    dims_bd = (extent_bd / h_b[:, None]).floor().long().clamp(0, int(cap) - 1) + 1
+    padded_bd = dims_bd + 2 * MAX_RING
+    stride_bd = torch.ones_like(dims_bd)
+    for a in range(D - 2, -1, -1):  # loop over coordinates
+        stride_bd[:, a] = stride_bd[:, a + 1] * padded_bd[:, a + 1]
+    cells_b = padded_bd.prod(-1)
+    base_b = torch.cumsum(cells_b, 0) - cells_b
+    cell_td = ((points_td - lo_bd[batch_t]) / h_b[batch_t, None]).floor().long()
+    cell_td = torch.minimum(cell_td.clamp_min(0), dims_bd[batch_t] - 1) + MAX_RING
+    key_t = base_b[batch_t] + (cell_td * stride_bd[batch_t]).sum(-1)
+    key_t, order_t = torch.sort(key_t, stable=True)  # stable: index order inside a cell
+    return key_t, order_t, dims_bd, stride_bd, base_b, int(cells_b.sum())
+
+
+def _layout(points_td, batch_t, lo_bd, extent_bd, count_b, per_cell):
+    """Cell size per batch item (about ``per_cell`` points per occupied cell) and keys."""
+    B, D = lo_bd.shape
+    cap = float(2 ** (44 // D))
+    h_b = extent_bd.amax(-1) * (per_cell / count_b.clamp_min(1)) ** (1.0 / D)
+    attempt = 0
+    while True:  # refine for points on surfaces/curves (occupancy above target)
+        h_b = torch.maximum(h_b, (extent_bd / (cap - 1)).amax(-1))
+        h_b = torch.where(h_b > 0, h_b, torch.ones_like(h_b))
+        layout = _grid_keys(points_td, batch_t, lo_bd, extent_bd, h_b, cap)
+        key_t, order_t = layout[0], layout[1]
+        run_t = torch.ones_like(key_t, dtype=torch.bool)
+        run_t[1:] = key_t[1:] != key_t[:-1]
+        occupied_b = torch.bincount(batch_t[order_t][run_t], minlength=B)
+        ratio_b = count_b / occupied_b.clamp_min(1) / per_cell
+        attempt += 1
+        if attempt == 4 or bool((ratio_b <= 1.5).all()):
+            return h_b, layout
+        h_b = torch.where(ratio_b > 1.5, h_b * ratio_b.clamp_min(1) ** -0.5, h_b)
+
+
+def build_grid(
+    reference_bmd: torch.Tensor, reference_lengths_b: torch.Tensor, per_cell: float
+) -> GridIndex:
+    """Bin the valid references of each batch item into a uniform grid (see module).
+
+    Example:
+        >>> g = build_grid(torch.rand(2, 100, 3), torch.tensor([100, 50]), 2.0)
+        >>> g.points_dt.shape, g.index_t.shape
+        (torch.Size([3, 150]), torch.Size([150]))
+    """
+    B, M, D = reference_bmd.shape
+    dev = reference_bmd.device
+    valid_bm = torch.arange(M, device=dev) < reference_lengths_b[:, None]
+    batch_t, index_t = valid_bm.nonzero(as_tuple=True)
+    points_td = reference_bmd.reshape(B * M, D).index_select(0, batch_t * M + index_t)
+    inf = float("inf")
+    lo_bd = reference_bmd.masked_fill(~valid_bm[..., None], inf).amin(1)
+    hi_bd = reference_bmd.masked_fill(~valid_bm[..., None], -inf).amax(1)
+    empty_b = reference_lengths_b == 0
+    lo_bd = torch.where(empty_b[:, None], torch.zeros_like(lo_bd), lo_bd)
+    hi_bd = torch.where(empty_b[:, None], torch.zeros_like(hi_bd), hi_bd)
+    extent_bd = hi_bd - lo_bd
+    h_b, layout = _layout(points_td, batch_t, lo_bd, extent_bd, reference_lengths_b.to(lo_bd),
+                          per_cell)
+    key_t, order_t, dims_bd, stride_bd, base_b, total = layout
+    if total <= 32 * key_t.numel() + 4096:
+        count_c = torch.bincount(key_t, minlength=total)
+        keys_c = None
+    else:
+        keys_c, count_c = torch.unique_consecutive(key_t, return_counts=True)
+    start_c = torch.cumsum(count_c, 0) - count_c
+    eps = torch.finfo(reference_bmd.dtype).eps
+    slack_b = 16 * eps * (lo_bd.abs().amax(-1) + extent_bd.amax(-1) + h_b)
+    points_dt = points_td.index_select(0, order_t).t().contiguous()
+    return GridIndex(lo_bd, h_b, dims_bd, base_b, stride_bd, points_dt,
+                     index_t.index_select(0, order_t), start_c, count_c, keys_c, slack_b)
+
+
+def _cell_ranges(grid: GridIndex, key_q, b_q, offsets_sd):
+    """Start and count ``(Q, S)`` of the cells at ``offsets`` from each query's cell."""
+    delta_bs = (offsets_sd[None, :, :] * grid.stride_bd[:, None, :]).sum(-1)
+    key_qs = (key_q[:, None] + delta_bs.index_select(0, b_q)).reshape(-1)
+    if grid.keys_c is None:
+        return grid.start_c.index_select(0, key_qs), grid.count_c.index_select(0, key_qs)
+    pos_qs = torch.searchsorted(grid.keys_c, key_qs).clamp_max(grid.keys_c.numel() - 1)
+    hit_qs = grid.keys_c.index_select(0, pos_qs) == key_qs
+    count_qs = grid.count_c.index_select(0, pos_qs)
+    return grid.start_c.index_select(0, pos_qs), torch.where(hit_qs, count_qs, 0)
+
+
+def segment_ids(count_p: torch.Tensor, total: int) -> torch.Tensor:
+    """For counts ``(P,)`` summing to ``total``, the segment of each of the ``total`` slots.
+
+    Equals ``repeat_interleave(arange(P), count_p)`` (much faster on the CPU: one
+    scatter and one cumsum).
+
+    Example:
+        >>> segment_ids(torch.tensor([2, 0, 1, 3]), 6)
+        tensor([0, 0, 2, 3, 3, 3])
+    """
+    first_p = torch.cumsum(count_p, 0) - count_p
+    step_t = torch.zeros(total + 1, dtype=count_p.dtype, device=count_p.device)
+    step_t.index_add_(0, first_p, torch.ones_like(count_p))  # +1 where a segment starts
+    step_t[0] -= 1
+    return torch.cumsum(step_t[:total], 0)
+
+
+def _candidates(grid: GridIndex, q_dq, key_q, b_q, offsets_sd):
+    """Candidates (query row, squared distance, reference index) and counts per query."""
+    start_p, count_p = _cell_ranges(grid, key_q, b_q, offsets_sd)
+    S = offsets_sd.shape[0]
+    count_q = count_p.view(-1, S).sum(-1)
+    total = int(count_q.sum())
+    pair_c = segment_ids(count_p, total)
+    shift_p = start_p - (torch.cumsum(count_p, 0) - count_p)
+    pos_c = torch.arange(total, device=q_dq.device) + shift_p.index_select(0, pair_c)
+    row_c = torch.div(pair_c, S, rounding_mode="floor")
+    d2_c = None
+    for a in range(q_dq.shape[0]):  # loop over coordinates
+        diff = grid.points_dt[a].index_select(0, pos_c) - q_dq[a].index_select(0, row_c)
+        d2_c = diff * diff if d2_c is None else d2_c + diff * diff
+    return row_c, d2_c, grid.index_t.index_select(0, pos_c), count_q
+
+
+def _merge_one(best_d, best_i, row_c, d2_c, j_c):
+    """k = 1: smallest distance, then smallest index."""
+    if d2_c.dtype == torch.float32:  # pack (distance bits, index) into one sortable int64
+        packed = (d2_c.view(torch.int32).long() << 32) | j_c
+        init = (best_d.view(torch.int32).long() << 32) | best_i.clamp_max(2**31 - 1)
+        best = init.scatter_reduce(0, row_c, packed, reduce="amin")
+        return (best >> 32).int().view(torch.float32), best & (2**32 - 1)
+    new_d = best_d.scatter_reduce(0, row_c, d2_c, reduce="amin")
+    tie_c = d2_c == new_d.index_select(0, row_c)
+    keep = torch.where(best_d == new_d, best_i, torch.full_like(best_i, _BIG))
+    new_i = keep.scatter_reduce(0, row_c[tie_c], j_c[tie_c], reduce="amin")
+    return new_d, new_i
+
+
+def _merge_k(best_qk, idx_qk, row_c, d2_c, j_c, count_q):
+    """k > 1: pad candidates per query, then order by (distance, index)."""
+    Q, k = best_qk.shape
+    width = int(count_q.max()) if Q else 0
+    first_q = torch.cumsum(count_q, 0) - count_q
+    col_c = torch.arange(row_c.numel(), device=row_c.device) - first_q.index_select(0, row_c)
+    d_qw = best_qk.new_full((Q, width), float("inf"))
+    i_qw = idx_qk.new_full((Q, width), _BIG)
+    d_qw[row_c, col_c] = d2_c
+    i_qw[row_c, col_c] = j_c
+    d_qw, i_qw = torch.cat([best_qk, d_qw], 1), torch.cat([idx_qk, i_qw], 1)
+    order = torch.sort(i_qw, dim=1, stable=True).indices
+    d_qw, i_qw = d_qw.gather(1, order), i_qw.gather(1, order)
+    order = torch.sort(d_qw, dim=1, stable=True).indices[:, :k]
+    return d_qw.gather(1, order), i_qw.gather(1, order)
+
+
+def _query_cells(grid: GridIndex, q_qd, b_q):
+    """Cell (clamped to the grid, without border) and padded key of every query."""
+    h_q = grid.h_b.index_select(0, b_q)
+    lo_qd = grid.lo_bd.index_select(0, b_q)
+    cell_qd = ((q_qd - lo_qd) / h_q[:, None]).floor().clamp(-1, 2.0**50).long()
+    cell_qd = torch.minimum(cell_qd.clamp_min(0), grid.dims_bd.index_select(0, b_q) - 1)
+    stride_qd = grid.stride_bd.index_select(0, b_q)
+    key_q = grid.base_b.index_select(0, b_q) + ((cell_qd + MAX_RING) * stride_qd).sum(-1)
+    return cell_qd, key_q
+
+
+def _stop_bound(grid: GridIndex, q_qd, b_q, cell_qd, r):
+    """Squared lower bound on the distance to any cell beyond ring ``r``, and 'all seen'."""
+    lo_qd, h_q = grid.lo_bd.index_select(0, b_q), grid.h_b.index_select(0, b_q)
+    dims_qd = grid.dims_bd.index_select(0, b_q)
+    hi_qd = lo_qd + dims_qd * h_q[:, None]
+    out_q = ((lo_qd - q_qd).clamp_min(0) + (q_qd - hi_qd).clamp_min(0)).square().sum(-1)
+    wall_lo = lo_qd + cell_qd * h_q[:, None]
+    inside_qd = (q_qd >= lo_qd) & (q_qd <= hi_qd)
+    wall_qd = torch.minimum(q_qd - wall_lo, wall_lo + h_q[:, None] - q_qd).clamp_min(0)
+    delta_q = torch.where(inside_qd, wall_qd, h_q[:, None]).amin(-1)
+    reach_q = (r * h_q + delta_q - grid.slack_b.index_select(0, b_q)).clamp_min(0)
+    return out_q + reach_q.square(), r >= dims_qd.amax(-1) - 1
+
+
+def _scan_ring(grid, q_qd, key_q, b_q, best_qk, idx_qk, active, r):
+    """Merge the candidates of ring ``r`` into the running best of the active queries."""
+    offsets_sd = ring_offsets(r, q_qd.shape[1], q_qd.device)
+    step = max(1, CHUNK_PAIRS // offsets_sd.shape[0])
+    k = best_qk.shape[1]
+    for s in range(0, active.numel(), step):  # loop over memory chunks
+        a = active[s : s + step]
+        q_dq = q_qd.index_select(0, a).t()
+        row_c, d2_c, j_c, count_q = _candidates(grid, q_dq, key_q.index_select(0, a),
+                                                b_q.index_select(0, a),
+                                                offsets_sd)
+        if k == 1:
+            d, i = _merge_one(best_qk.index_select(0, a)[:, 0], idx_qk.index_select(0, a)[:, 0],
+                              row_c, d2_c, j_c)
+            best_qk[a, 0], idx_qk[a, 0] = d, i
+        else:
+            best_qk[a], idx_qk[a] = _merge_k(best_qk[a], idx_qk[a], row_c, d2_c, j_c, count_q)
+
+
+def _search_level(grid: GridIndex, q_qd, b_q, k):
+    """Rings 1..MAX_RING on one grid; returns the best ``(Q, k)`` and a 'proven' mask."""
+    Q = q_qd.shape[0]
+    cell_qd, key_q = _query_cells(grid, q_qd, b_q)
+    best_qk = q_qd.new_full((Q, k), float("inf"))
+    idx_qk = torch.full((Q, k), _BIG if k > 1 else 2**31 - 1, dtype=torch.long,
+                        device=q_qd.device)
+    done_q = torch.zeros(Q, dtype=torch.bool, device=q_qd.device)
+    active = torch.arange(Q, device=q_qd.device)
+    for r in range(1, MAX_RING + 1):  # loop over rings
+        _scan_ring(grid, q_qd, key_q, b_q, best_qk, idx_qk, active, r)
+        bound_q, whole_q = _stop_bound(grid, q_qd[active], b_q[active], cell_qd[active], r)
+        stop = whole_q | (best_qk[:, -1].index_select(0, active) < bound_q)
+        done_q[active[stop]] = True
+        active = active[~stop]
+        if active.numel() == 0:
+            break
+    return best_qk, idx_qk, done_q
+
+
+def grid_knn_indices(
+    query_bnd: torch.Tensor,
+    reference_bmd: torch.Tensor,
+    k: int,
+    query_lengths_b: torch.Tensor,
+    reference_lengths_b: torch.Tensor,
+) -> torch.Tensor:
+    """Indices ``(B, N, k)`` of the ``k`` nearest references, ``-1`` where there are none.
+
+    Convention:
+        See the module docstring; no gradient (indices only); ``D <= 3`` is efficient.
+
+    Args:
+        query_bnd: ``(B, N, D)`` finite queries, float32 or float64.
+        reference_bmd: ``(B, M, D)`` finite references, same dtype.
+        k: neighbours, ``>= 1``.
+        query_lengths_b, reference_lengths_b: ``(B,)`` long valid counts.
+
+    Returns:
+        ``(B, N, k)`` long.
+
+    Example:
+        >>> q = torch.tensor([[[0.0, 0.0], [2.9, 0.0]]])
+        >>> r = torch.tensor([[[1.0, 0.0], [3.0, 0.0], [-1.0, 0.0]]])
+        >>> grid_knn_indices(q, r, 2, torch.tensor([2]), torch.tensor([3]))
+        tensor([[[0, 2],
+                 [1, 0]]])
+    """
+    B, N, D = query_bnd.shape
+    out_bnk = query_bnd.new_full((B, N, k), -1, dtype=torch.long)
+    with torch.no_grad():
+        valid_bn = torch.arange(N, device=query_bnd.device) < query_lengths_b[:, None]
+        valid_bn &= (reference_lengths_b > 0)[:, None]
+        qb, qn = valid_bn.nonzero(as_tuple=True)
+        if qb.numel() == 0:
+            return out_bnk
+        q_qd = query_bnd.reshape(B * N, D).index_select(0, qb * N + qn)
+        kk = min(k, reference_bmd.shape[1])
+        per_cell = float(kk + 1)
+        pending = torch.arange(qb.numel(), device=query_bnd.device)
+        out_flat = out_bnk.view(B * N, k)
+        for _ in range(64):  # loop over grid levels (each coarser)
+            grid = build_grid(reference_bmd, reference_lengths_b, per_cell)
+            best_qk, idx_qk, done_q = _search_level(grid, q_qd[pending], qb[pending], kk)
+            idx_qk = torch.where(best_qk.isinf(), torch.full_like(idx_qk, -1), idx_qk)
+            rows = pending[done_q]
+            out_flat[qb[rows] * N + qn[rows], :kk] = idx_qk[done_q]
+            pending = pending[~done_q]
+            if pending.numel() == 0:
+                break
+            per_cell *= 4.0**D
+    return out_bnk
