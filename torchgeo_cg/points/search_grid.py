@@ -36,6 +36,8 @@ __all__ = ["GridIndex", "build_grid", "ring_offsets", "segment_ids", "grid_knn_i
 MAX_RING = 2
 #: Largest number of (query, cell) pairs expanded at once.
 CHUNK_PAIRS = 1 << 14
+#: Target number of references per occupied cell for k = 1 (scaled with k).
+PER_CELL = 2.0
 _BIG = torch.iinfo(torch.long).max
 
 
@@ -342,7 +344,7 @@ def grid_knn_indices(
             return out_bnk
         q_qd = query_bnd.reshape(B * N, D).index_select(0, qb * N + qn)
         kk = min(k, reference_bmd.shape[1])
-        per_cell = float(kk + 1)
+        per_cell = PER_CELL * (kk + 1) / 2
         pending = torch.arange(qb.numel(), device=query_bnd.device)
         out_flat = out_bnk.view(B * N, k)
         for _ in range(64):  # loop over grid levels (each coarser)
