@@ -15,8 +15,10 @@ is the query's distance to the grid box and ``delta`` its distance to the walls 
 own cell along the axes where it lies inside the box. A query stops once its k-th
 distance is below ``b`` (shrunk by a rounding margin relative to the coordinates), or
 once the rings cover the whole grid. Queries still running after ``MAX_RING`` rings
-(far outside the grid, or in huge empty regions) continue on a grid 4 times coarser,
-from scratch, so the number of rounds stays logarithmic in the spread of the data.
+(far outside the grid, or in huge empty regions) continue on a grid about twice as
+coarse, from scratch, so the number of rounds stays logarithmic in the spread of the
+data; there, and in rings past the first, cells whose box lies farther than the best
+k-th distance found so far (an upper bound on the true one) are skipped.
 
 Convention:
     - Squared Euclidean distances; ties broken by the smaller reference index, so the
@@ -166,7 +168,7 @@ def build_grid(
 
 
 def _cell_ranges(grid: GridIndex, key_q, b_q, offsets_sd):
-    """Start and count ``(Q, S)`` of the cells at ``offsets`` from each query's cell."""
+    """Start and count ``(Q * S,)`` of the cells at ``offsets`` from each query's cell."""
     delta_bs = (offsets_sd[None, :, :] * grid.stride_bd[:, None, :]).sum(-1)
     key_qs = (key_q[:, None] + delta_bs.index_select(0, b_q)).reshape(-1)
     if grid.keys_c is None:
@@ -175,6 +177,18 @@ def _cell_ranges(grid: GridIndex, key_q, b_q, offsets_sd):
     hit_qs = grid.keys_c.index_select(0, pos_qs) == key_qs
     count_qs = grid.count_c.index_select(0, pos_qs)
     return grid.start_c.index_select(0, pos_qs), torch.where(hit_qs, count_qs, 0)
+
+
+def _prune(grid: GridIndex, q_qd, b_q, cell_qd, offsets_sd, limit_q, count_p):
+    """Zero the counts of cells whose box is farther than ``sqrt(limit_q)`` from the query."""
+    h_q = grid.h_b.index_select(0, b_q)[:, None, None]
+    slack_q = grid.slack_b.index_select(0, b_q)[:, None, None]
+    lo_qsd = grid.lo_bd.index_select(0, b_q)[:, None, :] + (
+        cell_qd[:, None, :] + offsets_sd[None]) * h_q - slack_q
+    q_qsd = q_qd[:, None, :]
+    gap_qsd = (lo_qsd - q_qsd).clamp_min(0) + (q_qsd - lo_qsd - h_q - 2 * slack_q).clamp_min(0)
+    far_p = (gap_qsd.square().sum(-1) > limit_q[:, None]).reshape(-1)
+    return torch.where(far_p, 0, count_p)
 
 
 def segment_ids(count_p: torch.Tensor, total: int) -> torch.Tensor:
@@ -194,9 +208,15 @@ def segment_ids(count_p: torch.Tensor, total: int) -> torch.Tensor:
     return torch.cumsum(step_t[:total], 0)
 
 
-def _candidates(grid: GridIndex, q_dq, key_q, b_q, offsets_sd):
-    """Candidates (query row, squared distance, reference index) and counts per query."""
+def _candidates(grid: GridIndex, q_dq, key_q, b_q, offsets_sd, cell_qd=None, limit_q=None):
+    """Candidates (query row, squared distance, reference index) and counts per query.
+
+    With ``limit_q`` (a squared upper bound on each query's k-th distance), cells whose
+    box lies farther are skipped; they cannot hold a k-nearest neighbour.
+    """
     start_p, count_p = _cell_ranges(grid, key_q, b_q, offsets_sd)
+    if limit_q is not None:
+        count_p = _prune(grid, q_dq.t(), b_q, cell_qd, offsets_sd, limit_q, count_p)
     S = offsets_sd.shape[0]
     count_q = count_p.view(-1, S).sum(-1)
     total = int(count_q.sum())
@@ -267,7 +287,7 @@ def _stop_bound(grid: GridIndex, q_qd, b_q, cell_qd, r):
     return out_q + reach_q.square(), r >= dims_qd.amax(-1) - 1
 
 
-def _scan_ring(grid, q_qd, key_q, b_q, best_qk, idx_qk, active, r):
+def _scan_ring(grid, q_qd, key_q, b_q, cell_qd, best_qk, idx_qk, ub_q, active, r):
     """Merge the candidates of ring ``r`` into the running best of the active queries."""
     offsets_sd = ring_offsets(r, q_qd.shape[1], q_qd.device)
     step = max(1, CHUNK_PAIRS // offsets_sd.shape[0])
@@ -275,9 +295,11 @@ def _scan_ring(grid, q_qd, key_q, b_q, best_qk, idx_qk, active, r):
     for s in range(0, active.numel(), step):  # loop over memory chunks
         a = active[s : s + step]
         q_dq = q_qd.index_select(0, a).t()
-        row_c, d2_c, j_c, count_q = _candidates(grid, q_dq, key_q.index_select(0, a),
-                                                b_q.index_select(0, a),
-                                                offsets_sd)
+        limit = torch.minimum(ub_q.index_select(0, a), best_qk[:, -1].index_select(0, a))
+        prune = not bool(torch.isinf(limit).all())
+        row_c, d2_c, j_c, count_q = _candidates(
+            grid, q_dq, key_q.index_select(0, a), b_q.index_select(0, a), offsets_sd,
+            cell_qd.index_select(0, a) if prune else None, limit if prune else None)
         if k == 1:
             d, i = _merge_one(best_qk.index_select(0, a)[:, 0], idx_qk.index_select(0, a)[:, 0],
                               row_c, d2_c, j_c)
@@ -286,8 +308,11 @@ def _scan_ring(grid, q_qd, key_q, b_q, best_qk, idx_qk, active, r):
             best_qk[a], idx_qk[a] = _merge_k(best_qk[a], idx_qk[a], row_c, d2_c, j_c, count_q)
 
 
-def _search_level(grid: GridIndex, q_qd, b_q, k):
-    """Rings 1..MAX_RING on one grid; returns the best ``(Q, k)`` and a 'proven' mask."""
+def _search_level(grid: GridIndex, q_qd, b_q, k, ub_q):
+    """Rings 1..MAX_RING on one grid; returns the best ``(Q, k)`` and a 'proven' mask.
+
+    ``ub_q``: squared upper bounds on the k-th distances from coarser work (``inf``: none).
+    """
     Q = q_qd.shape[0]
     cell_qd, key_q = _query_cells(grid, q_qd, b_q)
     best_qk = q_qd.new_full((Q, k), float("inf"))
@@ -296,7 +321,7 @@ def _search_level(grid: GridIndex, q_qd, b_q, k):
     done_q = torch.zeros(Q, dtype=torch.bool, device=q_qd.device)
     active = torch.arange(Q, device=q_qd.device)
     for r in range(1, MAX_RING + 1):  # loop over rings
-        _scan_ring(grid, q_qd, key_q, b_q, best_qk, idx_qk, active, r)
+        _scan_ring(grid, q_qd, key_q, b_q, cell_qd, best_qk, idx_qk, ub_q, active, r)
         bound_q, whole_q = _stop_bound(grid, q_qd[active], b_q[active], cell_qd[active], r)
         stop = whole_q | (best_qk[:, -1].index_select(0, active) < bound_q)
         done_q[active[stop]] = True
@@ -346,15 +371,18 @@ def grid_knn_indices(
         kk = min(k, reference_bmd.shape[1])
         per_cell = PER_CELL * (kk + 1) / 2
         pending = torch.arange(qb.numel(), device=query_bnd.device)
+        ub_q = q_qd.new_full((qb.numel(),), float("inf"))
         out_flat = out_bnk.view(B * N, k)
-        for _ in range(64):  # loop over grid levels (each coarser)
+        for _ in range(200):  # loop over grid levels (each coarser)
             grid = build_grid(reference_bmd, reference_lengths_b, per_cell)
-            best_qk, idx_qk, done_q = _search_level(grid, q_qd[pending], qb[pending], kk)
+            best_qk, idx_qk, done_q = _search_level(grid, q_qd[pending], qb[pending], kk,
+                                                    ub_q[pending])
             idx_qk = torch.where(best_qk.isinf(), torch.full_like(idx_qk, -1), idx_qk)
             rows = pending[done_q]
             out_flat[qb[rows] * N + qn[rows], :kk] = idx_qk[done_q]
+            ub_q[pending] = torch.minimum(ub_q[pending], best_qk[:, -1])
             pending = pending[~done_q]
             if pending.numel() == 0:
                 break
-            per_cell *= 4.0**D
+            per_cell *= 2.0**D
     return out_bnk
