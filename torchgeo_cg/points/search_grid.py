@@ -35,7 +35,7 @@ import torch
 __all__ = ["GridIndex", "build_grid", "ring_offsets", "segment_ids", "grid_knn_indices", "MAX_RING"]
 
 #: Rings scanned on one grid before the remaining queries move to a coarser grid.
-MAX_RING = 2
+MAX_RING = 3
 #: Largest number of (query, cell) pairs expanded at once.
 CHUNK_PAIRS = 1 << 14
 #: Target number of references per occupied cell for k = 1 (scaled with k).
