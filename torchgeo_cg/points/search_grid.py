@@ -223,7 +223,9 @@ def _candidates(grid: GridIndex, q_dq, key_q, b_q, offsets_sd, cell_qd=None, lim
     pair_c = segment_ids(count_p, total)
     shift_p = start_p - (torch.cumsum(count_p, 0) - count_p)
     pos_c = torch.arange(total, device=q_dq.device) + shift_p.index_select(0, pair_c)
-    row_c = torch.div(pair_c, S, rounding_mode="floor")
+    Q = count_q.numel()
+    row_p = torch.arange(Q, device=q_dq.device)[:, None].expand(Q, S).reshape(-1)
+    row_c = row_p.index_select(0, pair_c)
     d2_c = None
     for a in range(q_dq.shape[0]):  # loop over coordinates
         diff = grid.points_dt[a].index_select(0, pos_c) - q_dq[a].index_select(0, row_c)
