@@ -275,24 +275,35 @@ def _rms(cp, t, points, w, degree: int) -> torch.Tensor:
 
 
 def _correct(t, points64, w64, degree, tol, max_iterations, progress):
-    """Alternate solve and Newton steps on ``t`` until the rms stalls (float64, no grad)."""
+    """Alternate solve and Newton steps on ``t`` until the rms stalls (float64, no grad).
+
+    Each stroke stops on its own, as soon as its rms improves by less than ``tol``
+    (relative) in one iteration; later iterations only process the strokes still running,
+    so a batch gives the same result as a loop over its strokes.
+    """
     from tqdm.auto import tqdm
 
-    points_d = points64.movedim(-1, 0).contiguous()  # (D, *, M)
+    batch = t.shape[:-1]
+    m, d = points64.shape[-2:]
+    t_sm = t.reshape(-1, m).clone()
+    p_smd, w_sm = points64.reshape(-1, m, d), w64.reshape(-1, m)
+    active = torch.arange(t_sm.shape[0], device=t.device)
     previous = None
     bar = tqdm(range(max_iterations), disable=not progress, desc="fit_bezier", unit="it")
     for _ in bar:  # loop over iterations
-        cp = _solve(t, points64, w64, degree)
-        rms = _rms(cp, t, points64, w64, degree)
+        t_a, p_a, w_a = t_sm[active], p_smd[active], w_sm[active]
+        cp = _solve(t_a, p_a, w_a, degree)
+        rms = _rms(cp, t_a, p_a, w_a, degree)
         if previous is not None:
-            stalled = (previous - rms) <= tol * previous
-            bar.set_postfix(rms=float(rms.max()) if rms.numel() else 0.0)
-            if bool(stalled.all()):
+            going = (previous - rms) > tol * previous
+            bar.set_postfix(running=int(going.sum()))
+            active, cp, t_a, p_a, rms = (x[going] for x in (active, cp, t_a, p_a, rms))
+            if active.numel() == 0:
                 break
         previous = rms
-        t = _newton(cp, t, points_d, degree)
+        t_sm[active] = _newton(cp, t_a, p_a.movedim(-1, 0), degree)
     bar.close()
-    return t
+    return t_sm.reshape(*batch, m)
 
 
 def fit_bezier(
