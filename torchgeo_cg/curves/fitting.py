@@ -241,11 +241,12 @@ def _horner(a: torch.Tensor, t: torch.Tensor, order: int) -> torch.Tensor:
     return value
 
 
-def _newton(cp, t, points_d, degree: int) -> torch.Tensor:
+def _newton(cp, t, points_d, degree: int) -> tuple[torch.Tensor, torch.Tensor]:
     """One safeguarded Newton step on every ``t_k`` for ``|B(t_k) - x_k|^2`` (float64).
 
     ``points_d`` is ``(D, *, M)``. Newton where ``f'' > 0``, else Gauss-Newton
     (``f'' ~ |B'|^2``); the step is halved up to 4 times until the residual decreases.
+    Returns the new parameters and the squared residuals ``(*, M)`` at the old ones.
     """
     a = _power_coefficients(cp)
     r = _horner(a, t, 0) - points_d
@@ -264,7 +265,7 @@ def _newton(cp, t, points_d, degree: int) -> torch.Tensor:
         best_t = torch.where(better, trial, best_t)
         best_r2 = torch.where(better, trial_r2, best_r2)
         step = 0.5 * step
-    return best_t
+    return best_t, r.square().sum(0)
 
 
 def _rms(cp, t, points, w, degree: int) -> torch.Tensor:
@@ -293,15 +294,16 @@ def _correct(t, points64, w64, degree, tol, max_iterations, progress):
     for _ in bar:  # loop over iterations
         t_a, p_a, w_a = t_sm[active], p_smd[active], w_sm[active]
         cp = _solve(t_a, p_a, w_a, degree)
-        rms = _rms(cp, t_a, p_a, w_a, degree)
+        t_new, r2 = _newton(cp, t_a, p_a.movedim(-1, 0), degree)
+        rms = ((w_a * r2).sum(-1) / w_a.sum(-1).clamp_min(torch.finfo(w_a.dtype).tiny)).sqrt()
         if previous is not None:
             going = (previous - rms) > tol * previous
             bar.set_postfix(running=int(going.sum()))
-            active, cp, t_a, p_a, rms = (x[going] for x in (active, cp, t_a, p_a, rms))
+            active, t_new, rms = active[going], t_new[going], rms[going]
             if active.numel() == 0:
                 break
         previous = rms
-        t_sm[active] = _newton(cp, t_a, p_a.movedim(-1, 0), degree)
+        t_sm[active] = t_new
     bar.close()
     return t_sm.reshape(*batch, m)
 
