@@ -217,7 +217,11 @@ def _candidates(grid: GridIndex, q_dq, key_q, b_q, offsets_sd, cell_qd=None, lim
     start_p, count_p = _cell_ranges(grid, key_q, b_q, offsets_sd)
     if limit_q is not None:
         count_p = _prune(grid, q_dq.t(), b_q, cell_qd, offsets_sd, limit_q, count_p)
-    S = offsets_sd.shape[0]
+    return _expand(grid, q_dq, start_p, count_p, offsets_sd.shape[0])
+
+
+def _expand(grid: GridIndex, q_dq, start_p, count_p, S: int):
+    """Candidates of ``S`` cell ranges per query (``start_p``, ``count_p``: ``(Q * S,)``)."""
     count_q = count_p.view(-1, S).sum(-1)
     total = int(count_q.sum())
     pair_c = segment_ids(count_p, total)
@@ -310,6 +314,40 @@ def _scan_ring(grid, q_qd, key_q, b_q, cell_qd, best_qk, idx_qk, ub_q, active, r
             best_qk[a], idx_qk[a] = _merge_k(best_qk[a], idx_qk[a], row_c, d2_c, j_c, count_q)
 
 
+def _octant_pass(grid: GridIndex, q_qd, b_q, cell_qd, key_q, best_qk, idx_qk):
+    """k = 1 first pass: the ``2^D`` cells around the query's nearest cell corner.
+
+    Along each axis the block spans the query's cell and the neighbour on the nearer
+    side, so it contains the ball of radius ``delta`` = the query's distance to the
+    block's walls (at least half a cell). Returns the queries proven done.
+    """
+    Q, D = q_qd.shape
+    h_q = grid.h_b.index_select(0, b_q)[:, None]
+    lo_qd = grid.lo_bd.index_select(0, b_q) + cell_qd * h_q
+    side_qd = torch.where(q_qd - lo_qd < 0.5 * h_q, -1, 1)
+    corner_sd = torch.cartesian_prod(*([torch.tensor([0, 1], device=q_qd.device)] * D))
+    corner_sd = corner_sd.reshape(-1, D)
+    S = corner_sd.shape[0]
+    stride_qd = grid.stride_bd.index_select(0, b_q)
+    delta_qs = ((corner_sd[None] * side_qd[:, None, :]) * stride_qd[:, None, :]).sum(-1)
+    step = max(1, CHUNK_PAIRS // S)
+    for s in range(0, Q, step):  # loop over memory chunks
+        key_p = (key_q[s : s + step, None] + delta_qs[s : s + step]).reshape(-1)
+        row_c, d2_c, j_c, _ = _expand(grid, q_qd[s : s + step].t(),
+                                      grid.start_c.index_select(0, key_p),
+                                      grid.count_c.index_select(0, key_p), S)
+        d, i = _merge_one(best_qk[s : s + step, 0], idx_qk[s : s + step, 0], row_c, d2_c, j_c)
+        best_qk[s : s + step, 0], idx_qk[s : s + step, 0] = d, i
+    low_qd = lo_qd + torch.where(side_qd < 0, -h_q, 0.0)
+    high_qd = lo_qd + torch.where(side_qd > 0, 2 * h_q, h_q)
+    delta_q = torch.minimum(q_qd - low_qd, high_qd - q_qd).amin(-1)
+    inside_q = ((q_qd >= grid.lo_bd.index_select(0, b_q))
+                & (q_qd <= grid.lo_bd.index_select(0, b_q)
+                   + grid.dims_bd.index_select(0, b_q) * h_q)).all(-1)
+    reach_q = (delta_q - grid.slack_b.index_select(0, b_q)).clamp_min(0)
+    return inside_q & (best_qk[:, 0] < reach_q.square())
+
+
 def _search_level(grid: GridIndex, q_qd, b_q, k, ub_q):
     """Rings 1..MAX_RING on one grid; returns the best ``(Q, k)`` and a 'proven' mask.
 
@@ -322,6 +360,9 @@ def _search_level(grid: GridIndex, q_qd, b_q, k, ub_q):
                         device=q_qd.device)
     done_q = torch.zeros(Q, dtype=torch.bool, device=q_qd.device)
     active = torch.arange(Q, device=q_qd.device)
+    if k == 1 and grid.keys_c is None:
+        done_q = _octant_pass(grid, q_qd, b_q, cell_qd, key_q, best_qk, idx_qk)
+        active = active[~done_q]
     for r in range(1, MAX_RING + 1):  # loop over rings
         _scan_ring(grid, q_qd, key_q, b_q, cell_qd, best_qk, idx_qk, ub_q, active, r)
         bound_q, whole_q = _stop_bound(grid, q_qd[active], b_q[active], cell_qd[active], r)
