@@ -4,10 +4,13 @@ No quadratic distance matrix is formed. The references of every batch item are b
 into a uniform grid (cell size ``h``, chosen so that an occupied cell holds about
 ``k + 1`` points; the size adapts to point sets on surfaces or curves), sorted by cell
 key, and indexed by a dense table of cell starts (``bincount`` + ``cumsum``) or, for
-sparse grids, by ``searchsorted`` on the occupied keys. Every query then scans rings of
-cells around its own cell (clamped to the grid): first the ``3^D`` block, then the
-shells at Chebyshev radius 2, 3, ...; the candidates of all active queries are expanded
-at once (``repeat_interleave``) and merged into a running top-k.
+sparse grids, by ``searchsorted`` on the occupied keys. For ``k = 1`` every query first
+scans the ``2^D`` cells around its nearest cell corner, which contain the ball out to
+the block's walls (at least half a cell); queries whose nearest point lies in that ball
+are done. The others scan rings of cells around their own cell (clamped to the grid):
+the ``3^D`` block, then the shells at Chebyshev radius 2, 3, ...; the candidates of all
+active queries are expanded at once (segment ids by scatter + cumsum) and merged into a
+running top-k.
 
 Proof of exactness: after the rings up to radius ``r`` a point in any unvisited cell is
 at distance at least ``b = sqrt(out^2 + (r h + delta)^2)`` from the query, where ``out``
