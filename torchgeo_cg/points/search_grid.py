@@ -107,8 +107,21 @@ def _grid_keys(points_td, batch_t, lo_bd, extent_bd, h_b, cap):
     cell_td = ((points_td - lo_bd[batch_t]) / h_b[batch_t, None]).floor().long()
     cell_td = torch.minimum(cell_td.clamp_min(0), dims_bd[batch_t] - 1) + MAX_RING
     key_t = base_b[batch_t] + (cell_td * stride_bd[batch_t]).sum(-1)
-    key_t, order_t = torch.sort(key_t, stable=True)  # stable: index order inside a cell
-    return key_t, order_t, dims_bd, stride_bd, base_b, int(cells_b.sum())
+    return key_t, dims_bd, stride_bd, base_b, int(cells_b.sum())
+
+
+def _occupied(key_t, batch_t, base_b, total: int) -> torch.Tensor:
+    """Number of occupied cells of each batch item (unsorted keys)."""
+    B = base_b.shape[0]
+    if total <= 32 * key_t.numel() + 4096:  # dense: one bincount over the cells
+        used_c = torch.bincount(key_t, minlength=total) > 0
+        ends = torch.cat([base_b[1:], base_b.new_tensor([total])])
+        cum = torch.cat([used_c.new_zeros(1, dtype=torch.long), used_c.long().cumsum(0)])
+        return cum[ends] - cum[base_b]
+    key_s, order_t = torch.sort(key_t)
+    run_t = torch.ones_like(key_s, dtype=torch.bool)
+    run_t[1:] = key_s[1:] != key_s[:-1]
+    return torch.bincount(batch_t[order_t][run_t], minlength=B)
 
 
 def _layout(points_td, batch_t, lo_bd, extent_bd, count_b, per_cell):
@@ -120,15 +133,13 @@ def _layout(points_td, batch_t, lo_bd, extent_bd, count_b, per_cell):
     while True:  # refine for points on surfaces/curves (occupancy above target)
         h_b = torch.maximum(h_b, (extent_bd / (cap - 1)).amax(-1))
         h_b = torch.where(h_b > 0, h_b, torch.ones_like(h_b))
-        layout = _grid_keys(points_td, batch_t, lo_bd, extent_bd, h_b, cap)
-        key_t, order_t = layout[0], layout[1]
-        run_t = torch.ones_like(key_t, dtype=torch.bool)
-        run_t[1:] = key_t[1:] != key_t[:-1]
-        occupied_b = torch.bincount(batch_t[order_t][run_t], minlength=B)
-        ratio_b = count_b / occupied_b.clamp_min(1) / per_cell
+        key_t, dims_bd, stride_bd, base_b, total = _grid_keys(points_td, batch_t, lo_bd,
+                                                              extent_bd, h_b, cap)
+        ratio_b = count_b / _occupied(key_t, batch_t, base_b, total).clamp_min(1) / per_cell
         attempt += 1
         if attempt == 4 or bool((ratio_b <= 1.5).all()):
-            return h_b, layout
+            key_t, order_t = torch.sort(key_t, stable=True)  # stable: index order in a cell
+            return h_b, (key_t, order_t, dims_bd, stride_bd, base_b, total)
         h_b = torch.where(ratio_b > 1.5, h_b * ratio_b.clamp_min(1) ** -0.5, h_b)
 
 
@@ -327,12 +338,17 @@ def _octant_pass(grid: GridIndex, q_qd, b_q, cell_qd, key_q, best_qk, idx_qk):
     Q, D = q_qd.shape
     h_q = grid.h_b.index_select(0, b_q)[:, None]
     lo_qd = grid.lo_bd.index_select(0, b_q) + cell_qd * h_q
-    side_qd = torch.where(q_qd - lo_qd < 0.5 * h_q, -1, 1)
+    upper_qd = q_qd - lo_qd >= 0.5 * h_q  # the nearer neighbour is above on that axis
+    side_qd = torch.where(upper_qd, 1, -1)
     corner_sd = torch.cartesian_prod(*([torch.tensor([0, 1], device=q_qd.device)] * D))
-    corner_sd = corner_sd.reshape(-1, D)
+    corner_sd = corner_sd.reshape(-1, D)  # (2^D, D), also the sign patterns as bits
     S = corner_sd.shape[0]
-    stride_qd = grid.stride_bd.index_select(0, b_q)
-    delta_qs = ((corner_sd[None] * side_qd[:, None, :]) * stride_qd[:, None, :]).sum(-1)
+    # key offsets of the 2^D cells for each sign pattern and batch item: (B * 2^D, 2^D)
+    sign_pd = 2 * corner_sd - 1
+    table = ((corner_sd[None, None] * sign_pd[None, :, None, :])
+             * grid.stride_bd[:, None, None, :]).sum(-1).reshape(-1, S)
+    pattern_q = (upper_qd.long() * (2 ** torch.arange(D - 1, -1, -1, device=q_qd.device))).sum(-1)
+    delta_qs = table.index_select(0, b_q * S + pattern_q)
     step = max(1, CHUNK_PAIRS // S)
     for s in range(0, Q, step):  # loop over memory chunks
         key_p = (key_q[s : s + step, None] + delta_qs[s : s + step]).reshape(-1)
