@@ -7,12 +7,13 @@ Subpackages, one per area:
 - :mod:`torchgeo_cg.curves`: Bezier, Hermite/PCHIP, parametric and implicit 2D curves;
 - :mod:`torchgeo_cg.sdf`: signed distance fields, grids and samplers;
 - :mod:`torchgeo_cg.mesh`: marching cubes, Catmull-Clark subdivision, mesh I/O;
+- :mod:`torchgeo_cg.points`: exact k nearest neighbours and the Chamfer distance;
 - :mod:`torchgeo_cg.viz` and :mod:`torchgeo_cg.cli`: the gallery and ``torchgeo-cg``.
 """
 
-from torchgeo_cg import core, curves, mesh, sdf, transforms
+from torchgeo_cg import core, curves, mesh, points, sdf, transforms
 from torchgeo_cg.core import ShapeError
 
 __version__ = "0.1.0"
 
-__all__ = ["ShapeError", "core", "curves", "mesh", "sdf", "transforms", "__version__"]
+__all__ = ["ShapeError", "core", "curves", "mesh", "points", "sdf", "transforms", "__version__"]

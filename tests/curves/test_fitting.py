@@ -55,3 +55,100 @@ def test_bad_input():
         fit_bezier(torch.randn(8, 2), 3, parametrization="arc")
     with pytest.raises(ShapeError, match="at least 2 points"):
         fit_parameters(torch.randn(1, 2))
+
+
+# --- parameter correction, weights, ragged batches (issue 15) ---------------------------
+
+def _noisy_stroke(seed: int, m: int = 40):
+    gen = torch.Generator().manual_seed(seed)
+    cp = torch.rand(4, 2, generator=gen, dtype=torch.float64)
+    t = torch.rand(m, generator=gen, dtype=torch.float64).sort().values
+    t = (t - t[0]) / (t[-1] - t[0])
+    return bernstein_basis(t, 3) @ cp + 0.01 * torch.randn(m, 2, generator=gen,
+                                                           dtype=torch.float64)
+
+
+def test_correction_reaches_the_joint_optimum_of_scipy():
+    from scipy.optimize import least_squares
+
+    points = _noisy_stroke(0)
+    fit = fit_bezier(points, 3, correct_parameters=True, tol=1e-10, max_iterations=500)
+    start = fit_bezier(points, 3)
+
+    def residual(x):
+        cp, t = x[:8].reshape(4, 2), np.clip(x[8:], 0, 1)
+        return (bernstein_basis(torch.from_numpy(t), 3).numpy() @ cp - points.numpy()).ravel()
+
+    x0 = np.concatenate([start.control_points.numpy().ravel(), start.t.numpy()])
+    ref = least_squares(residual, x0, xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    ref_rms = np.sqrt((ref.fun**2).sum() / 40)
+    assert float(fit.rms) < 0.5 * float(start.rms)
+    assert float(fit.rms) <= ref_rms * (1 + 1e-4)
+    # first-order optimality in t: the residual is orthogonal to the tangent
+    a = bernstein_basis(fit.t, 3) @ fit.control_points - points
+    tangent = bernstein_basis(fit.t, 2) @ (3 * (fit.control_points[1:] - fit.control_points[:-1]))
+    inner = (fit.t > 0) & (fit.t < 1)
+    scale = float(a.norm(dim=-1).max() * tangent.norm(dim=-1).max())
+    assert (a * tangent).sum(-1)[inner].abs().max() < 1e-3 * scale
+
+
+def test_ragged_list_padded_and_loop_agree():
+    strokes = [_noisy_stroke(s, m) for s, m in ((1, 12), (2, 30), (3, 7))]
+    loop = [fit_bezier(s, 3, correct_parameters=True) for s in strokes]
+    listed = fit_bezier(strokes, 3, correct_parameters=True)
+    padded = torch.nn.utils.rnn.pad_sequence(strokes, batch_first=True)
+    lengths = torch.tensor([12, 30, 7])
+    by_lengths = fit_bezier(padded, 3, correct_parameters=True, lengths=lengths)
+    nested = fit_bezier(torch.nested.nested_tensor(strokes), 3, correct_parameters=True)
+    for fit in (listed, by_lengths, nested):
+        assert fit.control_points.shape == (3, 4, 2) and fit.t.shape == (3, 30)
+        for b, ref in enumerate(loop):
+            assert_close(fit.control_points[b], ref.control_points, scale=1e3)
+            assert_close(fit.t[b, : lengths[b]], ref.t, scale=1e3)
+            assert_close(fit.rms[b], ref.rms, scale=1e3)
+        assert (fit.t[2, 7:] == 0).all()
+
+
+def test_weights_equal_repeated_and_removed_samples():
+    points = _noisy_stroke(4, 20)
+    weights = torch.ones(20, dtype=torch.float64)
+    weights[3], weights[10] = 0.0, 3.0
+    fit = fit_bezier(points, 3, parametrization="uniform", weights=weights)
+    t = torch.linspace(0, 1, 20, dtype=torch.float64)
+    keep = torch.cat([torch.arange(20)[weights > 0], torch.tensor([10, 10])])
+    basis = bernstein_basis(t[keep], 3)
+    ref = torch.linalg.lstsq(basis, points[keep]).solution
+    assert_close(fit.control_points, ref)
+    r2 = ((bernstein_basis(t, 3) @ ref - points) ** 2).sum(-1)
+    assert_close(fit.rms, ((weights * r2).sum() / weights.sum()).sqrt())
+    with pytest.raises(ValueError, match="weights"):
+        fit_bezier(points, 3, weights=-weights)
+
+
+def test_progress_bar_and_more_errors(capsys):
+    fit_bezier(_noisy_stroke(5), 3, correct_parameters=True, progress=True)
+    assert "fit_bezier" in capsys.readouterr().err
+    with pytest.raises(ShapeError, match="at least degree"):
+        fit_bezier([torch.randn(8, 2), torch.randn(3, 2)], 3)
+    with pytest.raises(ValueError, match="lengths"):
+        fit_bezier(torch.randn(2, 8, 2), 3, lengths=torch.tensor([8, 9]))
+    with pytest.raises(ValueError, match="max_iterations"):
+        fit_bezier(torch.randn(8, 2), 3, correct_parameters=True, max_iterations=0)
+
+
+@pytest.mark.grad
+def test_gradient_with_corrected_parameters():
+    points = _noisy_stroke(6, 10).requires_grad_(True)
+    # the corrected t are constants: the gradient at fixed parameters is checked
+    t = fit_bezier(points.detach(), 3, correct_parameters=True).t
+
+    def fn(p):
+        return fit_bezier(p, 3, correct_parameters=True).control_points
+
+    assert torch.autograd.gradcheck(lambda p: _fixed_t_fit(p, t), (points,))
+    torch.testing.assert_close(fn(points), _fixed_t_fit(points, t))
+
+
+def _fixed_t_fit(points, t):
+    basis = bernstein_basis(t, 3)
+    return torch.linalg.lstsq(basis, points).solution

@@ -113,3 +113,107 @@ def test_bad_input():
         SDFSampler(lambda p: p[:, 0] * 0 + 1.0, balanced=True, uniform_fraction=1.0).sample(10)
     with pytest.raises(RuntimeError, match="surface points"):
         SDFSampler(lambda p: sphere(p, 5.0), seed=0).sample(10)
+
+
+# --- polygon meshes, batches, DataLoader workers, progress (issues 10, 11, 15) ----------
+
+def _control_mesh():
+    from importlib.resources import files
+
+    from torchgeo_cg.mesh import load_mesh
+
+    return load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj", dtype=torch.float64)
+
+
+def test_quad_control_mesh_is_triangulated():
+    from torchgeo_cg.mesh import triangulate_faces
+
+    mesh = _control_mesh()
+    assert mesh.faces.shape[1] == 4
+    sampler = SDFSampler(mesh, seed=0)
+    tris = triangulate_faces(mesh.faces)
+    assert torch.equal(sampler.faces, tris)
+    s = sampler.sample(500)
+    assert_close(s.sdf, mesh_sdf(mesh.verts, tris, s.points).sdf)
+    surface = sampler.surface_points(200)
+    assert mesh_sdf(mesh.verts, tris, surface).sdf.abs().max() < 1e-12
+
+
+def test_batched_surface_sampling_equals_the_loop():
+    m = trimesh.creation.icosphere(subdivisions=1)
+    verts = torch.tensor(m.vertices)
+    quads_and_tris = torch.tensor(m.faces)
+    batch = torch.stack([verts, 2 * verts + 1, verts * torch.tensor([1.0, 3.0, 0.5])])
+    batch = batch.reshape(3, 1, -1, 3).expand(3, 2, -1, 3)  # batch dims (3, 2)
+    got = sample_mesh_surface(batch, quads_and_tris, 64, torch.Generator().manual_seed(5))
+    gen = torch.Generator().manual_seed(5)
+    loop = torch.stack([sample_mesh_surface(v, quads_and_tris, 64, gen)
+                        for v in batch.reshape(6, -1, 3)])
+    assert got.shape == (3, 2, 64, 3)
+    assert torch.equal(got.reshape(6, 64, 3), loop)
+
+
+def test_surface_sampling_of_polygons_is_area_weighted():
+    # a unit square (quad) and a triangle of area 2: points in ratio 1 : 2
+    V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [2, 0, 1],
+                      [0, 2, 1]])
+    F = torch.tensor([[0, 1, 2, 3], [4, 5, 6, -1]])
+    p = sample_mesh_surface(V, F, 3000, torch.Generator().manual_seed(1))
+    k = int((p[:, 2] == 0).sum())
+    assert stats.binomtest(k, 3000, 1 / 3).pvalue > 1e-3
+
+
+@pytest.mark.xfail(reason="needs batched mesh_sdf (i16)", strict=False)
+def test_batched_sampler_matches_per_mesh_values():
+    mesh = _control_mesh()
+    batch = torch.stack([mesh.verts, 0.5 * mesh.verts + 0.1])
+    s = SDFSampler((batch, mesh.faces), seed=3, balanced=True).sample(300)
+    assert s.points.shape == (2, 300, 3) and s.sdf.shape == (2, 300)
+    from torchgeo_cg.mesh import triangulate_faces
+
+    tris = triangulate_faces(mesh.faces)
+    for b in range(2):
+        assert_close(s.sdf[b], mesh_sdf(batch[b], tris, s.points[b]).sdf)
+        assert int((s.sdf[b] < 0).sum()) == 150
+
+
+class _SamplerDataset(torch.utils.data.Dataset):
+    def __init__(self, seed):
+        self.sampler = SDFSampler(sphere, seed=seed, dtype=torch.float64)
+
+    def __len__(self):
+        return 4
+
+    def __getitem__(self, i):
+        info = torch.utils.data.get_worker_info()
+        return info.id, self.sampler.sample(16).points
+
+
+def _worker_streams(seed):
+    loader = torch.utils.data.DataLoader(_SamplerDataset(seed), batch_size=None, num_workers=2,
+                                         multiprocessing_context="fork")
+    return list(loader)
+
+
+def test_dataloader_workers_get_independent_reproducible_streams():
+    first = _worker_streams(seed=11)
+    ids = [w for w, _ in first]
+    assert sorted(set(ids)) == [0, 1]
+    by_worker = {w: [p for i, p in first if i == w] for w in (0, 1)}
+    assert not torch.equal(by_worker[0][0], by_worker[1][0])  # independent streams
+    assert not torch.equal(by_worker[0][0], by_worker[0][1])  # a stream moves on
+    again = _worker_streams(seed=11)
+    assert all(torch.equal(a, b) for (_, a), (_, b) in zip(first, again))  # reproducible
+    other = _worker_streams(seed=12)
+    assert not torch.equal(first[0][1], other[0][1])
+
+
+def test_nan_variance_and_progress(capsys):
+    with pytest.raises(ValueError, match="variances"):
+        SDFSampler(sphere, variances=(math.nan,))
+    with pytest.raises(ValueError, match="variances"):
+        SDFSampler(sphere, variances=(0.01, math.inf))
+    SDFSampler(sphere, seed=0).sample(100, progress=True)
+    assert "SDFSampler" in capsys.readouterr().err
+    SDFSampler(sphere, seed=0).sample(100)
+    assert "SDFSampler" not in capsys.readouterr().err

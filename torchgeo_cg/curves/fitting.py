@@ -11,19 +11,29 @@ Convention:
       back) and is differentiable with respect to the points. Chord and
       centripetal parameters are computed without gradients (treated as
       constants), so the gradient is the one at fixed parameters.
+    - With ``correct_parameters=True`` each sample's parameter is then improved by
+      safeguarded Newton steps on ``|B(t_k) - x_k|^2`` alternating with the solve
+      (Hoschek's "parameter correction", Plass & Stone 1983), until the rms improves by
+      less than ``tol`` (relative) or ``max_iterations`` solves. The parameters end up
+      (locally) orthogonal: ``(B(t_k) - x_k) . B'(t_k) = 0``, so the gradient at fixed
+      parameters is also the gradient of the optimal residual (envelope theorem).
+    - Ragged batches: a list of ``(M_i, D)`` tensors, a nested tensor, or a padded
+      ``(*, M, D)`` tensor with ``lengths (*,)``; padded rows are ignored and get
+      ``t = 0``.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.core.numerics import safe_norm
-from torchgeo_cg.curves.bernstein import _check_degree, bernstein_basis
+from torchgeo_cg.core.numerics import safe_norm, safe_sqrt
 
-__all__ = ["BezierFit", "fit_parameters", "fit_bezier"]
+__all__ = ["BezierFit", "fit_parameters", "fit_bezier", "as_padded_strokes"]
 
 _METHODS = ("uniform", "chord", "centripetal")
 
@@ -34,7 +44,8 @@ class BezierFit(NamedTuple):
     Attributes:
         control_points: ``(*, n + 1, D)``.
         t: ``(*, M)`` the parameters used.
-        rms: ``(*)`` root-mean-square distance between ``B(t_k)`` and the points.
+        rms: ``(*)`` root-mean-square distance between ``B(t_k)`` and the points
+            (weighted by ``weights`` when given: ``sqrt(sum w |r|^2 / sum w)``).
 
     Example:
         >>> fit = fit_bezier(torch.tensor([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]), 1)
@@ -87,20 +98,249 @@ def fit_parameters(points: torch.Tensor, parametrization: str = "chord") -> torc
         return torch.where(ok, t, uniform)
 
 
-def fit_bezier(points: torch.Tensor, degree: int, parametrization: str = "chord") -> BezierFit:
+def _degree(degree: object) -> int:
+    if isinstance(degree, bool) or not isinstance(degree, int):
+        raise TypeError(f"degree: expected an int, got {type(degree).__name__}")
+    if degree < 0:
+        raise ValueError(f"degree: expected a non-negative degree, got {degree}")
+    return degree
+
+
+def _pad_list(items, name: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """A list of ``(M_i, ...)`` tensors as a zero-padded ``(B, M, ...)`` tensor and lengths."""
+    items = [torch.as_tensor(x) for x in items]
+    if not items:
+        raise ValueError(f"{name}: expected at least one stroke, got an empty list")
+    lengths = torch.tensor([x.shape[0] for x in items], device=items[0].device)
+    return torch.nn.utils.rnn.pad_sequence(items, batch_first=True), lengths
+
+
+def as_padded_strokes(points, lengths=None, weights=None):
+    """Normalise strokes to ``(points (*, M, D), valid (*, M), weights (*, M) | None)``.
+
+    Args:
+        points: ``(*, M, D)`` tensor, a list of ``(M_i, D)`` tensors or a nested tensor.
+        lengths: ``(*,)`` integer valid rows of a padded tensor (default: all ``M``).
+        weights: ``(*, M)`` non-negative per-sample weights (a list for list input).
+
+    Example:
+        >>> p, valid, w = as_padded_strokes([torch.zeros(3, 2), torch.ones(2, 2)])
+        >>> p.shape, valid.tolist(), w
+        (torch.Size([2, 3, 2]), [[True, True, True], [True, True, False]], None)
+    """
+    if isinstance(points, torch.Tensor) and points.is_nested:
+        points = list(points.unbind())
+    if isinstance(points, Sequence) and not isinstance(points, torch.Tensor):
+        if lengths is not None:
+            raise ValueError("lengths: give lengths only with a padded tensor, not a list")
+        points, lengths = _pad_list(points, "points")
+        if weights is not None and not isinstance(weights, torch.Tensor):
+            weights = _pad_list(weights, "weights")[0]
+    check_float(points, "points")
+    sizes = check_shape(points, ["*", "M", "D"], "points")
+    m = sizes["M"]
+    if lengths is None:
+        valid = torch.ones(points.shape[:-1], dtype=torch.bool, device=points.device)
+    else:
+        lengths = torch.as_tensor(lengths, device=points.device)
+        if lengths.is_floating_point() or tuple(lengths.shape) != tuple(sizes["*"]):
+            raise ShapeError(f"lengths: expected an integer tensor of shape {tuple(sizes['*'])},"
+                             f" got {lengths.dtype} {tuple(lengths.shape)}")
+        if lengths.numel() and (int(lengths.min()) < 0 or int(lengths.max()) > m):
+            raise ValueError(f"lengths: expected values in [0, {m}], got {lengths.tolist()}")
+        valid = torch.arange(m, device=points.device) < lengths[..., None]
+    if weights is not None:
+        check_float(weights, "weights")
+        check_shape(weights, [*sizes["*"], m], "weights")
+        if bool((weights < 0).any()):
+            raise ValueError("weights: expected non-negative weights, got a negative one")
+        weights = weights.to(points)
+    return points, valid, weights
+
+
+def _parameters(points, valid, parametrization: str) -> torch.Tensor:
+    """Chord/centripetal/uniform parameters over the valid rows of each stroke."""
+    if bool(valid.all()):
+        return fit_parameters(points, parametrization)
+    with torch.no_grad():
+        n_valid = valid.sum(-1, keepdim=True).to(points.dtype)
+        index = torch.arange(points.shape[-2], device=points.device).to(points.dtype)
+        uniform = (index / (n_valid - 1).clamp_min(1)).clamp_max(1)
+        if parametrization == "uniform":
+            return torch.where(valid, uniform, 0.0)
+        step = safe_norm(points[..., 1:, :] - points[..., :-1, :], dim=-1)
+        step = torch.where(valid[..., 1:], step, 0.0)
+        if parametrization == "centripetal":
+            step = step.sqrt()
+        cumulative = torch.cat([torch.zeros_like(step[..., :1]), step.cumsum(-1)], dim=-1)
+        total = cumulative[..., -1:]
+        t = torch.where(total > 0, cumulative / torch.where(total > 0, total, 1.0), uniform)
+        return torch.where(valid, t, 0.0)
+
+
+def _bases(t: torch.Tensor, degree: int) -> torch.Tensor:
+    """Bernstein basis ``(n + 1, *, M)`` at ``t`` (degree first, for cheap reductions)."""
+    basis = [torch.ones_like(t)]
+    for _ in range(degree):  # loop over degrees: b_{k,n} = (1-t) b_{k,n-1} + t b_{k-1,n-1}
+        nxt = [(1 - t) * basis[0]]
+        nxt += [(1 - t) * basis[k] + t * basis[k - 1] for k in range(1, len(basis))]
+        basis = nxt + [t * basis[-1]]
+    return torch.stack(basis)
+
+
+def _solve(t, points, w, degree: int) -> torch.Tensor:
+    """Weighted least-squares control points ``(*, n + 1, D)`` (call in float64).
+
+    Normal equations ``(A^T W A) c = A^T W x`` solved by LU (small ``(n+1)^2`` systems,
+    much faster than a batched ``lstsq``); if a system is singular (coincident
+    parameters) the whole batch falls back to ``lstsq`` (minimum-norm solution). The
+    products are elementwise sums, not BLAS calls: tiny float64 GEMMs are slow and,
+    with several threads on a busy machine, erratic.
+    """
+    basis_k = _bases(t, degree)  # (K, *, M)
+    weighted_k = basis_k * w
+    gram = (weighted_k[:, None] * basis_k[None]).sum(-1).movedim(0, -1).movedim(0, -1)
+    points_d = points.movedim(-1, 0)  # (D, *, M)
+    rhs = (weighted_k[:, None] * points_d[None]).sum(-1).movedim(0, -1).movedim(0, -1)
+    solution, info = torch.linalg.solve_ex(gram, rhs)
+    if bool((info != 0).any()) or not bool(torch.isfinite(solution).all()):
+        root_w = w.sqrt().unsqueeze(-1)
+        basis = basis_k.movedim(0, -1)
+        return torch.linalg.lstsq(basis * root_w, points * root_w).solution
+    return solution
+
+
+def _evaluate(cp: torch.Tensor, basis_k: torch.Tensor) -> torch.Tensor:
+    """Curve points ``(D, *, M)`` from control points ``(*, K, D)`` and basis ``(K, *, M)``."""
+    cp_kd = cp.movedim(-2, 0).movedim(-1, 1).unsqueeze(-1)  # (K, D, *, 1)
+    return (basis_k[:, None] * cp_kd).sum(0)
+
+
+def _power_coefficients(cp: torch.Tensor) -> torch.Tensor:
+    """Monomial coefficients ``(n + 1, D, *, 1)`` of Bezier control points ``(*, n + 1, D)``.
+
+    ``B(t) = sum_j a_j t^j`` with ``a_j = C(n, j) sum_{i<=j} (-1)^(j-i) C(j, i) c_i``.
+    """
+    n = cp.shape[-2] - 1
+    table = [[math.comb(n, j) * math.comb(j, i) * (-1) ** (j - i) if i <= j else 0
+              for i in range(n + 1)] for j in range(n + 1)]
+    convert = torch.tensor(table, dtype=cp.dtype, device=cp.device)  # (K, K)
+    cp_kd = cp.movedim(-2, 0).movedim(-1, 1)  # (K, D, *)
+    extra = (1,) * (cp_kd.dim() - 1)
+    return (convert.view(n + 1, n + 1, *extra) * cp_kd[None]).sum(1).unsqueeze(-1)
+
+
+def _horner(a: torch.Tensor, t: torch.Tensor, order: int) -> torch.Tensor:
+    """``order``-th derivative ``(D, *, M)`` of ``sum_j a_j t^j`` by Horner's rule."""
+    n = a.shape[0] - 1
+    if order > n:
+        return torch.zeros_like(a[0] * t)
+    value = a[n] * math.perm(n, order)
+    for j in range(n - 1, order - 1, -1):  # loop over degrees
+        value = value * t + a[j] * math.perm(j, order)
+    return value
+
+
+def _newton(cp, t, points_d, degree: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """One safeguarded Newton step on every ``t_k`` for ``|B(t_k) - x_k|^2`` (float64).
+
+    ``points_d`` is ``(D, *, M)``. Newton where ``f'' > 0``, else Gauss-Newton
+    (``f'' ~ |B'|^2``); the step is halved up to 4 times until the residual decreases.
+    Returns the new parameters and the squared residuals ``(*, M)`` at the old ones.
+    """
+    a = _power_coefficients(cp)
+    r = _horner(a, t, 0) - points_d
+    d1 = _horner(a, t, 1)
+    d2 = _horner(a, t, 2)
+    grad = (r * d1).sum(0)
+    speed2 = (d1 * d1).sum(0)
+    hess = speed2 + (r * d2).sum(0)
+    hess = torch.where(hess > 0, hess, speed2)
+    step = torch.where(hess > 0, -grad / torch.where(hess > 0, hess, 1.0), 0.0)
+    best_t, best_r2 = t, r.square().sum(0)
+    for _ in range(4):  # backtracking halvings (a loop over attempts, not samples)
+        trial = (t + step).clamp(0, 1)
+        trial_r2 = (_horner(a, trial, 0) - points_d).square().sum(0)
+        better = trial_r2 < best_r2
+        best_t = torch.where(better, trial, best_t)
+        best_r2 = torch.where(better, trial_r2, best_r2)
+        step = 0.5 * step
+    return best_t, r.square().sum(0)
+
+
+def _rms(cp, t, points, w, degree: int) -> torch.Tensor:
+    r2 = (_evaluate(cp, _bases(t, degree)) - points.movedim(-1, 0)).square().sum(0)
+    total_w = w.sum(-1)
+    mean = (w * r2).sum(-1) / torch.where(total_w > 0, total_w, 1.0)
+    return safe_sqrt(mean, eps=0.0)
+
+
+def _correct(t, points64, w64, degree, tol, max_iterations, progress):
+    """Alternate solve and Newton steps on ``t`` until the rms stalls (float64, no grad).
+
+    Each stroke stops on its own, as soon as its rms improves by less than ``tol``
+    (relative) in one iteration; later iterations only process the strokes still running,
+    so a batch gives the same result as a loop over its strokes.
+    """
+    from tqdm.auto import tqdm
+
+    batch = t.shape[:-1]
+    m, d = points64.shape[-2:]
+    t_sm = t.reshape(-1, m).clone()
+    p_smd, w_sm = points64.reshape(-1, m, d), w64.reshape(-1, m)
+    active = torch.arange(t_sm.shape[0], device=t.device)
+    previous = None
+    bar = tqdm(range(max_iterations), disable=not progress, desc="fit_bezier", unit="it")
+    for _ in bar:  # loop over iterations
+        t_a, p_a, w_a = t_sm[active], p_smd[active], w_sm[active]
+        cp = _solve(t_a, p_a, w_a, degree)
+        t_new, r2 = _newton(cp, t_a, p_a.movedim(-1, 0), degree)
+        rms = ((w_a * r2).sum(-1) / w_a.sum(-1).clamp_min(torch.finfo(w_a.dtype).tiny)).sqrt()
+        if previous is not None:
+            going = (previous - rms) > tol * previous
+            bar.set_postfix(running=int(going.sum()))
+            active, t_new, rms = active[going], t_new[going], rms[going]
+            if active.numel() == 0:
+                break
+        previous = rms
+        t_sm[active] = t_new
+    bar.close()
+    return t_sm.reshape(*batch, m)
+
+
+def fit_bezier(
+    points,
+    degree: int,
+    parametrization: str = "chord",
+    correct_parameters: bool = False,
+    tol: float = 1e-6,
+    max_iterations: int = 100,
+    weights=None,
+    lengths=None,
+    progress: bool = False,
+) -> BezierFit:
     """Fit one Bezier curve of ``degree`` to each ordered point set by least squares.
 
     Convention:
         See the module docstring. ``M >= degree + 1`` points are needed for a
-        unique solution; fewer raise :class:`ShapeError`.
+        unique solution; fewer raise :class:`ShapeError`. Minimises
+        ``sum_k w_k |B(t_k) - x_k|^2`` (``w_k = 1`` by default).
 
     Args:
-        points: ``(*, M, D)``.
+        points: ``(*, M, D)``, a list of ``(M_i, D)`` tensors, or a nested tensor.
         degree: ``n >= 0``.
-        parametrization: ``"uniform"``, ``"chord"`` or ``"centripetal"``.
+        parametrization: initial parameters, ``"uniform"``, ``"chord"`` or ``"centripetal"``.
+        correct_parameters: improve each ``t_k`` by safeguarded Newton steps
+            alternating with the solve (see the module docstring).
+        tol: relative rms improvement below which the correction stops.
+        max_iterations: most solves of the correction.
+        weights: ``(*, M)`` non-negative per-sample weights (a list for list input).
+        lengths: ``(*,)`` valid rows of each stroke of a padded ``points`` tensor.
+        progress: show a tqdm progress bar over the correction iterations.
 
     Returns:
-        :class:`BezierFit` ``(control_points (*, n + 1, D), t (*, M), rms (*))``.
+        :class:`BezierFit` ``(control_points (*, n + 1, D), t (*, M), rms (*))``; for
+        list input ``*`` is the number of strokes and ``M`` the longest.
 
     Example:
         >>> t = torch.linspace(0, 1, 9, dtype=torch.float64)
@@ -112,18 +352,35 @@ def fit_bezier(points: torch.Tensor, degree: int, parametrization: str = "chord"
                 [1.0000, 1.0000]], dtype=torch.float64)
         >>> bool(fit.rms < 1e-12)
         True
+        >>> s = torch.linspace(0, 1, 9, dtype=torch.float64) ** 2  # uneven sampling
+        >>> quarter = torch.stack([torch.cos(s), torch.sin(s)], -1)
+        >>> chord = fit_bezier(quarter, 2).rms
+        >>> corrected = fit_bezier(quarter, 2, correct_parameters=True).rms
+        >>> bool(corrected < 0.2 * chord)
+        True
     """
-    degree = _check_degree(degree)
-    t = fit_parameters(points, parametrization)
-    m = points.shape[-2]
-    if m < degree + 1:
+    degree = _degree(degree)
+    if parametrization not in _METHODS:
+        raise ValueError(f"parametrization: expected one of {_METHODS}, got {parametrization!r}")
+    if not (isinstance(max_iterations, int) and max_iterations >= 1):
+        raise ValueError(f"max_iterations: expected a positive int, got {max_iterations!r}")
+    if not tol >= 0:
+        raise ValueError(f"tol: expected a non-negative number, got {tol}")
+    points, valid, weights = as_padded_strokes(points, lengths, weights)
+    least = int(valid.sum(-1).min()) if valid.numel() else degree + 1
+    if least < degree + 1:
         raise ShapeError(
             f"points: fitting degree {degree} needs at least degree + 1 = {degree + 1} points, "
-            f"got {m} (shape {tuple(points.shape)})"
+            f"got {least} (shape {tuple(points.shape)})"
         )
-    basis = bernstein_basis(t, degree)  # (*, M, n + 1)
-    solution = torch.linalg.lstsq(basis.double(), points.double()).solution  # (*, n + 1, D)
-    control_points = solution.to(points.dtype)
-    residual = torch.matmul(basis, control_points) - points
-    rms = safe_norm(residual.flatten(-2), dim=-1) / m**0.5
+    t = _parameters(points, valid, parametrization)
+    w = valid.to(points.dtype) if weights is None else weights * valid
+    if correct_parameters:
+        with torch.no_grad():
+            t64 = _correct(t.double(), points.detach().double(), w.double(), degree, tol,
+                           max_iterations, progress)
+            t = torch.where(valid, t64.to(points.dtype), 0.0)
+    cp64 = _solve(t.double(), points.double(), w.double(), degree)  # differentiable
+    control_points = cp64.to(points.dtype)
+    rms = _rms(control_points, t, points, w, degree)
     return BezierFit(control_points, t, rms)

@@ -10,6 +10,14 @@ from torchgeo_cg.mesh.faces import (
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
 from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
+from torchgeo_cg.mesh.regularizers import (
+    MeshEdges,
+    edge_length_loss,
+    laplacian_smoothing_loss,
+    mesh_edges,
+    mesh_laplacian,
+    normal_consistency_loss,
+)
 from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
     SubdivisionOperator,
@@ -33,3 +41,11 @@ __all__ += [
 ]
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 __all__ += ["SubdivisionTags", "INFINITELY_SHARP"]
+__all__ += [
+    "MeshEdges",
+    "mesh_edges",
+    "mesh_laplacian",
+    "laplacian_smoothing_loss",
+    "normal_consistency_loss",
+    "edge_length_loss",
+]

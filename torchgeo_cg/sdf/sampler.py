@@ -10,12 +10,25 @@ set of an analytic SDF, and distances come from :func:`~torchgeo_cg.sdf.mesh_dis
 or the function itself.
 
 Convention:
-    - SDF negative inside; points ``(N, 3)`` in world units.
+    - SDF negative inside; points ``(*, N, 3)`` in world units, ``*`` the batch of a
+      mesh given as ``vertices (*, V, 3)`` sharing one topology (no batch for SDF
+      functions).
+    - Polygon faces (``(F, K)`` padded with ``-1``, e.g. from
+      :func:`~torchgeo_cg.mesh.io.load_mesh`) are fan-triangulated with
+      :func:`~torchgeo_cg.mesh.faces.triangulate_faces` (``(v0, vk, vk+1)``), which is
+      exact for planar convex polygons; a non-planar quad is replaced by two triangles.
     - Without balancing, the rows come in blocks: the surface points perturbed with
       ``variances[0]``, then with ``variances[1]`` (and so on), then the uniform ones.
     - ``variances`` are per-axis variances ``sigma^2`` of the Gaussian offsets.
     - Randomness comes from one ``torch.Generator`` seeded with ``seed`` on the CPU, so a
       seed reproduces the samples on every device.
+    - DataLoader workers: a sampler created in a ``Dataset.__init__`` is copied into every
+      worker with the same generator state, which would give every worker the same
+      stream. The first draw inside a worker therefore reseeds the sampler's generator
+      from ``(seed, worker id)`` (``numpy.random.SeedSequence``), or from the worker's
+      own seed (``torch.utils.data.get_worker_info().seed``, derived by the DataLoader
+      from its base seed) when ``seed`` is ``None``: streams are independent across
+      workers and reproducible across runs, without any ``worker_init_fn``.
 """
 
 from __future__ import annotations
@@ -28,42 +41,108 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
-from torchgeo_cg.sdf.grid import _bounds
-from torchgeo_cg.sdf.mesh_distance import _check_mesh, mesh_sdf
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.mesh.faces import check_faces, triangulate_faces
+from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
-__all__ = ["SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples", "load_samples"]
+__all__ = [
+    "SDFSamples",
+    "SDFSampler",
+    "sample_mesh_surface",
+    "triangle_mesh",
+    "worker_seed",
+    "save_samples",
+    "load_samples",
+]
 
 
 class SDFSamples(NamedTuple):
     """Training samples.
 
     Attributes:
-        points: ``(N, 3)`` positions.
-        sdf: ``(N,)`` signed distances (clamped when the sampler clamps).
+        points: ``(*, N, 3)`` positions.
+        sdf: ``(*, N)`` signed distances (clamped when the sampler clamps).
     """
 
     points: torch.Tensor
     sdf: torch.Tensor
 
 
-def sample_mesh_surface(
-    vertices: torch.Tensor, faces: torch.Tensor, n: int, generator: torch.Generator | None = None
-) -> torch.Tensor:
-    """Uniform (area-weighted) random points on a triangle mesh.
+def triangle_mesh(vertices, faces) -> tuple[torch.Tensor, torch.Tensor]:
+    """Validate a mesh ``(vertices (*, V, 3), faces)`` and return it with triangle faces.
 
     Convention:
-        A face is chosen with probability proportional to its area, then a point with
-        uniform barycentric density ``(1 - sqrt(r1), sqrt(r1) (1 - r2), sqrt(r1) r2)``.
+        Polygons are fan-triangulated (see the module docstring).
 
     Args:
-        vertices: ``(V, 3)``.
-        faces: ``(F, 3)`` integer; at least one face with positive area.
-        n: number of points.
+        vertices: ``(*, V, 3)`` float, finite.
+        faces: ``(F, 3)`` triangles or ``(F, K)`` polygons padded with ``-1`` (tensor,
+            array or list of index lists).
+
+    Returns:
+        ``vertices`` and ``(T, 3)`` long triangles.
+
+    Example:
+        >>> v, f = triangle_mesh(torch.rand(4, 3), [[0, 1, 2, 3]])
+        >>> f
+        tensor([[0, 1, 2],
+                [0, 2, 3]])
+    """
+    check_float(vertices, "vertices")
+    check_shape(vertices, ["*", "V", "3"], "vertices")
+    faces = check_faces(faces, vertices.shape[-2], "faces", allow_duplicates=True,
+                        allow_degenerate=True)
+    if vertices.shape[-2] == 0 or faces.shape[0] == 0:
+        raise ValueError(f"mesh: expected a non-empty mesh, got {vertices.shape[-2]} vertices "
+                         f"and {faces.shape[0]} faces")
+    if not bool(torch.isfinite(vertices).all()):
+        raise ValueError("vertices: expected finite coordinates, got NaN or inf")
+    return vertices, triangulate_faces(faces).to(vertices.device)
+
+
+def worker_seed(seed: int | None) -> int | None:
+    """Seed of the current DataLoader worker's stream, or ``None`` outside workers.
+
+    ``SeedSequence([seed, worker_id])`` when ``seed`` is given, else the worker's own
+    seed (from the DataLoader's base seed).
+
+    Example:
+        >>> worker_seed(0) is None  # not inside a DataLoader worker
+        True
+    """
+    from torch.utils.data import get_worker_info
+
+    info = get_worker_info()
+    if info is None:
+        return None
+    if seed is None:
+        return int(info.seed) & (2**63 - 1)
+    state = np.random.SeedSequence([int(seed) & (2**63 - 1), info.id]).generate_state(2)
+    return (int(state[0]) << 31 ^ int(state[1])) & (2**63 - 1)
+
+
+def sample_mesh_surface(
+    vertices: torch.Tensor, faces, n: int, generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """Uniform (area-weighted) random points on a mesh, batched over shared topology.
+
+    Convention:
+        One uniform draw ``r (*, n, 3)`` from ``generator`` (in float64, C order, so a
+        batch equals a loop over its items with the same generator). A face is picked
+        by inverse CDF of the areas with ``r[..., 0]``, then a point with uniform
+        barycentric density ``(1 - sqrt(r1), sqrt(r1) (1 - r2), sqrt(r1) r2)``. Polygons
+        are fan-triangulated (module docstring).
+
+    Args:
+        vertices: ``(*, V, 3)``.
+        faces: ``(F, 3)`` triangles or ``(F, K)`` padded polygons; each mesh needs a face
+            of positive area.
+        n: number of points per mesh.
         generator: a CPU ``torch.Generator`` (default: the global one).
 
     Returns:
-        ``(n, 3)`` points, dtype and device of ``vertices``.
+        ``(*, n, 3)`` points, dtype and device of ``vertices`` (differentiable w.r.t.
+        ``vertices``).
 
     Example:
         >>> tri = torch.tensor([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -72,35 +151,82 @@ def sample_mesh_surface(
         >>> bool((p[:, 2] == 0).all() and (p[:, 0] + p[:, 1] <= 1).all())
         True
     """
-    _check_mesh(vertices, faces)
-    tri = vertices[faces.long()]
-    area = torch.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1).norm(dim=-1)
-    if not bool((area > 0).any()):
-        raise ValueError("faces: expected at least one face with positive area")
-    face = torch.multinomial(area.detach().double().cpu(), n, replacement=True,
-                             generator=generator)
-    r = torch.rand(n, 2, generator=generator, dtype=torch.float64)
-    s = r[:, 0].sqrt()
-    w = torch.stack([1 - s, s * (1 - r[:, 1]), s * r[:, 1]], dim=-1).to(vertices)
-    corners = tri[face.to(vertices.device)]  # (n, 3, 3)
-    return (w.unsqueeze(-1) * corners).sum(1)
+    vertices, tris = triangle_mesh(vertices, faces)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+        raise ValueError(f"n: expected a non-negative int, got {n!r}")
+    corners = vertices[..., tris, :]  # (*, T, 3, 3)
+    with torch.no_grad():
+        c64 = corners.detach().double().cpu()
+        area = torch.linalg.cross(c64[..., 1, :] - c64[..., 0, :],
+                                  c64[..., 2, :] - c64[..., 0, :]).norm(dim=-1)  # (*, T)
+        if not bool((area.amax(-1) > 0).all()):
+            raise ValueError("faces: expected at least one face with positive area per mesh")
+        cdf = area.cumsum(-1)
+        r = torch.rand(*vertices.shape[:-2], n, 3, generator=generator, dtype=torch.float64)
+        target = r[..., 0] * cdf[..., -1:]
+        face = torch.searchsorted(cdf, target, right=True).clamp_max(tris.shape[0] - 1)
+        s = r[..., 1].sqrt()
+        w = torch.stack([1 - s, s * (1 - r[..., 2]), s * r[..., 2]], dim=-1)
+    face = face.to(vertices.device)
+    picked = torch.gather(corners, -3, face[..., None, None].expand(*face.shape, 3, 3))
+    return (w.to(vertices).unsqueeze(-1) * picked).sum(-2)
+
+
+def _parse_bounds(bounds) -> torch.Tensor:
+    b = torch.as_tensor(bounds, dtype=torch.float64).cpu()
+    if b.dim() == 1 and b.shape[0] == 2:  # (lo, hi) shared by all axes
+        b = b[:, None].expand(2, 3)
+    if b.shape[-2:] != (2, 3):
+        raise ShapeError(f"bounds: expected (lo, hi) or shape (*, 2, 3), got {tuple(b.shape)}")
+    if bool(~torch.isfinite(b).all()) or bool((b[..., 1, :] <= b[..., 0, :]).any()):
+        raise ValueError(f"bounds: expected finite bounds with lo < hi per axis, got {b.tolist()}")
+    return b
+
+
+def _validate_options(variances, uniform_fraction, clamp) -> tuple[float, ...]:
+    variances = tuple(float(v) for v in variances)
+    if len(variances) == 0 or not all(math.isfinite(v) and v > 0 for v in variances):
+        raise ValueError(f"variances: expected positive finite variances, got {variances}")
+    if not 0.0 <= uniform_fraction <= 1.0:
+        raise ValueError(f"uniform_fraction: expected a value in [0, 1], got {uniform_fraction}")
+    if clamp is not None and not clamp > 0:
+        raise ValueError(f"clamp: expected a positive number or None, got {clamp}")
+    return variances
+
+
+def _mesh_source(source):
+    if isinstance(source, (tuple, list)) and len(source) == 2:
+        verts, faces = source
+    elif hasattr(source, "vertices") and hasattr(source, "faces"):
+        verts, faces = source.vertices, source.faces
+    elif hasattr(source, "verts") and hasattr(source, "faces"):
+        verts, faces = source.verts, source.faces
+    else:
+        raise TypeError("source: expected an SDF callable, a (vertices, faces) pair or "
+                        f"a mesh object, got {type(source).__name__}")
+    verts = verts if isinstance(verts, torch.Tensor) else torch.as_tensor(np.asarray(verts))
+    if not isinstance(faces, torch.Tensor) and not isinstance(faces, list):
+        faces = torch.as_tensor(np.asarray(faces))
+    return triangle_mesh(verts, faces)
 
 
 class SDFSampler:
     """Draws ``(points, sdf)`` with the DeepSDF distribution from an SDF or a mesh.
 
     Convention:
-        See the module docstring; SDF negative inside.
+        See the module docstring; SDF negative inside. A batch of meshes sharing one
+        topology gives ``(*, n, 3)`` samples, item ``b`` drawn from mesh ``b``.
 
     Args:
         source: an SDF callable ``(M, 3) -> (M,)`` (function or ``nn.Module``), or a
-            mesh as ``(vertices (V, 3), faces (F, 3))`` or any object with
+            mesh as ``(vertices (*, V, 3), faces)`` (triangles or padded polygons, e.g. a
+            :class:`~torchgeo_cg.mesh.io.Mesh` from ``load_mesh``) or any object with
             ``.vertices`` and ``.faces`` arrays (e.g. ``trimesh.Trimesh``).
-        bounds: box for uniform samples, ``(lo, hi)`` or ``((x0, y0, z0), (x1, y1, z1))``.
-            Default: ``(-1, 1)`` for functions; for meshes the bounding box grown by
-            10% on each side.
+        bounds: box for uniform samples, ``(lo, hi)``, ``((x0, y0, z0), (x1, y1, z1))`` or
+            one box per mesh ``(*, 2, 3)``. Default: ``(-1, 1)`` for functions; for meshes
+            each bounding box grown by 10% of its largest side on each side.
         variances: Gaussian variances of the near-surface perturbations; each surface
-            point is perturbed once per variance.
+            point is perturbed once per variance; positive and finite.
         uniform_fraction: share of uniform samples in ``[0, 1]`` (default 0.06).
         balanced: return as many negative as positive samples (``n // 2`` negatives).
         clamp: clamp the returned SDF to ``[-clamp, clamp]`` (DeepSDF uses 0.1).
@@ -118,76 +244,76 @@ class SDFSampler:
         True
     """
 
-    def __init__(
-        self,
-        source,
-        bounds=None,
-        variances: Sequence[float] = (0.005, 0.0005),
-        uniform_fraction: float = 0.06,
-        balanced: bool = False,
-        clamp: float | None = None,
-        seed: int | None = None,
-        sign: str = "auto",
-        device=None,
-        dtype=None,
-    ):
+    def __init__(self, source, bounds=None, variances: Sequence[float] = (0.005, 0.0005),
+                 uniform_fraction: float = 0.06, balanced: bool = False,
+                 clamp: float | None = None, seed: int | None = None, sign: str = "auto",
+                 device=None, dtype=None):
         self.vertices: torch.Tensor | None = None
         self.faces: torch.Tensor | None = None
+        self.sdf_fn: Callable | None = None
+        kind_dtype, kind_device = None, None
         if callable(source) and not hasattr(source, "faces"):
-            self.sdf_fn: Callable | None = source
-            kind_dtype, kind_device = None, None
+            self.sdf_fn = source
         else:
-            if isinstance(source, (tuple, list)) and len(source) == 2:
-                verts, faces = source
-            elif hasattr(source, "vertices") and hasattr(source, "faces"):
-                verts, faces = source.vertices, source.faces
-            else:
-                raise TypeError("source: expected an SDF callable, a (vertices, faces) pair or "
-                                f"a mesh object, got {type(source).__name__}")
-            verts = torch.as_tensor(np.asarray(verts) if not isinstance(verts, torch.Tensor)
-                                    else verts)
-            faces = torch.as_tensor(np.asarray(faces) if not isinstance(faces, torch.Tensor)
-                                    else faces)
-            _check_mesh(verts, faces)
-            self.vertices, self.faces, self.sdf_fn = verts, faces.long(), None
-            kind_dtype, kind_device = verts.dtype, verts.device
+            self.vertices, self.faces = _mesh_source(source)
+            kind_dtype, kind_device = self.vertices.dtype, self.vertices.device
         self.dtype = dtype or kind_dtype or torch.get_default_dtype()
         self.device = torch.device(device) if device is not None else (
             kind_device or torch.device("cpu"))
         if bounds is None:
-            if self.vertices is None:
-                bounds = (-1.0, 1.0)
-            else:
-                lo, hi = self.vertices.amin(0), self.vertices.amax(0)
-                pad = 0.1 * (hi - lo).clamp_min(1e-6)
-                bounds = torch.stack([lo - pad, hi + pad]).double()
-        self.bounds = _bounds(bounds, "cpu", torch.float64)
-        variances = tuple(float(v) for v in variances)
-        if len(variances) == 0 or min(variances) <= 0:
-            raise ValueError(f"variances: expected positive variances, got {variances}")
-        if not 0.0 <= uniform_fraction <= 1.0:
-            raise ValueError(f"uniform_fraction: expected a value in [0, 1], "
-                             f"got {uniform_fraction}")
-        if clamp is not None and not clamp > 0:
-            raise ValueError(f"clamp: expected a positive number or None, got {clamp}")
-        self.variances = variances
+            bounds = (-1.0, 1.0) if self.vertices is None else self._mesh_bounds()
+        self.bounds = _parse_bounds(bounds)  # (*, 2, 3) float64 CPU
+        self.variances = _validate_options(variances, uniform_fraction, clamp)
         self.uniform_fraction = float(uniform_fraction)
         self.balanced = bool(balanced)
         self.clamp = clamp
         self.sign = sign
+        self.seed = seed
+        self._worker: int | None = None
         self.generator = torch.Generator()
         if seed is None:
             self.generator.seed()
         else:
             self.generator.manual_seed(int(seed))
 
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        """Leading batch dims of the mesh vertices (``()`` for functions)."""
+        return () if self.vertices is None else tuple(self.vertices.shape[:-2])
+
+    def _mesh_bounds(self) -> torch.Tensor:
+        verts = self.vertices.detach().double().cpu()
+        lo, hi = verts.amin(-2), verts.amax(-2)
+        pad = 0.1 * (hi - lo).amax(-1, keepdim=True)
+        return torch.stack([lo - pad, hi + pad], dim=-2)
+
+    def _check_worker(self) -> None:
+        """Reseed once per DataLoader worker (see the module docstring)."""
+        from torch.utils.data import get_worker_info
+
+        info = get_worker_info()
+        if info is not None and self._worker != info.id:
+            self._worker = info.id
+            self.generator.manual_seed(worker_seed(self.seed))
+
     # ----------------------------------------------------------------- pieces
     def _uniform(self, n: int) -> torch.Tensor:
-        r = torch.rand(n, 3, generator=self.generator, dtype=torch.float64)
-        return self.bounds[0] + r * (self.bounds[1] - self.bounds[0])
+        r = torch.rand(*self.batch_shape, n, 3, generator=self.generator, dtype=torch.float64)
+        lo, hi = self.bounds[..., 0:1, :], self.bounds[..., 1:2, :]
+        return lo + r * (hi - lo)
 
-    def _evaluate(self, points64: torch.Tensor) -> torch.Tensor:
+    def _evaluate(self, points64: torch.Tensor, progress: bool = False) -> torch.Tensor:
+        from tqdm.auto import tqdm
+
         pts = points64.to(self.device, self.dtype)
+        chunk = 1 << 16
+        starts = range(0, pts.shape[-2], chunk)
+        out = []
+        for s in tqdm(starts, disable=not progress, desc="SDFSampler", unit="chunk"):
+            out.append(self._evaluate_chunk(pts[..., s : s + chunk, :]))  # loop over chunks
+        return torch.cat(out, -1) if out else pts.new_zeros(pts.shape[:-1])
+
+    def _evaluate_chunk(self, pts: torch.Tensor) -> torch.Tensor:
         if self.sdf_fn is not None:
             with torch.no_grad():
                 values = self.sdf_fn(pts)
@@ -197,10 +323,11 @@ class SDFSampler:
                                  f"{getattr(values, 'shape', type(values))}")
             return values.to(self.dtype)
         verts = self.vertices.to(self.device, self.dtype)
-        return mesh_sdf(verts, self.faces.to(self.device), pts, sign=self.sign).sdf
+        with torch.no_grad():
+            return mesh_sdf(verts, self.faces.to(self.device), pts, sign=self.sign).sdf
 
     def surface_points(self, n: int) -> torch.Tensor:
-        """``(n, 3)`` float64 CPU points on the surface.
+        """``(*, n, 3)`` float64 CPU points on the surface.
 
         Meshes: area-weighted uniform. Functions: uniform points in the bounds pushed
         onto the zero set by 8 Newton steps ``p <- p - f grad f / |grad f|^2``, keeping
@@ -208,9 +335,13 @@ class SDFSampler:
         For an exact SDF one step lands on the closest surface point, so the density
         favours convex, exposed parts; it is not exactly area-uniform.
         """
+        self._check_worker()
         if self.sdf_fn is None:
             verts = self.vertices.detach().cpu().double()
             return sample_mesh_surface(verts, self.faces.cpu(), n, self.generator)
+        return self._function_surface_points(n)
+
+    def _function_surface_points(self, n: int) -> torch.Tensor:
         size = float((self.bounds[1] - self.bounds[0]).max())
         found: list[torch.Tensor] = []
         have = 0
@@ -236,7 +367,7 @@ class SDFSampler:
         raise RuntimeError(f"SDFSampler: found only {have} of {n} surface points in 50 rounds; "
                            "does the shape's zero set lie inside the bounds?")
 
-    def _draw(self, n: int) -> tuple[torch.Tensor, torch.Tensor]:
+    def _draw(self, n: int, progress: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
         n_uniform = int(round(n * self.uniform_fraction))
         n_near = n - n_uniform
         k = len(self.variances)
@@ -245,18 +376,48 @@ class SDFSampler:
         if per:
             surface = self.surface_points(per)
             for var in self.variances:
-                noise = torch.randn(per, 3, generator=self.generator, dtype=torch.float64)
+                noise = torch.randn(surface.shape, generator=self.generator, dtype=torch.float64)
                 blocks.append(surface + math.sqrt(var) * noise)
-        near = torch.cat(blocks)[:n_near] if blocks else torch.zeros(0, 3, dtype=torch.float64)
-        points = torch.cat([near, self._uniform(n_uniform)])
-        return points.to(self.device, self.dtype), self._evaluate(points)
+        near = (torch.cat(blocks, -2)[..., :n_near, :] if blocks
+                else torch.zeros(*self.batch_shape, 0, 3, dtype=torch.float64))
+        points = torch.cat([near, self._uniform(n_uniform)], -2)
+        return points.to(self.device, self.dtype), self._evaluate(points, progress)
+
+    def _balanced(self, n: int, progress: bool) -> tuple[torch.Tensor, torch.Tensor]:
+        """``n // 2`` negatives then the positives, per mesh (rounds until every mesh has them)."""
+        n_neg, n_pos = n // 2, n - n // 2
+        pts, sdfs = [], []
+        for _ in range(50):  # rounds of rejection
+            p, s = self._draw(max(n, 256), progress)
+            pts.append(p)
+            sdfs.append(s)
+            inside = torch.cat(sdfs, -1) < 0
+            got_neg, got_pos = inside.sum(-1), (~inside).sum(-1)
+            if bool((got_neg >= n_neg).all() and (got_pos >= n_pos).all()):
+                break
+        else:
+            raise RuntimeError(f"SDFSampler: cannot balance, found {int(got_neg.min())} negative "
+                               f"and {int(got_pos.min())} positive samples in 50 rounds")
+        points, sdf = torch.cat(pts, -2), torch.cat(sdfs, -1)
+        inside = sdf < 0
+        # stable sorts keep the draw order: positives first, then negatives
+        pos = torch.sort(inside.to(torch.uint8), dim=-1, stable=True).indices[..., :n_pos]
+        neg = torch.sort((~inside).to(torch.uint8), dim=-1, stable=True).indices[..., :n_neg]
+        order = torch.cat([pos, neg], -1)
+        return torch.gather(points, -2, order[..., None].expand(*order.shape, 3)), \
+            torch.gather(sdf, -1, order)
 
     # ----------------------------------------------------------------- public
-    def sample(self, n: int) -> SDFSamples:
-        """Draw ``n`` samples ``(points (n, 3), sdf (n,))``.
+    def sample(self, n: int, progress: bool = False) -> SDFSamples:
+        """Draw ``n`` samples ``(points (*, n, 3), sdf (*, n))``.
 
         With ``balanced=True`` exactly ``n // 2`` are negative and the rest positive
         (extra rounds are drawn as needed; an error if the source has no inside).
+
+        Args:
+            n: number of samples (per mesh).
+            progress: show a tqdm bar over the SDF evaluation chunks (off by default,
+                as in ``fit_transform(progress=...)``).
 
         Example:
             >>> from torchgeo_cg.sdf.primitives import sphere
@@ -266,28 +427,11 @@ class SDFSampler:
         """
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise ValueError(f"n: expected a positive int, got {n!r}")
+        self._check_worker()
         if not self.balanced:
-            points, sdf = self._draw(n)
+            points, sdf = self._draw(n, progress)
         else:
-            n_neg, n_pos = n // 2, n - n // 2
-            negs, poss, got_neg, got_pos = [], [], 0, 0
-            for _ in range(50):
-                p, s = self._draw(max(n, 256))
-                inside = s < 0
-                negs.append((p[inside], s[inside]))
-                poss.append((p[~inside], s[~inside]))
-                got_neg += int(inside.sum())
-                got_pos += int((~inside).sum())
-                if got_neg >= n_neg and got_pos >= n_pos:
-                    break
-            else:
-                raise RuntimeError(f"SDFSampler: cannot balance, found {got_neg} negative and "
-                                   f"{got_pos} positive samples in 50 rounds")
-            neg_p = torch.cat([a for a, _ in negs])[:n_neg]
-            neg_s = torch.cat([b for _, b in negs])[:n_neg]
-            pos_p = torch.cat([a for a, _ in poss])[:n_pos]
-            pos_s = torch.cat([b for _, b in poss])[:n_pos]
-            points, sdf = torch.cat([pos_p, neg_p]), torch.cat([pos_s, neg_s])
+            points, sdf = self._balanced(n, progress)
         if self.clamp is not None:
             sdf = sdf.clamp(-self.clamp, self.clamp)
         return SDFSamples(points, sdf)

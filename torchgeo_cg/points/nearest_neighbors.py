@@ -1,0 +1,167 @@
+"""k nearest neighbours between point clouds, batched, ragged and differentiable.
+
+The neighbours are *found* without gradients by an exact search: a uniform grid of
+sorted cells on the CPU for ``D <= 3`` (:mod:`torchgeo_cg.points.search_grid`, no
+quadratic distance matrix), or chunked brute force for small inputs, on CUDA and for
+``D > 3`` (:mod:`torchgeo_cg.points.search_brute`). The distances are then *computed*
+from the found indices with differentiable torch ops, so gradients flow to both point
+sets (the neighbour assignment is piecewise constant, as in PyTorch3D's ``knn_points``).
+
+Convention:
+    - ``dists`` are squared Euclidean distances ``|q - r|^2``, as in PyTorch3D.
+    - Neighbours are sorted by distance; ties go to the smaller reference index.
+    - Ragged batches: rows at or past ``query_lengths`` / ``reference_lengths`` are
+      padding. Padded query rows and missing neighbours (``k`` larger than the
+      number of valid references) get ``idx = -1`` and ``dists = 0`` (no gradient).
+    - Non-finite input: a query with a NaN/inf coordinate, or every query of a batch
+      item whose valid references contain one, gets ``idx = -1`` and ``dists = NaN``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import torch
+
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.points.search_brute import brute_knn_indices
+from torchgeo_cg.points.search_grid import grid_knn_indices
+
+__all__ = ["KNNResult", "knn", "check_lengths", "BRUTE_FORCE_PAIRS"]
+
+#: Below this many (query, reference) pairs the brute-force search is used on the CPU.
+BRUTE_FORCE_PAIRS = 1 << 18
+
+
+class KNNResult(NamedTuple):
+    """Result of :func:`knn`.
+
+    Attributes:
+        dists: ``(*, N, k)`` squared distances, ascending (0 at padded entries).
+        idx: ``(*, N, k)`` long indices into the reference rows (``-1`` at padded entries).
+    """
+
+    dists: torch.Tensor
+    idx: torch.Tensor
+
+
+def check_lengths(lengths, batch: tuple, size: int, name: str, device) -> torch.Tensor:
+    """Validate ``lengths (*,)`` (or ``None`` = all ``size``) and return them as long.
+
+    Example:
+        >>> check_lengths(None, (2,), 5, "query_lengths", "cpu")
+        tensor([5, 5])
+        >>> check_lengths(torch.tensor([6, 1]), (2,), 5, "query_lengths", "cpu")
+        Traceback (most recent call last):
+        ...
+        ValueError: query_lengths: expected values in [0, 5], got min 1 and max 6
+    """
+    if lengths is None:
+        return torch.full(batch, size, dtype=torch.long, device=device)
+    if not isinstance(lengths, torch.Tensor):
+        lengths = torch.as_tensor(lengths, device=device)
+    if lengths.is_floating_point() or lengths.is_complex() or lengths.dtype == torch.bool:
+        raise TypeError(f"{name}: expected an integer tensor, got dtype {lengths.dtype}")
+    if tuple(lengths.shape) != tuple(batch):
+        raise ShapeError(f"{name}: expected shape {tuple(batch)} (the batch dims), "
+                         f"got {tuple(lengths.shape)}")
+    lengths = lengths.to(device=device, dtype=torch.long)
+    if lengths.numel() and (int(lengths.min()) < 0 or int(lengths.max()) > size):
+        raise ValueError(f"{name}: expected values in [0, {size}], got min "
+                         f"{int(lengths.min())} and max {int(lengths.max())}")
+    return lengths
+
+
+def _prepare(query, reference, k, query_lengths, reference_lengths):
+    check_float(query, "query")
+    check_float(reference, "reference")
+    sq = check_shape(query, ["*", "N", "D"], "query")
+    sr = check_shape(reference, ["*", "M", "D"], "reference", {"D": sq["D"]})
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise ValueError(f"k: expected a positive int, got {k!r}")
+    if query.dtype != reference.dtype:
+        raise TypeError(f"reference: expected dtype {query.dtype} (of query), "
+                        f"got {reference.dtype}")
+    batch = check_broadcastable({"query": sq["*"], "reference": sr["*"]})
+    query = query.expand(*batch, *query.shape[-2:])
+    reference = reference.expand(*batch, *reference.shape[-2:])
+    ql = check_lengths(query_lengths, batch, sq["N"], "query_lengths", query.device)
+    rl = check_lengths(reference_lengths, batch, sr["M"], "reference_lengths", query.device)
+    return query, reference, ql, rl, batch
+
+
+def find_neighbours(query_bnd, reference_bmd, k, ql_b, rl_b) -> torch.Tensor:
+    """Exact indices ``(B, N, k)`` (``-1`` where none) on finite-masked inputs."""
+    B, N, D = query_bnd.shape
+    M = reference_bmd.shape[1]
+    small = B * N * M <= BRUTE_FORCE_PAIRS
+    if query_bnd.device.type != "cpu" or D > 3 or small:
+        idx = brute_knn_indices(query_bnd, reference_bmd, k, rl_b)
+        padded = torch.arange(N, device=query_bnd.device) >= ql_b[:, None]
+        return idx.masked_fill(padded[..., None], -1)
+    return grid_knn_indices(query_bnd, reference_bmd, k, ql_b, rl_b)
+
+
+def knn(
+    query: torch.Tensor,
+    reference: torch.Tensor,
+    k: int = 1,
+    query_lengths: torch.Tensor | None = None,
+    reference_lengths: torch.Tensor | None = None,
+) -> KNNResult:
+    """The ``k`` nearest reference points of every query point, exact.
+
+    Convention:
+        See the module docstring: squared distances, ascending, ties to the smaller
+        index; padding gives ``idx = -1``, ``dists = 0``. Differentiable w.r.t.
+        ``query`` and ``reference`` (the indices are constants).
+
+    Args:
+        query: ``(*, N, D)`` floating point.
+        reference: ``(*, M, D)``, same dtype; batch dims broadcast with ``query``'s.
+        k: number of neighbours, ``>= 1`` (may exceed ``M``: the rest is padding).
+        query_lengths: ``(*,)`` integer, valid query rows per batch item (default ``N``).
+        reference_lengths: ``(*,)`` integer, valid reference rows (default ``M``).
+
+    Returns:
+        :class:`KNNResult` ``(dists (*, N, k), idx (*, N, k))``.
+
+    Example:
+        >>> q = torch.tensor([[0.0, 0.0], [2.9, 0.0]])
+        >>> r = torch.tensor([[1.0, 0.0], [3.0, 0.0], [-1.0, 0.0]])
+        >>> res = knn(q, r, k=2)
+        >>> res.idx
+        tensor([[0, 2],
+                [1, 0]])
+        >>> res.dists
+        tensor([[1.0000, 1.0000],
+                [0.0100, 3.6100]])
+    """
+    query, reference, ql, rl, batch = _prepare(query, reference, k, query_lengths,
+                                               reference_lengths)
+    N, D = query.shape[-2:]
+    M = reference.shape[-2]
+    B = math.prod(batch)
+    q_bnd = query.reshape(B, N, D)
+    r_bmd = reference.reshape(B, M, D)
+    ql_b, rl_b = ql.reshape(-1), rl.reshape(-1)
+    with torch.no_grad():
+        q_ok_bn = torch.isfinite(q_bnd).all(-1)
+        r_valid_bm = torch.arange(M, device=r_bmd.device) < rl_b[:, None]
+        r_ok_b = (torch.isfinite(r_bmd).all(-1) | ~r_valid_bm).all(-1)
+        q_clean = torch.where(q_ok_bn[..., None], q_bnd.detach(), torch.zeros_like(q_bnd))
+        r_clean = torch.where(torch.isfinite(r_bmd), r_bmd.detach(), torch.zeros_like(r_bmd))
+        idx_bnk = find_neighbours(q_clean, r_clean, k, ql_b, rl_b)
+        bad_bn = (~q_ok_bn | ~r_ok_b[:, None]) & (torch.arange(N, device=q_bnd.device)
+                                                   < ql_b[:, None])
+        idx_bnk = idx_bnk.masked_fill(bad_bn[..., None], -1)
+    found_bnk = idx_bnk >= 0
+    if M == 0:  # nothing to gather from: every neighbour is padding
+        r_bmd = r_bmd.new_zeros(r_bmd.shape[0], 1, D)
+    near_bnkd = torch.gather(r_bmd, 1, idx_bnk.clamp_min(0).reshape(r_bmd.shape[0], -1, 1)
+                             .expand(-1, -1, D)).reshape(*idx_bnk.shape, D)
+    d2_bnk = (q_bnd[:, :, None, :] - near_bnkd).square().sum(-1)
+    d2_bnk = torch.where(found_bnk, d2_bnk, torch.zeros_like(d2_bnk))
+    d2_bnk = torch.where(bad_bn[..., None], torch.full_like(d2_bnk, float("nan")), d2_bnk)
+    return KNNResult(d2_bnk.reshape(*batch, N, k), idx_bnk.reshape(*batch, N, k))
