@@ -152,3 +152,15 @@ def test_gradient_with_corrected_parameters():
 def _fixed_t_fit(points, t):
     basis = bernstein_basis(t, 3)
     return torch.linalg.lstsq(basis, points).solution
+
+
+@pytest.mark.parametrize("parametrization", ["chord", "centripetal"])
+def test_fit_parameters_nan_point_gives_nan(parametrization):
+    # issue 10: a NaN sample used to fall back to clean uniform parameters
+    points = torch.rand(6, 2, dtype=torch.float64)
+    points[2, 0] = float("nan")
+    t = fit_parameters(points, parametrization)
+    assert torch.isnan(t).any()
+    # coincident samples (total length exactly 0) still fall back to uniform
+    flat = fit_parameters(torch.ones(4, 2, dtype=torch.float64), parametrization)
+    torch.testing.assert_close(flat, torch.linspace(0, 1, 4, dtype=torch.float64))

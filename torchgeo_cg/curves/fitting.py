@@ -93,9 +93,9 @@ def fit_parameters(points: torch.Tensor, parametrization: str = "chord") -> torc
             step = step.sqrt()
         cumulative = torch.cat([torch.zeros_like(step[..., :1]), step.cumsum(-1)], dim=-1)
         total = cumulative[..., -1:]
-        ok = total > 0
-        t = cumulative / torch.where(ok, total, torch.ones_like(total))
-        return torch.where(ok, t, uniform)
+        flat = total == 0  # all samples coincide: fall back to uniform; NaN stays NaN
+        t = cumulative / torch.where(flat, torch.ones_like(total), total)
+        return torch.where(flat, uniform, t)
 
 
 def _degree(degree: object) -> int:
