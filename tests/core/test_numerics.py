@@ -1,10 +1,9 @@
-import torch
-from hypothesis import given
-from hypothesis import strategies as st
-
 import math
 
 import pytest
+import torch
+from hypothesis import given
+from hypothesis import strategies as st
 
 from torchgeo_cg.core.numerics import (
     cast_back,

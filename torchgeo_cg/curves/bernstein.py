@@ -63,7 +63,7 @@ def bernstein_basis(t: torch.Tensor, degree: int) -> torch.Tensor:
         >>> bool(b.isfinite().all()), round(float(b.sum(-1).mean()), 4)
         (True, 1.0)
     """
-    check_float(t, "t")
+    check_float(t, "t", low_precision=False)
     check_shape(t, ["*", "T"], "t")
     degree = _check_degree(degree)
     t_col = t.unsqueeze(-1)  # (*, T, 1)

@@ -76,9 +76,9 @@ class HomogeneousTransform(nn.Module):
 
     Convention:
         Column vectors, ``p' = M @ [x, y, 1]`` then the perspective divide (``w``
-        numerically zero divides by a bound relative to ``M``'s bottom row). The matrix is a parameter when ``learnable`` (entries
-        trained freely, no normalization of ``M[2, 2]``), else a buffer; ``.to()``
-        moves it either way.
+        numerically zero divides by a bound relative to ``M``'s bottom row). The
+        matrix is a parameter when ``learnable`` (entries trained freely, no
+        normalization of ``M[2, 2]``), else a buffer; ``.to()`` moves it either way.
 
     Args:
         matrix: ``(*, 3, 3)`` float, copied.
