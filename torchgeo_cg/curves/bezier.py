@@ -36,7 +36,7 @@ from torch import nn
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.numerics import safe_div, safe_norm, safe_sqrt
-from torchgeo_cg.curves.bernstein import _check_degree, bernstein_basis
+from torchgeo_cg.curves.bernstein import bernstein_basis, check_degree
 
 __all__ = [
     "bezier",
@@ -266,7 +266,7 @@ def bezier_derivative(control_points: torch.Tensor, order: int = 1) -> torch.Ten
                 [ 3., -6.]])
     """
     _check_points(control_points)
-    order = _check_degree(order, "order")
+    order = check_degree(order, "order")
     points = control_points
     for _ in range(order):
         n = points.shape[-2] - 1
@@ -340,7 +340,7 @@ def elevate_bezier(control_points: torch.Tensor, times: int = 1) -> torch.Tensor
                 [6., 0.]])
     """
     _check_points(control_points)
-    times = _check_degree(times, "times")
+    times = check_degree(times, "times")
     points = control_points
     for _ in range(times):
         n = points.shape[-2] - 1
