@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import torch
 
+from torchgeo_cg.core.check import check_float
+
 __all__ = [
     "clamp_away_from_zero",
     "safe_div",
@@ -87,6 +89,7 @@ def clamp_away_from_zero(x: torch.Tensor, eps: float | torch.Tensor | None = Non
         >>> clamp_away_from_zero(torch.tensor([1e-30, -0.0]))  # default: exact zeros only
         tensor([ 1.0000e-30, -1.1755e-38])
     """
+    check_float(x, "x")
     tiny = torch.finfo(x.dtype).tiny
     if isinstance(eps, torch.Tensor):
         floor = eps.to(x.dtype).clamp_min(tiny)
@@ -118,6 +121,8 @@ def safe_div(
         >>> safe_div(torch.tensor([1.0, 1.0]), torch.tensor([0.0, -1e-12]), eps=1e-8)
         tensor([ 1.0000e+08, -1.0000e+08])
     """
+    check_float(num, "num")
+    check_float(den, "den")
     if eps is not None:
         return num / clamp_away_from_zero(den, eps)
     zero = den == 0
@@ -140,6 +145,7 @@ def safe_sqrt(x: torch.Tensor, eps: float | None = None) -> torch.Tensor:
         >>> y.detach(), x.grad
         (tensor([2., 0., 0.]), tensor([0.2500, 0.0000, 0.0000]))
     """
+    check_float(x, "x")
     positive = x > (0.0 if eps is None else eps)
     x_safe = torch.where(positive, x, torch.ones_like(x))
     # (x * 0).abs() is 0 for finite x and NaN for NaN, so NaN in gives NaN out
@@ -189,6 +195,8 @@ def hypot(*components: torch.Tensor) -> torch.Tensor:
         >>> hypot(torch.tensor([3.0, 2e19, 0.0]), torch.tensor([4.0, 2e19, 0.0]))
         tensor([5.0000e+00, 2.8284e+19, 0.0000e+00])
     """
+    for i, c in enumerate(components):
+        check_float(c, f"components[{i}]")
     if len(components) == 1:
         return components[0].abs()
     return _Hypot.apply(*components)
@@ -213,6 +221,7 @@ def safe_norm(
                 [0.0000, 0.0000],
                 [0.6000, 0.8000]]))
     """
+    check_float(x, "x")
     size = x.shape[dim] if x.dim() > 0 else 1
     if x.dim() == 0:
         out = x.abs()

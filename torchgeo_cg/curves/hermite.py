@@ -279,8 +279,8 @@ def check_knots(knots: torch.Tensor, name: str = "knots") -> dict:
     return sizes
 
 
-def _check_series(knots, values, name) -> None:
-    sizes = check_knots(knots)
+def _check_series(knots, values, name, knots_name: str = "knots") -> None:
+    sizes = check_knots(knots, knots_name)
     check_float(values, name, low_precision=False)
     check_shape(values, ["*", "K"], name, sizes={"K": sizes["K"]})
 
@@ -505,7 +505,7 @@ def pchip_tangents(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
         >>> pchip_tangents(torch.tensor([0.0, 1.0, 2.0, 3.0]), torch.tensor([0.0, 1.0, 1.0, 3.0]))
         tensor([1.5000, 0.0000, 0.0000, 3.0000])
     """
-    _check_series(x, y, "y")
+    _check_series(x, y, "y", "x")
     k = x.shape[-1]
     batch = torch.broadcast_shapes(x.shape[:-1], y.shape[:-1])
     dtype = torch.promote_types(x.dtype, y.dtype)
@@ -568,7 +568,7 @@ class PchipInterpolator(nn.Module):
 
     def __init__(self, x: torch.Tensor, y: torch.Tensor) -> None:
         super().__init__()
-        _check_series(x, y, "y")
+        _check_series(x, y, "y", "x")
         k = x.shape[-1]
         batch = torch.broadcast_shapes(x.shape[:-1], y.shape[:-1])
         dtype = torch.promote_types(x.dtype, y.dtype)

@@ -308,6 +308,8 @@ def scale(sdf_fn: SDF, factor: torch.Tensor | float) -> SDF:
         raise ValueError(f"factor: expected a positive scale factor, got {factor.min().item()}")
 
     def scaled(points: torch.Tensor) -> torch.Tensor:
+        check_float(points, "points")
+        check_shape(points, ["*", "N", "D"], "points")
         s = factor.to(dtype=points.dtype, device=points.device)
         return s.unsqueeze(-1) * sdf_fn(points / s.unsqueeze(-1).unsqueeze(-1))
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.numerics import cast_back, hypot, safe_div, working_dtype
 
@@ -72,7 +72,8 @@ def _points(points: torch.Tensor, dims: tuple[int, ...] = (2, 3)) -> torch.Tenso
     dim = points.shape[-1]
     if dim not in dims:
         expected = " or ".join(str(d) for d in dims)
-        raise ValueError(f"points: expected last dimension {expected}, got {dim}")
+        raise ShapeError(f"points: expected shape (*, N, {expected.replace(' or ', '|')}), got "
+                         f"{tuple(points.shape)}")
     return points.to(working_dtype(points.dtype))
 
 
