@@ -152,17 +152,55 @@ def safe_sqrt(x: torch.Tensor, eps: float | None = None) -> torch.Tensor:
     return torch.where(positive, x_safe.sqrt(), (x * 0).abs())
 
 
+def _hypot_exact(components: tuple[torch.Tensor, ...]) -> torch.Tensor:
+    """Chained ``torch.hypot``: scales internally, never overflows or underflows (slow)."""
+    out = torch.hypot(components[0], components[1])
+    for c in components[2:]:
+        out = torch.hypot(out, c)
+    return out
+
+
+def _hypot_value(components: tuple[torch.Tensor, ...]) -> torch.Tensor:
+    """``sqrt(sum c^2)``: the fast sum of squares, redone exactly where it lost range.
+
+    The sum of squares is exact to rounding wherever it is a normal, finite number
+    (``lo <= sq <= max``); one ``aminmax`` pass checks that. Only the entries outside
+    (overflow, underflow, exact zeros whose components may be subnormal) are
+    recomputed with chained ``torch.hypot``; ``inf`` inputs give ``inf``.
+    """
+    sq = components[0] * components[0]  # fresh: accumulated in place (fastest on CPU)
+    for c in components[1:]:
+        if c.shape == sq.shape:
+            sq += c * c
+        else:
+            sq = sq + c * c
+    if sq.numel() == 0:
+        return sq.sqrt_()
+    info = torch.finfo(sq.dtype)
+    lo = info.tiny / info.eps  # below this, squares of the components lost digits
+    try:
+        low, high = torch.aminmax(sq)
+        fine = bool(low >= lo) and bool(high <= info.max)
+    except RuntimeError:  # data-dependent branching is impossible (vmap): always exact
+        return _hypot_exact(components)
+    if fine:
+        return sq.sqrt_()
+    redo = (sq < lo) | (sq > info.max)  # NaN entries stay as they are (NaN)
+    out = sq.sqrt_()
+    if bool(redo.any()):
+        parts = tuple(c.expand_as(out)[redo] for c in components)
+        out.masked_scatter_(redo, _hypot_exact(parts))
+    return out
+
+
 class _Hypot(torch.autograd.Function):
-    """``sqrt(sum c_i^2)`` by chained ``torch.hypot``; gradient ``c_i / r``, zero at ``r = 0``."""
+    """``sqrt(sum c_i^2)`` without intermediate overflow; gradient ``c_i / r``, 0 at ``r = 0``."""
 
     generate_vmap_rule = True
 
     @staticmethod
     def forward(*components: torch.Tensor) -> torch.Tensor:
-        out = torch.hypot(components[0], components[1])
-        for c in components[2:]:
-            out = torch.hypot(out, c)
-        return out
+        return _hypot_value(components)
 
     @staticmethod
     def setup_context(ctx, inputs, output) -> None:
@@ -180,10 +218,13 @@ class _Hypot(torch.autograd.Function):
 def hypot(*components: torch.Tensor) -> torch.Tensor:
     """Euclidean length ``sqrt(c_0^2 + c_1^2 + ...)`` of a vector given by its components.
 
-    Overflow- and underflow-safe (chained ``torch.hypot``, which scales internally):
-    ``hypot(2e19, 2e19)`` is ``2.83e19`` in float32, where the naive sum of squares
-    is ``inf``. The gradient is ``c_i / r``, and zero at the zero vector (not NaN);
-    differentiable twice. NaN in gives NaN out (IEEE: an infinite component wins).
+    Overflow- and underflow-safe: ``hypot(2e19, 2e19)`` is ``2.83e19`` in float32,
+    where the naive sum of squares is ``inf``. Fast: the plain sum of squares is
+    used wherever it is in range (checked by one ``aminmax`` pass) and only the
+    entries out of range are recomputed by chained ``torch.hypot`` (which scales
+    internally); under ``vmap`` every entry takes the exact path. The gradient is
+    ``c_i / r``, and zero at the zero vector (not NaN); differentiable twice. NaN in
+    gives NaN out (IEEE: an infinite component wins).
 
     Args:
         *components: one or more broadcastable tensors of one float dtype.
