@@ -150,3 +150,17 @@ def test_working_dtype_and_cast_back():
     assert half.dtype == torch.float16
     assert half[:2].tolist() == [65504.0, -65504.0] and torch.isnan(half[2])
     assert cast_back(x, torch.float32) is x
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_hypot_mixed_ranges_in_one_tensor(dtype):
+    """Fast path and exact fix-up together: normal, overflowing, subnormal and zero entries."""
+    info = torch.finfo(dtype)
+    big, small = info.max / 4, info.tiny * 64
+    x = torch.tensor([3.0, big, small, 0.0, 1e-3, float("nan"), float("inf")], dtype=dtype)
+    y = torch.tensor([4.0, big, small, 0.0, 0.0, 1.0, 1.0], dtype=dtype)
+    got = hypot(x, y)
+    want = torch.hypot(x, y)  # torch's own scaled hypot as the reference
+    torch.testing.assert_close(got, want, rtol=2 * info.eps, atol=0, equal_nan=True)
+    assert got[1] > big and torch.isfinite(got[1])
+    assert got[2] > 0 and got[3] == 0 and got[6] == float("inf")
