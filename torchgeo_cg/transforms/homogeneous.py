@@ -58,7 +58,7 @@ def translation(offset: torch.Tensor) -> torch.Tensor:
         Column vectors; ``offset = (a, b)`` in (x, y) order.
 
     Args:
-        offset: ``(*, 2)`` float tensor.
+        offset: ``(*, 2)`` float tensor (or a numpy array / sequence of numbers).
 
     Returns:
         ``(*, 3, 3)`` matrices.
@@ -69,8 +69,8 @@ def translation(offset: torch.Tensor) -> torch.Tensor:
                 [0., 1., 1.],
                 [0., 0., 1.]])
     """
+    offset = as_tensor_like(offset, None, "offset")
     check_shape(offset, ["*", "2"], "offset")
-    check_float(offset, "offset")
     one, zero = torch.ones_like(offset[..., 0]), torch.zeros_like(offset[..., 0])
     return _from_rows(one, zero, offset[..., 0], zero, one, offset[..., 1], zero, zero, one)
 
@@ -242,8 +242,8 @@ def homography(h: torch.Tensor) -> torch.Tensor:
                 [-0.2500, -0.2000,  5.6500],
                 [-0.0200, -0.0900,  1.0000]])
     """
+    h = as_tensor_like(h, None, "h")
     check_shape(h, ["*", "8"], "h")
-    check_float(h, "h")
     return torch.cat([h, torch.ones_like(h[..., :1])], dim=-1).unflatten(-1, (3, 3))
 
 
@@ -316,8 +316,8 @@ def compose_trs(
         ...                m.mT)
         True
     """
+    offset = as_tensor_like(offset, None, "offset")
     check_shape(offset, ["*", "2"], "offset")
-    check_float(offset, "offset")
     angle = as_tensor_like(angle, offset, "angle", like_name="offset")
     scale = as_tensor_like(scale, offset, "scale", like_name="offset")
     per_axis = scale.ndim >= 1 and scale.shape[-1] == 2
