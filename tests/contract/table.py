@@ -217,11 +217,12 @@ EMPTY4 = ((0, 0), (1, 0), (2, 0), (3, 0))
 TABLE: list[Entry] = [
     # --- core numerics
     Entry("core.hypot", lambda a, b, c: core.hypot(a, b, c),
-          (Arg("a", (5,)), Arg("b", (5,)), Arg("c", (5,))), empty=EMPTY3, mixed=None),
+          (Arg("components[0]", (5,)), Arg("components[1]", (5,)), Arg("components[2]", (5,))),
+          empty=EMPTY3),
     Entry("core.safe_norm", core.safe_norm, (Arg("x", (4, 3)),), empty=(0, 0)),
     Entry("core.safe_norm[long]", core.safe_norm, (Arg("x", (4, 9)),), empty=(0, 0)),
     Entry("core.safe_div", core.safe_div, (Arg("num", (5,)), Arg("den", (5,), "positive")),
-          out="unitless", empty=EMPTY2, mixed=None),
+          out="unitless", empty=EMPTY2, mixed="promote"),
     Entry("core.safe_sqrt", core.safe_sqrt, (Arg("x", (5,), "positive", "area"),),
           empty=(0, -1)),
     Entry("core.clamp_away_from_zero", core.clamp_away_from_zero, (Arg("x", (5,), "positive"),),

@@ -28,6 +28,7 @@ from __future__ import annotations
 import torch
 
 from torchgeo_cg.core.check import check_float
+from torchgeo_cg.core.coerce import check_same_dtype
 
 __all__ = [
     "clamp_away_from_zero",
@@ -227,7 +228,8 @@ def hypot(*components: torch.Tensor) -> torch.Tensor:
     gives NaN out (IEEE: an infinite component wins).
 
     Args:
-        *components: one or more broadcastable tensors of one float dtype.
+        *components: one or more broadcastable tensors of one float dtype and device
+            (else ``TypeError`` naming two of them).
 
     Returns:
         The broadcast length.
@@ -236,8 +238,9 @@ def hypot(*components: torch.Tensor) -> torch.Tensor:
         >>> hypot(torch.tensor([3.0, 2e19, 0.0]), torch.tensor([4.0, 2e19, 0.0]))
         tensor([5.0000e+00, 2.8284e+19, 0.0000e+00])
     """
-    for i, c in enumerate(components):
-        check_float(c, f"components[{i}]")
+    named = {f"components[{i}]": check_float(c, f"components[{i}]")
+             for i, c in enumerate(components)}
+    check_same_dtype(named)
     if len(components) == 1:
         return components[0].abs()
     return _Hypot.apply(*components)
