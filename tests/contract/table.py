@@ -257,6 +257,13 @@ TABLE: list[Entry] = [
     Entry("transforms.transform_points", lambda p, m: T.transform_points(m, p),
           (Arg("points", (4, 6, 2)), Arg("matrix", (4, 3, 3), "homography", "matrix")),
           bad=((4, 6, 3), (2,))),
+    Entry("transforms.transform_points[projective]", lambda p, m: T.transform_points(m, p),
+          (Arg("points", (4, 6, 2), "normal", "unitless"),
+           Arg("matrix", (4, 3, 3), "homography", "length")),
+          out="unitless", bad=((4, 6, 3), (2,))),  # M and s M are the same transform
+    Entry("transforms.inverse[magnitude]", T.inverse,
+          (Arg("matrix", (4, 3, 3), "homography", "length"),), out="inv_length", empty=(0, 0),
+          bad=((4, 3, 2), (3,))),  # inverse(s M) = inverse(M) / s: no absolute det test
     Entry("transforms.inverse", T.inverse, (Arg("matrix", (4, 3, 3), "homography", "matrix"),),
           out="matrix", empty=(0, 0), bad=((4, 3, 2), (3,))),
     Entry("transforms.decompose_affine", T.decompose_affine,
