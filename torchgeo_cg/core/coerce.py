@@ -104,6 +104,8 @@ def as_tensor_like(
             f"{name} is {_describe(value)} but {other} is {_describe(like)}; "
             "convert one with .to()"
         )
+    if like is not None and type(value) in (float, int):  # the common case, fast
+        return torch.tensor(float(value), dtype=like.dtype, device=like.device)
     array = _numeric_array(value, name)
     if like is not None:
         return torch.as_tensor(array, dtype=like.dtype, device=like.device)

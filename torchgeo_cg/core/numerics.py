@@ -181,7 +181,7 @@ def _hypot_value(components: tuple[torch.Tensor, ...]) -> torch.Tensor:
     lo = info.tiny / info.eps  # below this, squares of the components lost digits
     try:
         low, high = torch.aminmax(sq)
-        fine = bool(low >= lo) and bool(high <= info.max)
+        fine = float(low) >= lo and float(high) <= info.max
     except RuntimeError:  # data-dependent branching is impossible (vmap): always exact
         return _hypot_exact(components)
     if fine:
@@ -238,12 +238,16 @@ def hypot(*components: torch.Tensor) -> torch.Tensor:
         >>> hypot(torch.tensor([3.0, 2e19, 0.0]), torch.tensor([4.0, 2e19, 0.0]))
         tensor([5.0000e+00, 2.8284e+19, 0.0000e+00])
     """
-    named = {f"components[{i}]": check_float(c, f"components[{i}]")
-             for i, c in enumerate(components)}
-    check_same_dtype(named)
+    first = components[0]
+    if not all(isinstance(c, torch.Tensor) and c.dtype == first.dtype and c.device == first.device
+               for c in components) or not first.is_floating_point():
+        check_same_dtype({f"components[{i}]": check_float(c, f"components[{i}]")
+                          for i, c in enumerate(components)})
     if len(components) == 1:
-        return components[0].abs()
-    return _Hypot.apply(*components)
+        return first.abs()
+    if torch.is_grad_enabled() and any(c.requires_grad for c in components):
+        return _Hypot.apply(*components)
+    return _hypot_value(components)  # no autograd needed: skip the Function's overhead
 
 
 def safe_norm(
