@@ -385,7 +385,12 @@ def transform_points(
     w = clamp_away_from_zero(w, eps)  # (*, N)
     x_out = torch.addcmul(torch.addcmul(m[..., 0, 2, :], m[..., 0, 0, :], x), m[..., 0, 1, :], y)
     y_out = torch.addcmul(torch.addcmul(m[..., 1, 2, :], m[..., 1, 0, :], x), m[..., 1, 1, :], y)
-    return cast_back(torch.stack([x_out / w, y_out / w], dim=-1), dtype)
+    if torch.is_grad_enabled() and (matrix.requires_grad or points.requires_grad):
+        return cast_back(torch.stack([x_out / w, y_out / w], dim=-1), dtype)
+    out = w.new_empty(*w.shape, 2)  # no autograd: divide straight into the result
+    torch.div(x_out, w, out=out[..., 0])
+    torch.div(y_out, w, out=out[..., 1])
+    return cast_back(out, dtype)
 
 
 def inverse(matrix: torch.Tensor, eps: float | None = None) -> torch.Tensor:
