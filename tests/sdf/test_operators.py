@@ -126,7 +126,10 @@ def test_bad_input():
     with pytest.raises(ValueError, match="factor"):
         O.scale(P.sphere, torch.tensor([1.0, 0.0]))
     with pytest.raises(TypeError, match="offset"):
-        O.translate(P.sphere, [1.0, 0.0, 0.0])
+        O.translate(P.sphere, "1, 0, 0")
+    pts = torch.randn(5, 3)  # lists and numpy are accepted like tensors (one coercion rule)
+    torch.testing.assert_close(O.translate(P.sphere, [1.0, 0.0, 0.0])(pts),
+                               O.translate(P.sphere, torch.tensor([1.0, 0.0, 0.0]))(pts))
     with pytest.raises(ValueError, match="world_from_local"):
         O.rotate(P.sphere, torch.eye(3)[:2])
     with pytest.raises(ValueError, match="at least 2"):

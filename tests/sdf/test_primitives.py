@@ -200,11 +200,11 @@ def test_module_moves_with_to_and_learns():
 def test_bad_input():
     with pytest.raises(ShapeError):
         P.sphere(torch.zeros(3))
-    with pytest.raises(ValueError, match="last dimension"):
+    with pytest.raises(ShapeError, match=r"points: expected shape \(\*, N, 2\|3\), got \(4, 5\)"):
         P.sphere(torch.zeros(4, 5))
-    with pytest.raises(ValueError, match="last dimension 3"):
+    with pytest.raises(ShapeError, match=r"points: expected shape \(\*, N, 3\), got \(4, 2\)"):
         P.torus(torch.zeros(4, 2))
-    with pytest.raises(ValueError, match="last dimension 2"):
+    with pytest.raises(ShapeError, match=r"points: expected shape \(\*, N, 2\)"):
         P.circle(torch.zeros(4, 3))
     with pytest.raises(TypeError, match="floating-point"):
         P.sphere(torch.zeros(4, 3, dtype=torch.long))

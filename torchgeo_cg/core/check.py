@@ -62,18 +62,31 @@ def check_tensor(x: object, name: str) -> torch.Tensor:
     return x
 
 
-def check_float(x: torch.Tensor, name: str) -> torch.Tensor:
+def check_float(x: torch.Tensor, name: str, low_precision: bool = True) -> torch.Tensor:
     """Raise ``TypeError`` unless ``x`` is a floating-point tensor.
+
+    Args:
+        x: the tensor to check.
+        name: the argument name used in the error message.
+        low_precision: accept float16/bfloat16 (default). Ops whose dtype policy
+            rejects them pass ``False`` and get a ``TypeError`` that says so.
 
     Example:
         >>> check_float(torch.zeros(2, dtype=torch.long), "offset")
         Traceback (most recent call last):
         ...
         TypeError: offset: expected a floating-point tensor, got dtype torch.int64
+        >>> check_float(torch.zeros(2, dtype=torch.float16), "t", low_precision=False)
+        Traceback (most recent call last):
+        ...
+        TypeError: t: torch.float16 is not supported here (too few digits); use float32 or ...
     """
     check_tensor(x, name)
     if not x.is_floating_point():
         raise TypeError(f"{name}: expected a floating-point tensor, got dtype {x.dtype}")
+    if not low_precision and x.dtype in (torch.float16, torch.bfloat16):
+        raise TypeError(f"{name}: {x.dtype} is not supported here (too few digits); use "
+                        "float32 or float64")
     return x
 
 

@@ -22,15 +22,26 @@ import torch.nn.functional as F
 
 from torchgeo_cg.core.check import check_float, check_shape
 
-__all__ = ["bernstein_basis"]
+__all__ = ["bernstein_basis", "check_degree"]
 
 
-def _check_degree(degree: object, name: str = "degree") -> int:
+def check_degree(degree: object, name: str = "degree") -> int:
+    """``degree`` as a non-negative int, or ``TypeError``/``ValueError`` naming ``name``.
+
+    Example:
+        >>> check_degree(-1, "order")
+        Traceback (most recent call last):
+        ...
+        ValueError: order: expected a non-negative degree, got -1
+    """
     if isinstance(degree, bool) or not isinstance(degree, int):
         raise TypeError(f"{name}: expected an int, got {type(degree).__name__}")
     if degree < 0:
         raise ValueError(f"{name}: expected a non-negative degree, got {degree}")
     return degree
+
+
+_check_degree = check_degree  # the former private name, still imported by curves/fitting.py
 
 
 def bernstein_basis(t: torch.Tensor, degree: int) -> torch.Tensor:
@@ -63,9 +74,9 @@ def bernstein_basis(t: torch.Tensor, degree: int) -> torch.Tensor:
         >>> bool(b.isfinite().all()), round(float(b.sum(-1).mean()), 4)
         (True, 1.0)
     """
-    check_float(t, "t")
+    check_float(t, "t", low_precision=False)
     check_shape(t, ["*", "T"], "t")
-    degree = _check_degree(degree)
+    degree = check_degree(degree)
     t_col = t.unsqueeze(-1)  # (*, T, 1)
     one_minus_t = 1 - t_col
     basis = torch.ones_like(t_col)  # (*, T, 1): b_{0,0}

@@ -14,7 +14,13 @@ Convention:
       rule); the fixed-degree forms raise :class:`ShapeError` otherwise.
     - Everything is differentiable with respect to control points and ``t``,
       and gradients stay finite at coincident control points and zero-speed
-      points (cusps), where tangents and normals are defined as zero.
+      points (cusps), where tangents, normals and curvature are defined as zero.
+    - Scale: no absolute threshold anywhere; a curve scaled by ``s`` has the same
+      unit tangents and normals, lengths times ``s`` and curvature divided by ``s``
+      (tested for ``s`` from 1e-6 to 1e6). Only an exactly zero speed is guarded.
+    - dtypes: ``t`` and the control points are promoted to the wider float dtype
+      (``torch.promote_types``). float16/bfloat16 are rejected with a
+      ``TypeError`` (too few digits for the recurrences); use float32.
 """
 
 from __future__ import annotations
@@ -28,8 +34,9 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.numerics import safe_div, safe_norm, safe_sqrt
-from torchgeo_cg.curves.bernstein import _check_degree, bernstein_basis
+from torchgeo_cg.curves.bernstein import bernstein_basis, check_degree
 
 __all__ = [
     "bezier",
@@ -66,7 +73,7 @@ class SplitResult(NamedTuple):
 
 
 def _check_points(control_points: torch.Tensor, name: str = "control_points") -> dict:
-    check_float(control_points, name)
+    check_float(control_points, name, low_precision=False)
     sizes = check_shape(control_points, ["*", "K", "D"], name)
     if sizes["K"] < 1:
         raise ShapeError(f"{name}: expected at least one control point, got shape "
@@ -85,7 +92,7 @@ def _check_fixed_degree(control_points: torch.Tensor, degree: int, name: str) ->
 
 
 def _check_t(t: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
-    check_float(t, "t")
+    check_float(t, "t", low_precision=False)
     check_shape(t, ["*", "T"], "t")
     if t.dim() > 1:  # per-curve parameters: their batch must broadcast with the curves'
         check_broadcastable({"control_points": like.shape[:-2], "t": t.shape[:-1]})
@@ -259,7 +266,7 @@ def bezier_derivative(control_points: torch.Tensor, order: int = 1) -> torch.Ten
                 [ 3., -6.]])
     """
     _check_points(control_points)
-    order = _check_degree(order, "order")
+    order = check_degree(order, "order")
     points = control_points
     for _ in range(order):
         n = points.shape[-2] - 1
@@ -267,14 +274,6 @@ def bezier_derivative(control_points: torch.Tensor, order: int = 1) -> torch.Ten
             return torch.zeros_like(points)
         points = n * (points[..., 1:, :] - points[..., :-1, :])
     return points
-
-
-def _as_param(t0: torch.Tensor | float, like: torch.Tensor, name: str) -> torch.Tensor:
-    if not isinstance(t0, torch.Tensor):
-        if isinstance(t0, bool) or not isinstance(t0, (int, float)):
-            raise TypeError(f"{name}: expected a float tensor or a number, got {type(t0).__name__}")
-        return torch.tensor(float(t0), dtype=like.dtype, device=like.device)
-    return check_float(t0, name)
 
 
 def split_bezier(control_points: torch.Tensor, t0: torch.Tensor | float = 0.5) -> SplitResult:
@@ -301,7 +300,9 @@ def split_bezier(control_points: torch.Tensor, t0: torch.Tensor | float = 0.5) -
                 [2.0000, 1.5000]])
     """
     _check_points(control_points)
-    t0 = _as_param(t0, control_points, "t0")
+    if not isinstance(t0, torch.Tensor):  # numbers take the curves' dtype
+        t0 = as_tensor_like(t0, control_points, "t0")
+    check_float(t0, "t0", low_precision=False)
     dtype = torch.promote_types(t0.dtype, control_points.dtype)
     points = control_points.to(dtype)
     t_col = t0.to(dtype)[..., None, None]  # (*, 1, 1)
@@ -339,7 +340,7 @@ def elevate_bezier(control_points: torch.Tensor, times: int = 1) -> torch.Tensor
                 [6., 0.]])
     """
     _check_points(control_points)
-    times = _check_degree(times, "times")
+    times = check_degree(times, "times")
     points = control_points
     for _ in range(times):
         n = points.shape[-2] - 1
@@ -369,8 +370,8 @@ def bezier_tangent(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tenso
         tensor([[1., 0.]])
     """
     velocity = bezier(bezier_derivative(control_points), t)
-    speed = safe_norm(velocity, dim=-1, keepdim=True)
-    return torch.where(speed > 0, safe_div(velocity, speed), torch.zeros_like(velocity))
+    speed = safe_norm(velocity, dim=-1, keepdim=True)  # overflow-safe, no threshold
+    return safe_div(velocity, speed)  # zero (zero gradient) where the speed is exactly 0
 
 
 def bezier_normal(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
@@ -401,8 +402,8 @@ def bezier_normal(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tensor
     ortho = accel - (accel * tangent).sum(-1, keepdim=True) * tangent
     size = safe_norm(ortho, dim=-1, keepdim=True)
     scale = accel.abs().amax(-1, keepdim=True)
-    ok = size > 1e3 * torch.finfo(size.dtype).eps * scale
-    return torch.where(ok, safe_div(ortho, size), torch.zeros_like(ortho))
+    ok = size > 1e3 * torch.finfo(size.dtype).eps * scale  # relative: straight up to rounding
+    return torch.where(ok, safe_div(ortho, size), ortho * 0)
 
 
 def bezier_curvature(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
@@ -411,9 +412,9 @@ def bezier_curvature(control_points: torch.Tensor, t: torch.Tensor) -> torch.Ten
     Convention:
         ``D = 2``: ``(x' y'' - y' x'') / |B'|^3``, positive when turning left
         (counter-clockwise, y up). Otherwise ``|B' x B''| / |B'|^3`` computed as
-        ``sqrt(|B'|^2 |B''|^2 - (B'.B'')^2) / |B'|^3``. Where the speed is below
-        ``eps`` the denominator is clamped (:func:`safe_div`), so cusps give large
-        but finite values and finite gradients.
+        ``|B''_perp| / |B'|^2``, the part of ``B''`` orthogonal to ``B'``, computed
+        without forming ``|B'|^3`` (no overflow). Near a cusp the value is large; at
+        an exact zero speed it is defined as 0 (finite gradients).
 
     Args:
         control_points: ``(*, n + 1, D)``.
@@ -429,15 +430,15 @@ def bezier_curvature(control_points: torch.Tensor, t: torch.Tensor) -> torch.Ten
     """
     velocity = bezier(bezier_derivative(control_points), t)
     accel = bezier(bezier_derivative(control_points, 2), t)
-    speed2 = (velocity * velocity).sum(-1)
+    # kappa = |v x a| / |v|^3 = (t x a) / |v|^2 with t = v / |v|: no |v|^3 to overflow
+    speed = safe_norm(velocity, dim=-1, keepdim=True)
+    unit = safe_div(velocity, speed)  # (*, T, D)
     if control_points.shape[-1] == 2:
-        cross = velocity[..., 0] * accel[..., 1] - velocity[..., 1] * accel[..., 0]
+        cross = unit[..., 0] * accel[..., 1] - unit[..., 1] * accel[..., 0]
     else:
-        a2 = (accel * accel).sum(-1)
-        dot = (velocity * accel).sum(-1)
-        cross = safe_sqrt(speed2 * a2 - dot * dot)
-    eps = torch.finfo(speed2.dtype).eps
-    return safe_div(cross, safe_sqrt(speed2, eps=eps * eps) ** 3, eps=eps)
+        cross = safe_norm(accel - (accel * unit).sum(-1, keepdim=True) * unit, dim=-1)
+    speed = speed.squeeze(-1)
+    return safe_div(safe_div(cross, speed), speed)
 
 
 # --------------------------------------------------------------------------- arc length
@@ -582,8 +583,11 @@ def bezier_length(
             ``1e-8`` for float64 and ``1e-7`` for
             lower precisions; clamped to at least ``1e-13``. The quadrature runs
             in float64 whatever the input dtype; the result has the input dtype.
-        max_depth: the most bisection levels; intervals still open then are
+        max_depth: the most bisection levels, ``>= 0``; intervals still open then are
             accepted (also when more than ``256`` intervals per curve are open).
+
+    Raises:
+        ValueError: ``max_depth`` negative or ``rtol`` outside ``(0, 1)``.
 
     Returns:
         ``(*)`` lengths.
@@ -597,6 +601,10 @@ def bezier_length(
         tensor(1.8284, dtype=torch.float64)
     """
     _check_points(control_points)
+    if isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 0:
+        raise ValueError(f"max_depth: expected a non-negative int, got {max_depth!r}")
+    if rtol is not None and not (isinstance(rtol, (int, float)) and 0 < rtol < 1):
+        raise ValueError(f"rtol: expected a number in (0, 1), got {rtol!r}")
     batch = control_points.shape[:-2]
     dtype = control_points.dtype
     # Quadrature runs in float64 at least: the squared-speed expansion needs the digits.
@@ -695,6 +703,9 @@ def bezier_arclength_params(
     _check_points(control_points)
     if isinstance(n, bool) or not isinstance(n, int) or n < 2:
         raise ValueError(f"n: expected an int >= 2, got {n!r}")
+    for name, value, low in (("segments", segments, 1), ("newton_steps", newton_steps, 0)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name}: expected an int >= {low}, got {value!r}")
     batch = control_points.shape[:-2]
     with torch.no_grad():
         hodo = bezier_derivative(control_points.detach())

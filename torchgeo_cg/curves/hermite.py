@@ -72,7 +72,7 @@ def hermite_basis(t: torch.Tensor) -> torch.Tensor:
                 [ 0.5000,  0.1250,  0.5000, -0.1250],
                 [ 0.0000,  0.0000,  1.0000,  0.0000]])
     """
-    check_float(t, "t")
+    check_float(t, "t", low_precision=False)
     check_shape(t, ["*", "T"], "t")
     s = 1 - t
     t2 = t * t
@@ -98,7 +98,7 @@ class HermiteControls(NamedTuple):
 def _check_controls(p0, p1, m0, m1) -> tuple[torch.Tensor, ...]:
     sizes: dict = {}
     for value, name in ((p0, "p0"), (p1, "p1"), (m0, "m0"), (m1, "m1")):
-        check_float(value, name)
+        check_float(value, name, low_precision=False)
         sizes = check_shape(value, ["*", "D"], name, sizes={"D": sizes["D"]} if sizes else None)
     return torch.broadcast_tensors(p0, p1, m0, m1)
 
@@ -180,7 +180,7 @@ def bezier_to_hermite(control_points: torch.Tensor) -> HermiteControls:
         >>> bezier_to_hermite(torch.tensor([[0.0, 0.0], [1.0, 1.0], [2.0, 1.0], [3.0, 0.0]])).m1
         tensor([ 3., -3.])
     """
-    check_float(control_points, "control_points")
+    check_float(control_points, "control_points", low_precision=False)
     check_shape(control_points, ["*", "K", "D"], "control_points")
     if control_points.shape[-2] != 4:
         raise ShapeError(
@@ -262,7 +262,7 @@ def check_knots(knots: torch.Tensor, name: str = "knots") -> dict:
         ...
         ValueError: knots: must be strictly increasing, but knots[..., 2] = 1.0 is not ...
     """
-    check_float(knots, name)
+    check_float(knots, name, low_precision=False)
     sizes = check_shape(knots, ["*", "K"], name)
     if sizes["K"] < 2:
         raise ShapeError(f"{name}: expected at least 2 knots, got shape {tuple(knots.shape)}")
@@ -279,9 +279,9 @@ def check_knots(knots: torch.Tensor, name: str = "knots") -> dict:
     return sizes
 
 
-def _check_series(knots, values, name) -> None:
-    sizes = check_knots(knots)
-    check_float(values, name)
+def _check_series(knots, values, name, knots_name: str = "knots") -> None:
+    sizes = check_knots(knots, knots_name)
+    check_float(values, name, low_precision=False)
     check_shape(values, ["*", "K"], name, sizes={"K": sizes["K"]})
 
 
@@ -338,9 +338,9 @@ def hermite_spline(knots: torch.Tensor, values: torch.Tensor, tangents: torch.Te
         tensor([0.6250, 1.0000, 0.7500])
     """
     _check_series(knots, values, "values")
-    check_float(tangents, "tangents")
+    check_float(tangents, "tangents", low_precision=False)
     check_shape(tangents, ["*", "K"], "tangents", sizes={"K": knots.shape[-1]})
-    check_float(x, "x")
+    check_float(x, "x", low_precision=False)
     check_shape(x, ["*", "Q"], "x")
     if knots.dim() == 1 and x.dim() == 1:
         return _shared_spline(knots, _stack_series(values, tangents), x, values.shape[:-1])
@@ -409,7 +409,7 @@ class HermiteSpline(nn.Module):
                  learnable: bool = False) -> None:
         super().__init__()
         _check_series(knots, values, "values")
-        check_float(tangents, "tangents")
+        check_float(tangents, "tangents", low_precision=False)
         check_shape(tangents, ["*", "K"], "tangents", sizes={"K": knots.shape[-1]})
         self.learnable = learnable
         self.register_buffer("knots", knots, persistent=False)
@@ -505,7 +505,7 @@ def pchip_tangents(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
         >>> pchip_tangents(torch.tensor([0.0, 1.0, 2.0, 3.0]), torch.tensor([0.0, 1.0, 1.0, 3.0]))
         tensor([1.5000, 0.0000, 0.0000, 3.0000])
     """
-    _check_series(x, y, "y")
+    _check_series(x, y, "y", "x")
     k = x.shape[-1]
     batch = torch.broadcast_shapes(x.shape[:-1], y.shape[:-1])
     dtype = torch.promote_types(x.dtype, y.dtype)
@@ -568,7 +568,7 @@ class PchipInterpolator(nn.Module):
 
     def __init__(self, x: torch.Tensor, y: torch.Tensor) -> None:
         super().__init__()
-        _check_series(x, y, "y")
+        _check_series(x, y, "y", "x")
         k = x.shape[-1]
         batch = torch.broadcast_shapes(x.shape[:-1], y.shape[:-1])
         dtype = torch.promote_types(x.dtype, y.dtype)
@@ -599,7 +599,7 @@ class PchipInterpolator(nn.Module):
 
     def forward(self, xq: torch.Tensor) -> torch.Tensor:
         """``(Q,)`` or ``(*, Q)`` queries -> ``(*, Q)``."""
-        check_float(xq, "xq")
+        check_float(xq, "xq", low_precision=False)
         check_shape(xq, ["*", "Q"], "xq")
         if self._table is not None and xq.dim() == 1:
             return _shared_spline(self.knots, self._table, xq, self._batch)

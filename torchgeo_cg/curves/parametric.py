@@ -10,6 +10,9 @@ Convention:
     - Grids use ``indexing="ij"``: array axis 0 is x, axis 1 is y, so
       ``field[i, j]`` is the value at ``origin + (i, j) * spacing``; this is the
       layout :func:`~torchgeo_cg.curves.marching_squares.marching_squares` reads.
+    - Parameters (``center``, ``radius``) may be numbers, numpy values or tensors;
+      they follow the dtype and device of ``t`` / ``xy``. float16/bfloat16 are
+      rejected with a ``TypeError``.
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ import math
 import torch
 
 from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.numerics import hypot
 
 __all__ = [
     "circle",
@@ -30,19 +35,13 @@ __all__ = [
 ]
 
 
-def _as_tensor(value, like: torch.Tensor, name: str) -> torch.Tensor:
-    if isinstance(value, torch.Tensor):
-        return check_float(value, name)
-    if isinstance(value, bool):
-        raise TypeError(f"{name}: expected a float tensor or numbers, got bool")
-    try:
-        return torch.as_tensor(value, dtype=like.dtype, device=like.device)
-    except (TypeError, ValueError, RuntimeError) as err:
-        raise TypeError(f"{name}: expected a float tensor or numbers, got {value!r}") from err
+def _param(value, like: torch.Tensor, name: str) -> torch.Tensor:
+    """A number, numpy value or float tensor as a tensor of ``like``'s dtype and device."""
+    return as_tensor_like(value, like, name, cast=True)
 
 
 def _check_t(t: torch.Tensor) -> None:
-    check_float(t, "t")
+    check_float(t, "t", low_precision=False)
     check_shape(t, ["*", "T"], "t")
 
 
@@ -68,9 +67,9 @@ def circle(t: torch.Tensor, center=(0.0, 0.0), radius=1.0) -> torch.Tensor:
                 [1., 2.]])
     """
     _check_t(t)
-    center = _as_tensor(center, t, "center")
+    center = _param(center, t, "center")
     check_shape(center, ["*", "2"], "center")
-    radius = _as_tensor(radius, t, "radius")
+    radius = _param(radius, t, "radius")
     unit = torch.stack([torch.cos(t), torch.sin(t)], dim=-1)  # (*, T, 2)
     return center[..., None, :] + radius[..., None, None] * unit
 
@@ -94,13 +93,16 @@ def implicit_circle(xy: torch.Tensor, center=(0.0, 0.0), radius=1.0) -> torch.Te
         >>> implicit_circle(torch.tensor([[0.0, 0.0], [3.0, 4.0], [1.0, 0.0]]), radius=5.0)
         tensor([-25.,   0., -24.])
     """
-    check_float(xy, "xy")
+    check_float(xy, "xy", low_precision=False)
     check_shape(xy, ["*", "2"], "xy")
-    center = _as_tensor(center, xy, "center")
+    center = _param(center, xy, "center")
     check_shape(center, ["*", "2"], "center")
-    radius = _as_tensor(radius, xy, "radius")
+    radius = _param(radius, xy, "radius")
     d = xy - center
-    return (d * d).sum(-1) - radius * radius
+    # |d|^2 - r^2 = (|d| - r)(|d| + r): no intermediate overflow (finite wherever the
+    # value is) and no cancellation next to the circle; gradient 2 d everywhere.
+    length = hypot(d[..., 0], d[..., 1])
+    return (length - radius) * (length + radius)
 
 
 def cycloid(t: torch.Tensor, radius=1.0) -> torch.Tensor:
@@ -126,7 +128,7 @@ def cycloid(t: torch.Tensor, radius=1.0) -> torch.Tensor:
                 [6.2832, 4.0000]])
     """
     _check_t(t)
-    radius = _as_tensor(radius, t, "radius")[..., None]
+    radius = _param(radius, t, "radius")[..., None]
     return torch.stack([radius * (t - torch.sin(t)), radius * (1 - torch.cos(t))], dim=-1)
 
 
@@ -167,9 +169,9 @@ def figure_eight_implicit(xy: torch.Tensor, radius=5.0) -> torch.Tensor:
         >>> figure_eight_implicit(torch.tensor([[0.0, 0.0], [-5.0, 0.0], [10.0, 0.0]]))
         tensor([    0., -1875.,     0.])
     """
-    check_float(xy, "xy")
+    check_float(xy, "xy", low_precision=False)
     check_shape(xy, ["*", "2"], "xy")
-    radius = _as_tensor(radius, xy, "radius")
+    radius = _param(radius, xy, "radius")
     zero = torch.zeros_like(radius)
     left = implicit_circle(xy, torch.stack([-radius, zero], -1), radius)
     right = implicit_circle(xy, torch.stack([radius, zero], -1), radius)
@@ -204,7 +206,7 @@ def figure_eight_parametric(t: torch.Tensor, radius=5.0) -> torch.Tensor:
                 [ 2.,  0.]])
     """
     _check_t(t)
-    radius = _as_tensor(radius, t, "radius")[..., None]
+    radius = _param(radius, t, "radius")[..., None]
     phase = torch.remainder(t, 4 * math.pi)
     on_left = phase < 2 * math.pi
     # Left: (-r, 0) + r (cos t, sin t). Right: (r, 0) + r (cos(pi - s), sin(pi - s)), s = t - 2 pi.

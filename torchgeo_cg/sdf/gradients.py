@@ -14,7 +14,7 @@ from collections.abc import Callable
 import torch
 
 from torchgeo_cg.core.check import check_float, check_shape
-from torchgeo_cg.core.numerics import safe_norm
+from torchgeo_cg.core.numerics import cast_back, safe_div, safe_norm, working_dtype
 
 __all__ = ["sdf_gradient", "sdf_normal", "eikonal_loss"]
 
@@ -83,15 +83,17 @@ def sdf_normal(
         tensor([[0., 0., 1.]])
     """
     g = sdf_gradient(sdf_fn, points, create_graph)
-    n = safe_norm(g, keepdim=True)
-    return g / torch.where(n > 0, n, torch.ones_like(n))
+    return safe_div(g, safe_norm(g, keepdim=True))  # overflow-safe; zero where g = 0
 
 
 def eikonal_loss(gradients: torch.Tensor, reduction: str = "mean") -> torch.Tensor:
     """Eikonal penalty ``(|grad f| - 1)^2`` that pushes a learned field towards a distance.
 
     Convention:
-        Finite gradient everywhere, also where ``grad f = 0`` (safe norm).
+        Finite gradient everywhere, also where ``grad f = 0`` (safe norm); the norm is
+        overflow-safe. Zero points give ``0`` for ``"mean"`` and ``"sum"`` (a penalty
+        over nothing) and an empty ``(*, 0)`` for ``"none"``, never NaN.
+        float16/bfloat16 are computed in float32 and returned in their dtype.
 
     Args:
         gradients: ``(*, N, D)``, typically ``sdf_gradient(model, points)``.
@@ -106,11 +108,14 @@ def eikonal_loss(gradients: torch.Tensor, reduction: str = "mean") -> torch.Tens
     """
     check_float(gradients, "gradients")
     check_shape(gradients, ["*", "N", "D"], "gradients")
-    per_point = (safe_norm(gradients) - 1.0) ** 2
+    if reduction not in ("mean", "sum", "none"):
+        raise ValueError(f"reduction: expected 'mean', 'sum' or 'none', got {reduction!r}")
+    work = gradients.to(working_dtype(gradients.dtype))
+    per_point = (safe_norm(work) - 1.0) ** 2
     if reduction == "mean":
-        return per_point.mean()
-    if reduction == "sum":
-        return per_point.sum()
-    if reduction == "none":
-        return per_point
-    raise ValueError(f"reduction: expected 'mean', 'sum' or 'none', got {reduction!r}")
+        out = per_point.sum() / max(per_point.numel(), 1)
+    elif reduction == "sum":
+        out = per_point.sum()
+    else:
+        out = per_point
+    return cast_back(out, gradients.dtype)

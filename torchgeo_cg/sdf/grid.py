@@ -26,7 +26,10 @@ Convention:
     - :func:`grid_interpolate` is trilinear and uses ``grid_sample(...,
       align_corners=True)`` so grid sample ``i`` sits exactly at ``origin + spacing*i``;
       points outside the bounds are clamped to the border value.
-    - ``origin`` and ``spacing`` are ``(3,)`` tensors of the volume's dtype and device.
+    - ``origin`` and ``spacing`` are ``(3,)`` tensors of the volume's dtype and device;
+      functions also accept numpy arrays and lists (cast to the points' or volume's
+      dtype). ``spacing`` must be positive (``ValueError`` naming it); NaN in the
+      points, origin or spacing gives NaN out.
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ import torch
 import torch.nn.functional as F
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = [
     "Volume",
@@ -47,6 +52,8 @@ __all__ = [
     "index_to_world",
     "world_to_index",
     "grid_interpolate",
+    "check_spacing",
+    "parse_bounds",
 ]
 
 
@@ -75,7 +82,20 @@ def _resolution(resolution: int | Sequence[int]) -> tuple[int, int, int]:
     return res  # type: ignore[return-value]
 
 
-def _bounds(bounds, device=None, dtype=None) -> torch.Tensor:
+def parse_bounds(bounds, device=None, dtype=None) -> torch.Tensor:
+    """``bounds`` as a checked ``(2, 3)`` float tensor ``((x0, y0, z0), (x1, y1, z1))``.
+
+    Accepts ``(lo, hi)`` shared by the axes or a ``(2, 3)`` tensor/sequence.
+
+    Raises:
+        ShapeError: not ``(2,)`` or ``(2, 3)``.
+        ValueError: not finite, or ``lo >= hi`` on an axis.
+
+    Example:
+        >>> parse_bounds((-1.0, 2.0))
+        tensor([[-1., -1., -1.],
+                [ 2.,  2.,  2.]])
+    """
     if isinstance(bounds, torch.Tensor):
         b = bounds.to(device=device or bounds.device, dtype=dtype or bounds.dtype)
     else:
@@ -87,6 +107,29 @@ def _bounds(bounds, device=None, dtype=None) -> torch.Tensor:
     if bool(~torch.isfinite(b).all()) or bool((b[1] <= b[0]).any()):
         raise ValueError(f"bounds: expected finite bounds with lo < hi per axis, got {b.tolist()}")
     return b
+
+
+_bounds = parse_bounds  # the former private name, still imported by sdf/sampler.py
+
+
+def check_spacing(spacing, like: torch.Tensor | None, name: str = "spacing") -> torch.Tensor:
+    """``spacing`` as a ``(3,)`` tensor like ``like`` (cast), checked positive.
+
+    Raises:
+        ShapeError: not 3 values.
+        ValueError: a value is zero or negative (NaN passes: NaN in, NaN out).
+
+    Example:
+        >>> check_spacing([0.5, 1.0, 0.0], torch.zeros(3))
+        Traceback (most recent call last):
+        ...
+        ValueError: spacing: expected positive grid spacings, got [0.5, 1.0, 0.0]
+    """
+    spacing = as_tensor_like(spacing, like, name, cast=True)
+    check_shape(spacing, ["3"], name)
+    if bool((spacing <= 0).any()):
+        raise ValueError(f"{name}: expected positive grid spacings, got {spacing.tolist()}")
+    return spacing
 
 
 def grid_spacing(
@@ -111,7 +154,7 @@ def grid_spacing(
         (tensor([-1., -1., -1.]), tensor([0.5000, 0.5000, 0.5000]))
     """
     res = _resolution(resolution)
-    b = _bounds(bounds, device, dtype)
+    b = parse_bounds(bounds, device, dtype)
     return b[0].clone(), (b[1] - b[0]) / b.new_tensor([r - 1 for r in res])
 
 
@@ -146,7 +189,7 @@ def grid_points(
     if indexing not in ("ij", "xy"):
         raise ValueError(f"indexing: expected 'ij' or 'xy', got {indexing!r}")
     res = _resolution(resolution)
-    b = _bounds(bounds, device, dtype)
+    b = parse_bounds(bounds, device, dtype)
     axes = [torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device, dtype=b.dtype)
             for a in range(3)]
     return torch.stack(torch.meshgrid(*axes, indexing=indexing), dim=-1)
@@ -173,9 +216,10 @@ def index_to_world(
         tensor([[0.5000, 2.0000, 6.0000]])
     """
     check_shape(indices, ["*", "3"], "indices")
+    origin = as_tensor_like(origin, None, "origin")
     check_shape(origin, ["3"], "origin")
-    check_shape(spacing, ["3"], "spacing")
-    return origin + spacing * indices.to(origin.dtype)
+    spacing = check_spacing(spacing, origin)
+    return origin + spacing * indices.to(dtype=origin.dtype, device=origin.device)
 
 
 def world_to_index(
@@ -188,8 +232,8 @@ def world_to_index(
 
     Args:
         points: ``(*, 3)`` float.
-        origin: ``(3,)``.
-        spacing: ``(3,)``, positive.
+        origin: ``(3,)``, cast to the points' dtype.
+        spacing: ``(3,)``, positive (else ``ValueError``), cast to the points' dtype.
 
     Returns:
         ``(*, 3)`` fractional indices.
@@ -201,8 +245,9 @@ def world_to_index(
     """
     check_float(points, "points")
     check_shape(points, ["*", "3"], "points")
+    origin = as_tensor_like(origin, points, "origin", cast=True)
     check_shape(origin, ["3"], "origin")
-    check_shape(spacing, ["3"], "spacing")
+    spacing = check_spacing(spacing, points)
     return (points - origin) / spacing
 
 
@@ -250,7 +295,7 @@ def sample_grid(
     if not isinstance(chunk, int) or chunk < 1:
         raise ValueError(f"chunk: expected a positive int, got {chunk!r}")
     origin, spacing = grid_spacing(res, bounds, device, dtype)
-    b = _bounds(bounds, device, dtype)
+    b = parse_bounds(bounds, device, dtype)
     xs, ys, zs = (torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device,
                                  dtype=b.dtype) for a in range(3))
     X, Y, Z = res
@@ -295,15 +340,17 @@ def grid_interpolate(
         The grid convention of this module; ``grid_sample(..., mode="bilinear",
         align_corners=True, padding_mode="border")`` on the volume viewed as ``(B, 1, X,
         Y, Z)``, so sample ``(i, j, k)`` is exactly ``origin + spacing * (i, j, k)`` and
-        points outside the bounds read the nearest border value. Differentiable with
-        respect to both the values and the points.
+        points outside the bounds (``±inf`` included) read the nearest border value.
+        A NaN coordinate, origin or spacing gives NaN. Differentiable with respect to
+        both the values and the points. The values are read in the points' dtype
+        (float16/bfloat16 points: computed in float32, returned in their dtype).
 
     Args:
         volume: a :class:`Volume`, or values ``(X, Y, Z)`` / ``(B, X, Y, Z)`` together
             with ``origin`` and ``spacing``.
         points: ``(*, N, 3)`` for an unbatched volume; ``(B, N, 3)`` for a batched one.
         origin: ``(3,)``; required when ``volume`` is a plain tensor.
-        spacing: ``(3,)``; required when ``volume`` is a plain tensor.
+        spacing: ``(3,)``, positive (else ``ValueError``); required with a plain tensor.
 
     Returns:
         ``(*, N)`` (or ``(B, N)``) interpolated values.
@@ -323,24 +370,25 @@ def grid_interpolate(
     check_float(values, "volume")
     check_float(points, "points")
     check_shape(points, ["*", "N", "3"], "points")
-    check_shape(origin, ["3"], "origin")
-    check_shape(spacing, ["3"], "spacing")
     if values.dim() not in (3, 4):
         raise ShapeError(f"volume: expected shape (X, Y, Z) or (B, X, Y, Z), got "
                          f"{tuple(values.shape)}")
-    res = values.new_tensor(values.shape[-3:])
-    # world -> [-1, 1] with align_corners=True; grid_sample wants (W, H, D) = (z, y, x) order
-    extent = (spacing * (res - 1)).to(points)
-    unit = 2.0 * (points - origin.to(points)) / extent - 1.0
-    grid = unit.flip(-1)
-    if values.dim() == 3:
-        lead = points.shape[:-2]
-        flat = grid.reshape(1, -1, 1, 1, 3)
-        out = F.grid_sample(values[None, None].to(points.dtype), flat, mode="bilinear",
-                            padding_mode="border", align_corners=True)
-        return out.reshape(*lead, points.shape[-2])
-    check_shape(points, [values.shape[0], "N", "3"], "points")
-    flat = grid.reshape(values.shape[0], -1, 1, 1, 3)
-    out = F.grid_sample(values[:, None].to(points.dtype), flat, mode="bilinear",
-                        padding_mode="border", align_corners=True)
-    return out.reshape(values.shape[0], points.shape[-2])
+    if values.dim() == 4:
+        check_shape(points, [values.shape[0], "N", "3"], "points")
+    dtype = points.dtype
+    work = points.to(working_dtype(dtype))
+    origin = as_tensor_like(origin, work, "origin", cast=True)
+    check_shape(origin, ["3"], "origin")
+    spacing = check_spacing(spacing, work)
+    res = work.new_tensor(values.shape[-3:])
+    # world -> [-1, 1] with align_corners=True; grid_sample wants (W, H, D) = (z, y, x) order.
+    # Clamping first reads the border value outside the bounds (inf included) and keeps NaN.
+    unit = (2.0 * (work - origin) / (spacing * (res - 1)) - 1.0).clamp(-1.0, 1.0)
+    undefined = unit.isnan().any(-1)  # (*, N): NaN point, origin or spacing
+    batch = values.shape[0] if values.dim() == 4 else 1
+    grid = unit.flip(-1).reshape(batch, -1, 1, 1, 3)
+    volume_b1 = values.reshape(batch, 1, *values.shape[-3:]).to(work.dtype)
+    out = F.grid_sample(volume_b1, grid, mode="bilinear", padding_mode="border",
+                        align_corners=True)
+    out = out.reshape(undefined.shape)
+    return cast_back(torch.where(undefined, out.new_full((), float("nan")), out), dtype)

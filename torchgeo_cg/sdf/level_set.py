@@ -24,12 +24,14 @@ cell edge and returns a connected, watertight mesh. The gallery figure
 
 from __future__ import annotations
 
+import numbers
 from typing import NamedTuple
 
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.sdf.grid import Volume, check_spacing
 
 __all__ = ["LevelSetPoints", "zero_level_set"]
 
@@ -70,8 +72,12 @@ def zero_level_set(
         volume: a :class:`~torchgeo_cg.sdf.grid.Volume`, or values ``(X, Y, Z)`` /
             ``(B, X, Y, Z)`` with ``origin`` and ``spacing``.
         origin: ``(3,)``; taken from the Volume when omitted.
-        spacing: ``(3,)``; taken from the Volume when omitted.
-        tol: the tolerance (the report uses ``1e-4``); must be positive.
+        spacing: ``(3,)``, positive; taken from the Volume when omitted.
+        tol: the tolerance (the report uses ``1e-4``), in the units of the values;
+            must be positive.
+
+    Raises:
+        ValueError: ``spacing`` or ``tol`` not positive.
 
     Returns:
         :class:`LevelSetPoints` ``(points (M, 3), indices (M, 3), batch (M,), counts (B,))``.
@@ -99,12 +105,13 @@ def zero_level_set(
     if origin is None or spacing is None:
         raise TypeError("zero_level_set: origin and spacing are required with a plain tensor")
     check_float(values, "volume")
+    origin = as_tensor_like(origin, values, "origin", cast=True)
     check_shape(origin, ["3"], "origin")
-    check_shape(spacing, ["3"], "spacing")
+    spacing = check_spacing(spacing, values)
     if values.dim() not in (3, 4):
         raise ShapeError(f"volume: expected shape (X, Y, Z) or (B, X, Y, Z), got "
                          f"{tuple(values.shape)}")
-    if not tol > 0:
+    if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not tol > 0:
         raise ValueError(f"tol: expected a positive tolerance, got {tol}")
     batched = values if values.dim() == 4 else values[None]
     hits = torch.nonzero(batched.abs() < tol)  # (M, 4): b, i, j, k

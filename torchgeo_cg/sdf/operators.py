@@ -13,6 +13,11 @@ Convention:
       it does not preserve distances.
     - Rotations are column-vector ``world_from_local`` matrices (``p_world = R @
       p_local``), as everywhere in torchgeo_cg.
+    - dtypes: the values combined by a CSG operator share one dtype and device (else
+      ``TypeError`` naming both); parameters (``k``, offsets, rotations, factors;
+      numbers, numpy values or tensors) follow the dtype and device of the values or
+      points they act on. float16/bfloat16 blends are computed in float32 and
+      returned in the input dtype (min/max/negation are exact in any dtype).
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like, check_same_dtype
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = [
     "union",
@@ -53,6 +60,7 @@ def _values(*values: torch.Tensor) -> None:
     for i, v in enumerate(values):
         check_float(v, f"sdf[{i}]")
     check_broadcastable({f"sdf[{i}]": v.shape for i, v in enumerate(values)})
+    check_same_dtype({f"sdf[{i}]": v for i, v in enumerate(values)})
 
 
 def union(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tensor:
@@ -122,12 +130,8 @@ def difference(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 
 def _check_k(k, like: torch.Tensor) -> torch.Tensor:
-    if not isinstance(k, torch.Tensor):
-        if isinstance(k, bool) or not isinstance(k, (int, float)):
-            raise TypeError(f"k: expected a positive number or tensor, got {type(k).__name__}")
-        k = torch.tensor(float(k), dtype=like.dtype, device=like.device)
-    check_float(k, "k")
-    if bool((k <= 0).any()):
+    k = as_tensor_like(k, like, "k", cast=True)
+    if bool((k <= 0).any()):  # NaN passes (NaN in, NaN out)
         raise ValueError(f"k: expected a positive blend radius, got {k.min().item()}")
     return k
 
@@ -153,9 +157,12 @@ def smooth_union(a: torch.Tensor, b: torch.Tensor, k: torch.Tensor | float = 0.1
         tensor([-0.1250, -1.0000])
     """
     _values(a, b)
+    dtype = a.dtype
+    work = working_dtype(dtype)
+    a, b = a.to(work), b.to(work)
     k = _check_k(k, a)
     h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0)
-    return b * (1.0 - h) + a * h - k * h * (1.0 - h)
+    return cast_back(b * (1.0 - h) + a * h - k * h * (1.0 - h), dtype)
 
 
 def smooth_intersection(
@@ -202,17 +209,11 @@ def product(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tens
         tensor([-3.,  1.])
     """
     _values(a, b, *more)
-    out = a * b
+    work = working_dtype(a.dtype)
+    out = a.to(work) * b.to(work)
     for m in more:
-        out = out * m
-    return out
-
-
-def _point_arg(x, name: str, dim: int | None = None) -> torch.Tensor:
-    if not isinstance(x, torch.Tensor):
-        raise TypeError(f"{name}: expected a float tensor, got {type(x).__name__}")
-    check_float(x, name)
-    return x
+        out = out * m.to(work)
+    return cast_back(out, a.dtype)
 
 
 def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
@@ -220,7 +221,8 @@ def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
 
     Convention:
         ``offset`` is in world units, ``(D,)`` or ``(*, D)`` broadcasting against the
-        points' leading dims (one offset per shape of a batch).
+        points' leading dims (one offset per shape of a batch); a tensor, numpy array
+        or list, cast to the points' dtype and device at each call.
 
     Args:
         sdf_fn: callable ``(*, N, D) -> (*, N)``.
@@ -235,12 +237,14 @@ def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
         >>> moved(torch.tensor([[2.0, 0.0, 0.0], [0.0, 0.0, 0.0]]))
         tensor([-1.,  1.])
     """
-    _point_arg(offset, "offset")
+    offset = as_tensor_like(offset, None, "offset")
     check_shape(offset, ["*", "D"], "offset")
     shift = offset if offset.dim() == 1 else offset.unsqueeze(-2)
 
     def moved(points: torch.Tensor) -> torch.Tensor:
-        return sdf_fn(points - shift)
+        check_float(points, "points")
+        check_shape(points, ["*", "N", offset.shape[-1]], "points")
+        return sdf_fn(points - shift.to(dtype=points.dtype, device=points.device))
 
     return moved
 
@@ -251,7 +255,8 @@ def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
     Convention:
         Column vectors: the shape's local point ``q`` appears at ``R @ q`` in the world,
         so the world point ``p`` is evaluated at ``q = R^T p``. ``R`` must be a rotation
-        (orthonormal, det +1); it is not re-orthonormalized.
+        (orthonormal, det +1); it is not re-orthonormalized. It is cast to the
+        points' dtype and device at each call (float16/bfloat16 points: float32).
 
     Args:
         sdf_fn: callable ``(*, N, D) -> (*, N)``.
@@ -266,12 +271,16 @@ def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
         >>> rotate(capsule, R)(torch.tensor([[0.0, -1.0, 0.0]]))  # the axis now points to -y
         tensor([-0.5000])
     """
-    _point_arg(world_from_local, "world_from_local")
+    world_from_local = as_tensor_like(world_from_local, None, "world_from_local")
     check_shape(world_from_local, ["*", "D", "D"], "world_from_local")
 
     def rotated(points: torch.Tensor) -> torch.Tensor:
+        check_float(points, "points")
+        check_shape(points, ["*", "N", world_from_local.shape[-1]], "points")
+        work = points.to(working_dtype(points.dtype))
+        rotation = world_from_local.to(dtype=work.dtype, device=work.device)
         # row form of q = R^T p: q^T = p^T R
-        return sdf_fn(points @ world_from_local)
+        return cast_back(sdf_fn(work @ rotation), points.dtype)
 
     return rotated
 
@@ -294,19 +303,14 @@ def scale(sdf_fn: SDF, factor: torch.Tensor | float) -> SDF:
         >>> scale(sphere, 3.0)(torch.tensor([[5.0, 0.0, 0.0]]))
         tensor([2.])
     """
-    if not isinstance(factor, torch.Tensor):
-        if isinstance(factor, bool) or not isinstance(factor, (int, float)):
-            raise TypeError(f"factor: expected a positive number or tensor, "
-                            f"got {type(factor).__name__}")
-        if factor <= 0:
-            raise ValueError(f"factor: expected a positive scale factor, got {factor}")
-        factor = torch.tensor(float(factor))
-    check_float(factor, "factor")
-    if bool((factor <= 0).any()):
+    factor = as_tensor_like(factor, None, "factor")
+    if bool((factor <= 0).any()):  # NaN passes (NaN in, NaN out)
         raise ValueError(f"factor: expected a positive scale factor, got {factor.min().item()}")
 
     def scaled(points: torch.Tensor) -> torch.Tensor:
-        s = factor.to(points)
+        check_float(points, "points")
+        check_shape(points, ["*", "N", "D"], "points")
+        s = factor.to(dtype=points.dtype, device=points.device)
         return s.unsqueeze(-1) * sdf_fn(points / s.unsqueeze(-1).unsqueeze(-1))
 
     return scaled
@@ -441,7 +445,7 @@ class Rotate(nn.Module):
 
     def __init__(self, shape: nn.Module, world_from_local: torch.Tensor):
         super().__init__()
-        check_float(world_from_local, "world_from_local")
+        world_from_local = as_tensor_like(world_from_local, None, "world_from_local")
         check_shape(world_from_local, ["*", "D", "D"], "world_from_local")
         self.shape = shape
         self.register_buffer("world_from_local", world_from_local.clone(), persistent=False)

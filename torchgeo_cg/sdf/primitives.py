@@ -12,8 +12,14 @@ Convention:
       (``|grad f| = 1`` almost everywhere). :func:`gyroid` and ``torus(exact=False)``
       (the report's algebraic torus, eq. 13) are *not* exact distances.
     - Every function is differentiable in the points and the parameters, with finite
-      gradients everywhere: square roots are taken of sums clamped at 1e-30, so a norm
-      of the zero vector is 1e-15 with a zero gradient (no inf, no NaN).
+      gradients everywhere: norms are the overflow-safe
+      :func:`~torchgeo_cg.core.numerics.hypot`, exact at every scale (no threshold),
+      with a zero gradient at the zero vector (no inf, no NaN). A value is finite
+      wherever the true distance is, over the whole range of the dtype
+      (``|p| = 2e19`` in float32 included).
+    - Parameters (numbers, numpy values or tensors) follow the dtype and device of
+      ``points``. float16/bfloat16 points are computed in float32 and the result is
+      returned in their dtype. NaN in any input gives NaN out.
     - :func:`sphere`, :func:`box`, :func:`capsule` and :func:`plane` work in 2D and 3D;
       :func:`circle`, :func:`rectangle` and :func:`annulus` are the named 2D counterparts.
 """
@@ -23,8 +29,9 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import check_float, check_shape
-from torchgeo_cg.core.numerics import safe_norm
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.numerics import cast_back, hypot, safe_div, working_dtype
 
 __all__ = [
     "sphere",
@@ -50,43 +57,30 @@ __all__ = [
 Number = float | int
 
 
-def _sumsq(v: torch.Tensor) -> torch.Tensor:
-    """``(v * v).sum(-1)`` written per component: much faster for a last dim of 2 or 3."""
-    parts = v.unbind(-1)
-    out = parts[0] * parts[0]
-    for c in parts[1:]:
-        out = out + c * c
-    return out
+def _norm(v: torch.Tensor) -> torch.Tensor:
+    """``|v|`` over the last dim (2 or 3 components), overflow-safe, zero gradient at 0."""
+    return hypot(*v.unbind(-1))
 
 
-def _root(sq: torch.Tensor) -> torch.Tensor:
-    """``sqrt`` of a sum of squares, clamped below at 1e-30 (the value is then 1e-15).
+def _points(points: torch.Tensor, dims: tuple[int, ...] = (2, 3)) -> torch.Tensor:
+    """Check ``points`` is a float ``(*, N, D)`` tensor with ``D`` in ``dims``.
 
-    ``clamp_min`` passes a zero gradient below the bound, so neither the value nor the
-    gradient can be inf or NaN at a zero vector (the cheap cousin of ``safe_norm``).
+    Returns the points in the working dtype (float32 for float16/bfloat16).
     """
-    return sq.clamp_min(1e-30).sqrt()
-
-
-def _points(points: torch.Tensor, dims: tuple[int, ...] = (2, 3)) -> int:
-    """Check ``points`` is a float ``(*, N, D)`` tensor with ``D`` in ``dims``; return D."""
     check_float(points, "points")
     check_shape(points, ["*", "N", "D"], "points")
     dim = points.shape[-1]
     if dim not in dims:
         expected = " or ".join(str(d) for d in dims)
-        raise ValueError(f"points: expected last dimension {expected}, got {dim}")
-    return dim
+        raise ShapeError(f"points: expected shape (*, N, {expected.replace(' or ', '|')}), got "
+                         f"{tuple(points.shape)}")
+    return points.to(working_dtype(points.dtype))
 
 
 def _scalar(x: torch.Tensor | Number, name: str, like: torch.Tensor) -> torch.Tensor:
     """A ``(*)`` parameter as a tensor shaped ``(*, 1)`` to broadcast against ``(*, N)``."""
-    if not isinstance(x, torch.Tensor):
-        if isinstance(x, bool) or not isinstance(x, (int, float)):
-            raise TypeError(f"{name}: expected a float tensor or a number, got {type(x).__name__}")
-        return torch.tensor(float(x), dtype=like.dtype, device=like.device)
-    check_float(x, name)
-    return x.unsqueeze(-1)
+    x = as_tensor_like(x, like, name, cast=True)
+    return x.unsqueeze(-1) if x.dim() > 0 else x
 
 
 def _vector(x: torch.Tensor | None, name: str, like: torch.Tensor, default=0.0) -> torch.Tensor:
@@ -94,9 +88,7 @@ def _vector(x: torch.Tensor | None, name: str, like: torch.Tensor, default=0.0) 
     dim = like.shape[-1]
     if x is None:
         return like.new_full((dim,), float(default))
-    if not isinstance(x, torch.Tensor):
-        x = torch.as_tensor(x, dtype=like.dtype, device=like.device)
-    check_float(x, name)
+    x = as_tensor_like(x, like, name, cast=True)
     check_shape(x, ["*", dim], name)
     return x if x.dim() == 1 else x.unsqueeze(-2)
 
@@ -121,10 +113,10 @@ def sphere(
         >>> sphere(torch.tensor([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]]), radius=1.0)
         tensor([-1.,  1.])
     """
-    _points(points)
-    r = _scalar(radius, "radius", points)
-    c = _vector(center, "center", points)
-    return _root(_sumsq(points - c)) - r
+    work = _points(points)
+    r = _scalar(radius, "radius", work)
+    c = _vector(center, "center", work)
+    return cast_back(_norm(work - c) - r, points.dtype)
 
 
 def circle(
@@ -180,14 +172,14 @@ def box(
         >>> box(torch.tensor([[0.0, 0.0, 0.0], [2.0, 2.0, 1.0]]), torch.tensor([1.0, 1.0, 1.0]))
         tensor([-1.0000,  1.4142])
     """
-    _points(points)
-    b = _vector(half_size, "half_size", points, default=1.0)
-    r = _scalar(radius, "radius", points)
-    c = _vector(center, "center", points)
-    q = (points - c).abs() - b + r.unsqueeze(-1)
-    outside = _root(_sumsq(q.clamp_min(0.0)))
+    work = _points(points)
+    b = _vector(half_size, "half_size", work, default=1.0)
+    r = _scalar(radius, "radius", work)
+    c = _vector(center, "center", work)
+    q = (work - c).abs() - b + r.unsqueeze(-1)
+    outside = _norm(q.clamp_min(0.0))
     inside = q.amax(dim=-1).clamp_max(0.0)
-    return outside + inside - r
+    return cast_back(outside + inside - r, points.dtype)
 
 
 def rectangle(
@@ -243,19 +235,20 @@ def capsule(
         >>> capsule(torch.tensor([[1.0, 0.0, 0.5], [0.0, 0.0, 3.0]]), radius=0.5)
         tensor([0.5000, 1.5000])
     """
-    dim = _points(points)
-    a = _vector(start, "start", points)
+    work = _points(points)
+    dim = work.shape[-1]
+    a = _vector(start, "start", work)
     if end is None:
-        end = points.new_zeros(dim)
+        end = work.new_zeros(dim)
         end[-1] = 1.0
-    b = _vector(end, "end", points)
-    r = _scalar(radius, "radius", points)
-    pa, ba = points - a, b - a
-    den = (ba * ba).sum(-1, keepdim=True)
-    safe_den = torch.where(den > 0, den, torch.ones_like(den))
-    t = torch.where(den > 0, (pa * ba).sum(-1, keepdim=True) / safe_den, torch.zeros_like(den))
-    t = t.clamp(0.0, 1.0)
-    return _root(_sumsq(pa - t * ba)) - r
+    b = _vector(end, "end", work)
+    r = _scalar(radius, "radius", work)
+    pa, ba = work - a, b - a
+    # t = (pa . ba) / |ba|^2 as (pa . u) / |ba| with u = ba / |ba|: no |ba|^2 to overflow
+    length = _norm(ba).unsqueeze(-1)
+    unit = safe_div(ba, length)  # zero for a zero-length segment (a sphere)
+    t = safe_div((pa * unit).sum(-1, keepdim=True), length).clamp(0.0, 1.0)
+    return cast_back(_norm(pa - t * ba) - r, points.dtype)
 
 
 def plane(
@@ -280,16 +273,17 @@ def plane(
         >>> plane(torch.tensor([[0.0, 0.0, 3.0]]), torch.tensor([0.0, 0.0, 2.0]), offset=1.0)
         tensor([2.])
     """
-    dim = _points(points)
+    work = _points(points)
+    dim = work.shape[-1]
     if normal is None:
-        normal = points.new_zeros(dim)
+        normal = work.new_zeros(dim)
         normal[-1] = 1.0
-    n = _vector(normal, "normal", points)
-    length = safe_norm(n, keepdim=True)
+    n = _vector(normal, "normal", work)
+    length = _norm(n).unsqueeze(-1)
     if bool((length == 0).any()):
         raise ValueError("normal: expected a nonzero vector, got a zero normal")
-    d = _scalar(offset, "offset", points)
-    return (points * (n / length)).sum(-1) - d
+    d = _scalar(offset, "offset", work)
+    return cast_back((work * (n / length)).sum(-1) - d, points.dtype)
 
 
 def torus(
@@ -322,14 +316,15 @@ def torus(
         >>> torus(p, 1.0, 0.25), torus(p, 1.0, 0.25, exact=False)
         (tensor([-0.2500,  0.7500]), tensor([-0.0625,  0.9375]))
     """
-    _points(points, (3,))
-    big = _scalar(major_radius, "major_radius", points)
-    small = _scalar(minor_radius, "minor_radius", points)
-    x, y, z = points.unbind(-1)
-    rho = _root(x * x + y * y) - big
+    work = _points(points, (3,))
+    big = _scalar(major_radius, "major_radius", work)
+    small = _scalar(minor_radius, "minor_radius", work)
+    x, y, z = work.unbind(-1)
+    rho = hypot(x, y) - big
+    s = hypot(rho, z)
     if exact:
-        return _root(rho * rho + z * z) - small
-    return rho * rho + z * z - small * small
+        return cast_back(s - small, points.dtype)
+    return cast_back((s - small) * (s + small), points.dtype)  # s^2 - r^2, no overflow
 
 
 def annulus(
@@ -355,10 +350,10 @@ def annulus(
         >>> annulus(torch.tensor([[1.0, 0.0], [0.0, 0.0]]), 1.0, 0.25)
         tensor([-0.2500,  0.7500])
     """
-    _points(points, (2,))
-    big = _scalar(major_radius, "major_radius", points)
-    small = _scalar(minor_radius, "minor_radius", points)
-    return (_root(_sumsq(points)) - big).abs() - small
+    work = _points(points, (2,))
+    big = _scalar(major_radius, "major_radius", work)
+    small = _scalar(minor_radius, "minor_radius", work)
+    return cast_back((_norm(work) - big).abs() - small, points.dtype)
 
 
 def gyroid(
@@ -377,7 +372,7 @@ def gyroid(
 
     Args:
         points: ``(*, N, 3)``.
-        scale: spatial frequency, number or ``(*)`` (positive).
+        scale: spatial frequency, number or ``(*)``; positive (else ``ValueError``).
         thickness: sheet thickness, number or ``(*)``.
 
     Returns:
@@ -387,13 +382,15 @@ def gyroid(
         >>> gyroid(torch.tensor([[0.0, 0.0, 0.0], [1.5708, 0.0, 0.0]]), 1.0, 0.1)
         tensor([-0.0500,  0.9500])
     """
-    _points(points, (3,))
-    s = _scalar(scale, "scale", points)
-    t = _scalar(thickness, "thickness", points)
-    q = points * s.unsqueeze(-1)
+    work = _points(points, (3,))
+    s = _scalar(scale, "scale", work)
+    if bool((s <= 0).any()):  # NaN passes (NaN in, NaN out)
+        raise ValueError(f"scale: expected a positive spatial frequency, got {s.min().item()}")
+    t = _scalar(thickness, "thickness", work)
+    q = work * s.unsqueeze(-1)
     x, y, z = q.unbind(-1)
     g = torch.sin(x) * torch.cos(y) + torch.sin(y) * torch.cos(z) + torch.sin(z) * torch.cos(x)
-    return g.abs() / s - 0.5 * t
+    return cast_back(g.abs() / s - 0.5 * t, points.dtype)
 
 
 # --------------------------------------------------------------------------- modules

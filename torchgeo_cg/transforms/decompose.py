@@ -21,6 +21,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.numerics import cast_back, hypot, working_dtype
 
 __all__ = ["AffineDecomposition", "decompose_affine"]
 
@@ -50,10 +51,12 @@ def decompose_affine(matrix: torch.Tensor) -> AffineDecomposition:
 
     Convention:
         Column vectors; see the module docstring for the order. ``matrix`` is
-        divided by ``m33`` first; its perspective entries ``m31, m32`` are
-        ignored (check them yourself). A singular linear part does not give NaN:
-        ``sx = 0`` gives angle 0, ``sy = 0`` gives shear 0. Differentiable away
-        from those cases.
+        divided by ``m33`` first (unless it is exactly 0); its perspective entries
+        ``m31, m32`` are ignored (check them yourself). A singular linear part does
+        not give NaN: ``sx = 0`` gives angle 0, ``sy = 0`` gives shear 0; only exact
+        zeros are guarded, so the result is the same at every scale (``sx`` by the
+        overflow-safe ``hypot``). NaN in gives NaN out. float16/bfloat16 are
+        computed in float32. Differentiable away from those cases.
 
     Args:
         matrix: ``(*, 3, 3)`` affine matrices.
@@ -71,23 +74,24 @@ def decompose_affine(matrix: torch.Tensor) -> AffineDecomposition:
     """
     check_shape(matrix, ["*", "3", "3"], "matrix")
     check_float(matrix, "matrix")
+    dtype = matrix.dtype
+    matrix = matrix.to(working_dtype(dtype))
     m33 = matrix[..., 2, 2]
-    m33 = torch.where(m33.abs() > 1e-300, m33, torch.ones_like(m33))
+    m33 = torch.where(m33 != 0, m33, torch.ones_like(m33))
     m = matrix / m33[..., None, None]
     a, b, c, d = m[..., 0, 0], m[..., 0, 1], m[..., 1, 0], m[..., 1, 1]
-    sx_sq = a * a + c * c
-    ok_x = sx_sq > 0
-    sx_sq_safe = torch.where(ok_x, sx_sq, torch.ones_like(sx_sq))
-    sx = torch.where(ok_x, sx_sq_safe.sqrt(), torch.zeros_like(sx_sq))
-    cos = torch.where(ok_x, a / sx_sq_safe.sqrt(), torch.ones_like(a))
-    sin = torch.where(ok_x, c / sx_sq_safe.sqrt(), torch.zeros_like(c))
+    sx = hypot(a, c)
+    ok_x = sx > 0
+    sx_safe = torch.where(ok_x, sx, torch.ones_like(sx))
+    nan = sx * 0  # 0, or NaN where the column is NaN
+    cos = torch.where(ok_x, a / sx_safe, 1 + nan)
+    sin = torch.where(ok_x, c / sx_safe, nan)
     angle = torch.rad2deg(torch.atan2(sin, cos))
     # U = Rᵀ L = [[sx, shear·sy], [0, sy]]
     u01 = cos * b + sin * d
     sy = -sin * b + cos * d
     ok_y = sy != 0
     sy_safe = torch.where(ok_y, sy, torch.ones_like(sy))
-    shear = torch.where(ok_y, u01 / sy_safe, torch.zeros_like(sy))
-    return AffineDecomposition(
-        m[..., :2, 2], angle, torch.stack([sx, sy], dim=-1), shear
-    )
+    shear = torch.where(ok_y, u01 / sy_safe, u01 * 0)
+    return AffineDecomposition(*(cast_back(x, dtype) for x in (
+        m[..., :2, 2], angle, torch.stack([sx, sy], dim=-1), shear)))

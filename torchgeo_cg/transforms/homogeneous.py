@@ -9,11 +9,17 @@ Convention:
     - ``compose(A, B, C) = A @ B @ C``: the right-most matrix acts first.
     - Every function is batched over leading dimensions ``(*)`` (broadcast between
       arguments), takes dtype and device from its tensor inputs, and is
-      differentiable. Python numbers are accepted where a ``(*)`` tensor is, and
-      become tensors of the default dtype.
-    - The perspective divide clamps ``|w| < eps`` to ``±eps`` (sign kept, ``+eps``
-      at exactly 0), so points at infinity come out huge but finite, with finite
-      gradients. kornia instead leaves such points undivided.
+      differentiable. Python and numpy numbers (and numpy arrays) are accepted where
+      a ``(*)`` tensor is; they take the dtype of the tensor arguments, or the default
+      dtype when there is none (numpy floats keep theirs).
+    - dtypes: tensor arguments of one call must share one dtype and device, else a
+      ``TypeError`` names both. float16/bfloat16 are computed in float32 and returned
+      in the input dtype, saturating at its largest finite value (never ``inf``).
+    - Scale: no absolute threshold. The perspective divide treats ``w`` as zero only
+      below the rounding error of its row, ``|w| < eps_dtype (|m20| + |m21| + |m22|)``,
+      and then divides by that bound (sign kept, ``+`` at exactly 0), so points at
+      infinity come out huge but finite, with finite gradients (kornia instead
+      leaves such points undivided). :func:`inverse` guards only ``det == 0``.
 """
 
 from __future__ import annotations
@@ -21,7 +27,8 @@ from __future__ import annotations
 import torch
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.numerics import clamp_away_from_zero, safe_div
+from torchgeo_cg.core.coerce import as_tensor_like, check_same_dtype
+from torchgeo_cg.core.numerics import cast_back, clamp_away_from_zero, working_dtype
 
 __all__ = [
     "translation",
@@ -38,16 +45,6 @@ __all__ = [
 ]
 
 
-def _as_float(x: torch.Tensor | float, name: str, like: torch.Tensor | None = None):
-    """Tensor-ify Python numbers (dtype/device of ``like`` if given) and check for floats."""
-    if not isinstance(x, torch.Tensor):
-        if isinstance(x, bool) or not isinstance(x, (int, float)):
-            raise TypeError(f"{name}: expected a float tensor or a number, got {type(x).__name__}")
-        kw = {} if like is None else {"dtype": like.dtype, "device": like.device}
-        x = torch.tensor(float(x), **kw)
-    return check_float(x, name)
-
-
 def _from_rows(m00, m01, m02, m10, m11, m12, m20, m21, m22) -> torch.Tensor:
     """Stack nine broadcastable (*) tensors into (*, 3, 3)."""
     entries = torch.broadcast_tensors(m00, m01, m02, m10, m11, m12, m20, m21, m22)
@@ -61,7 +58,7 @@ def translation(offset: torch.Tensor) -> torch.Tensor:
         Column vectors; ``offset = (a, b)`` in (x, y) order.
 
     Args:
-        offset: ``(*, 2)`` float tensor.
+        offset: ``(*, 2)`` float tensor (or a numpy array / sequence of numbers).
 
     Returns:
         ``(*, 3, 3)`` matrices.
@@ -72,8 +69,8 @@ def translation(offset: torch.Tensor) -> torch.Tensor:
                 [0., 1., 1.],
                 [0., 0., 1.]])
     """
+    offset = as_tensor_like(offset, None, "offset")
     check_shape(offset, ["*", "2"], "offset")
-    check_float(offset, "offset")
     one, zero = torch.ones_like(offset[..., 0]), torch.zeros_like(offset[..., 0])
     return _from_rows(one, zero, offset[..., 0], zero, one, offset[..., 1], zero, zero, one)
 
@@ -92,7 +89,7 @@ def rotation(angle: torch.Tensor | float, degrees: bool = True) -> torch.Tensor:
         ``R(+angle)`` (both tested live).
 
     Args:
-        angle: ``(*)`` angles, or a Python number.
+        angle: ``(*)`` angles, or a Python/numpy number.
         degrees: interpret ``angle`` in degrees (else radians).
 
     Returns:
@@ -104,11 +101,12 @@ def rotation(angle: torch.Tensor | float, degrees: bool = True) -> torch.Tensor:
                 [ 1.,  0.,  0.],
                 [ 0.,  0.,  1.]])
     """
-    angle = _as_float(angle, "angle")
-    rad = torch.deg2rad(angle) if degrees else angle
+    angle = as_tensor_like(angle, None, "angle")
+    work = angle.to(working_dtype(angle.dtype))
+    rad = torch.deg2rad(work) if degrees else work
     c, s = torch.cos(rad), torch.sin(rad)
     one, zero = torch.ones_like(c), torch.zeros_like(c)
-    return _from_rows(c, -s, zero, s, c, zero, zero, zero, one)
+    return cast_back(_from_rows(c, -s, zero, s, c, zero, zero, zero, one), angle.dtype)
 
 
 def scaling(factor: torch.Tensor | float, per_axis: bool | None = None) -> torch.Tensor:
@@ -136,7 +134,7 @@ def scaling(factor: torch.Tensor | float, per_axis: bool | None = None) -> torch
         tensor([[1.2000, 0.0000],
                 [0.0000, 0.4000]])
     """
-    factor = _as_float(factor, "factor")
+    factor = as_tensor_like(factor, None, "factor")
     if per_axis is None:
         per_axis = factor.ndim >= 1 and factor.shape[-1] == 2
     if per_axis:
@@ -165,7 +163,7 @@ def scale_x(factor: torch.Tensor | float) -> torch.Tensor:
         >>> scale_x(torch.tensor([2.0, 3.0]))[:, 0, 0]
         tensor([2., 3.])
     """
-    factor = _as_float(factor, "factor")
+    factor = as_tensor_like(factor, None, "factor")
     return scaling(torch.stack([factor, torch.ones_like(factor)], dim=-1), per_axis=True)
 
 
@@ -186,7 +184,7 @@ def scale_y(factor: torch.Tensor | float) -> torch.Tensor:
         >>> scale_y(0.5)[1, 1]
         tensor(0.5000)
     """
-    factor = _as_float(factor, "factor")
+    factor = as_tensor_like(factor, None, "factor")
     return scaling(torch.stack([torch.ones_like(factor), factor], dim=-1), per_axis=True)
 
 
@@ -213,8 +211,12 @@ def shear(a: torch.Tensor | float, b: torch.Tensor | float) -> torch.Tensor:
                 [0.0000, 1.0000, 0.0000],
                 [0.0000, 0.0000, 1.0000]])
     """
-    a = _as_float(a, "a")
-    b = _as_float(b, "b", like=a)
+    if isinstance(a, torch.Tensor) or not isinstance(b, torch.Tensor):
+        a = as_tensor_like(a, None, "a")
+        b = as_tensor_like(b, a, "b", like_name="a")
+    else:
+        b = as_tensor_like(b, None, "b")
+        a = as_tensor_like(a, b, "a", like_name="b")
     check_broadcastable({"a": a.shape, "b": b.shape})
     a, b = torch.broadcast_tensors(a, b)
     one, zero = torch.ones_like(a), torch.zeros_like(a)
@@ -240,8 +242,8 @@ def homography(h: torch.Tensor) -> torch.Tensor:
                 [-0.2500, -0.2000,  5.6500],
                 [-0.0200, -0.0900,  1.0000]])
     """
+    h = as_tensor_like(h, None, "h")
     check_shape(h, ["*", "8"], "h")
-    check_float(h, "h")
     return torch.cat([h, torch.ones_like(h[..., :1])], dim=-1).unflatten(-1, (3, 3))
 
 
@@ -255,7 +257,8 @@ def compose(*matrices: torch.Tensor) -> torch.Tensor:
 
     Convention:
         Column vectors, so the right-most matrix acts first: the report's
-        ``T·S·R`` (eq. 3) is ``compose(T, S, R)``. Batch dims broadcast.
+        ``T·S·R`` (eq. 3) is ``compose(T, S, R)``. Batch dims broadcast. All
+        matrices share one dtype and device (else ``TypeError`` naming two of them).
 
     Args:
         *matrices: one or more ``(*, 3, 3)`` tensors.
@@ -272,10 +275,12 @@ def compose(*matrices: torch.Tensor) -> torch.Tensor:
         raise ValueError("compose: expected at least one matrix, got none")
     named = {f"matrices[{i}]": _check_matrix(m, f"matrices[{i}]") for i, m in enumerate(matrices)}
     check_broadcastable({name: m.shape[:-2] for name, m in named.items()})
-    out = matrices[0]
+    dtype = check_same_dtype(named).dtype
+    work = working_dtype(dtype)
+    out = matrices[0].to(work)
     for m in matrices[1:]:
-        out = out @ m
-    return out
+        out = out @ m.to(work)
+    return cast_back(out, dtype)
 
 
 def compose_trs(
@@ -295,8 +300,10 @@ def compose_trs(
 
     Args:
         offset: ``(*, 2)`` translation.
-        angle: ``(*)`` rotation (degrees unless ``degrees=False``).
-        scale: ``(*)`` uniform or ``(*, 2)`` per-axis scale, as in :func:`scaling`.
+        angle: ``(*)`` rotation (degrees unless ``degrees=False``); a tensor of
+            ``offset``'s dtype and device, or a number.
+        scale: ``(*)`` uniform or ``(*, 2)`` per-axis scale, as in :func:`scaling`;
+            same dtype rule as ``angle``.
         row_vectors: return the post-multiplied (row-vector) form.
         degrees: unit of ``angle``.
 
@@ -309,10 +316,10 @@ def compose_trs(
         ...                m.mT)
         True
     """
+    offset = as_tensor_like(offset, None, "offset")
     check_shape(offset, ["*", "2"], "offset")
-    check_float(offset, "offset")
-    angle = _as_float(angle, "angle", like=offset)
-    scale = _as_float(scale, "scale", like=offset)
+    angle = as_tensor_like(angle, offset, "angle", like_name="offset")
+    scale = as_tensor_like(scale, offset, "scale", like_name="offset")
     per_axis = scale.ndim >= 1 and scale.shape[-1] == 2
     check_broadcastable(
         {
@@ -327,23 +334,29 @@ def compose_trs(
     return compose(t, s, r)
 
 
-def transform_points(matrix: torch.Tensor, points: torch.Tensor, eps: float = 1e-8) -> torch.Tensor:
+def transform_points(
+    matrix: torch.Tensor, points: torch.Tensor, eps: float | None = None
+) -> torch.Tensor:
     """Apply homogeneous ``matrix`` to 2D ``points``, with the perspective divide.
 
     ``[x', y', w]ᵀ = M [x, y, 1]ᵀ`` and the result is ``(x'/w, y'/w)``.
 
     Convention:
         Column vectors as in kornia's ``transform_points(trans_01, points_1)``;
-        equal to it whenever ``|w| > eps``. Where ``|w| <= eps`` we divide by
-        ``±eps`` (sign of ``w`` kept, ``+eps`` at exactly 0) instead of leaving
-        the point undivided as kornia does: the output is finite, forward and
-        backward. Batch dims of ``matrix`` and ``points`` broadcast. NaN in
-        gives NaN out.
+        equal to it wherever ``w`` is not numerically zero. ``w`` counts as zero
+        below the rounding error of the bottom row, ``|w| < bound`` with
+        ``bound = finfo(dtype).eps * (|m20| + |m21| + |m22|)`` (relative, so the
+        same at every scale of the points and of the matrix); there we divide by
+        ``±bound`` (sign of ``w`` kept, ``+`` at exactly 0) instead of leaving the
+        point undivided as kornia does: the output is huge but finite, forward and
+        backward. Batch dims of ``matrix`` and ``points`` broadcast. NaN in gives
+        NaN out. float16/bfloat16 are computed in float32 and saturate on return.
 
     Args:
         matrix: ``(*, 3, 3)`` float transforms.
-        points: ``(*, N, 2)`` float points.
-        eps: smallest ``|w|`` divided by.
+        points: ``(*, N, 2)`` float points, same dtype and device as ``matrix``.
+        eps: ``None`` (default) for the relative bound above; a number is the
+            legacy absolute bound on ``|w|``.
 
     Returns:
         ``(*, N, 2)`` transformed points.
@@ -352,40 +365,50 @@ def transform_points(matrix: torch.Tensor, points: torch.Tensor, eps: float = 1e
         >>> h = homography(torch.tensor([1.0, 0, 0, 0, 1, 0, 0.5, 0]))
         >>> transform_points(h, torch.tensor([[2.0, 4.0], [-2.0, 1.0]]))
         tensor([[ 1.0000e+00,  2.0000e+00],
-                [-2.0000e+08,  1.0000e+08]])
+                [-1.1185e+07,  5.5924e+06]])
     """
     _check_matrix(matrix, "matrix")
     check_shape(points, ["*", "N", "2"], "points")
     check_float(points, "points")
     check_broadcastable({"matrix": matrix.shape[:-2], "points": points.shape[:-2]})
-    if matrix.dtype != points.dtype or matrix.device != points.device:
-        raise TypeError(
-            f"transform_points: matrix is {matrix.dtype} on {matrix.device} but points is "
-            f"{points.dtype} on {points.device}"
-        )
+    check_same_dtype({"points": points, "matrix": matrix})
+    dtype = points.dtype
+    work = working_dtype(dtype)
+    matrix, points = matrix.to(work), points.to(work)
     # Written out entry by entry: a (N,2)@(2,3) matmul is memory-bound and slower,
     # and the elementwise form keeps backward cheap. m_rc is (*, 1), x and y are (*, N).
     x, y = points[..., 0], points[..., 1]
     m = matrix[..., None]  # (*, 3, 3, 1)
     w = torch.addcmul(torch.addcmul(m[..., 2, 2, :], m[..., 2, 0, :], x), m[..., 2, 1, :], y)
+    if eps is None:  # the rounding error of w = m20 x + m21 y + m22, per matrix: (*, 1)
+        eps = torch.finfo(dtype).eps * m[..., 2, :, :].detach().abs().sum(-2)
     w = clamp_away_from_zero(w, eps)  # (*, N)
     x_out = torch.addcmul(torch.addcmul(m[..., 0, 2, :], m[..., 0, 0, :], x), m[..., 0, 1, :], y)
     y_out = torch.addcmul(torch.addcmul(m[..., 1, 2, :], m[..., 1, 0, :], x), m[..., 1, 1, :], y)
-    return torch.stack([x_out / w, y_out / w], dim=-1)
+    if torch.is_grad_enabled() and (matrix.requires_grad or points.requires_grad):
+        return cast_back(torch.stack([x_out / w, y_out / w], dim=-1), dtype)
+    out = w.new_empty(*w.shape, 2)  # no autograd: divide straight into the result
+    torch.div(x_out, w, out=out[..., 0])
+    torch.div(y_out, w, out=out[..., 1])
+    return cast_back(out, dtype)
 
 
-def inverse(matrix: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:
+def inverse(matrix: torch.Tensor, eps: float | None = None) -> torch.Tensor:
     """Inverse of homogeneous 3x3 matrices by the adjugate, ``M⁻¹ = adj(M) / det(M)``.
 
     Convention:
-        Closed form, batched and differentiable. A singular matrix
-        (``|det| < eps``) does not raise or give NaN: the determinant is clamped
-        to ``±eps`` (sign kept), so the result is huge but finite; check
-        ``torch.linalg.det`` yourself when singular input is possible.
+        Closed form, batched and differentiable, exact at every scale (no
+        threshold: ``inverse(scaling(1e-7))`` is ``scaling(1e7)``). Only an exactly
+        singular matrix (``det == 0``) is guarded: its determinant is replaced by
+        ``finfo(dtype).eps * max|M| * max|adj(M)|`` (the scale of the determinant,
+        as ``M adj(M) = det I``), so the result is huge but finite, never NaN;
+        check ``torch.linalg.det`` yourself when singular input is possible.
+        float16/bfloat16 are computed in float32 and saturate on return.
 
     Args:
         matrix: ``(*, 3, 3)`` float tensor.
-        eps: smallest ``|det|`` divided by.
+        eps: ``None`` (default) as above; a number is the legacy absolute bound on
+            ``|det|`` (clamped to ``±eps``).
 
     Returns:
         ``(*, 3, 3)`` inverses.
@@ -394,8 +417,12 @@ def inverse(matrix: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:
         >>> m = compose_trs(torch.tensor([2.0, 1.0]), 30.0, 2.0)
         >>> torch.allclose(compose(m, inverse(m)), torch.eye(3), atol=1e-6)
         True
+        >>> inverse(scaling(torch.tensor(1e-7, dtype=torch.float64))).diagonal()
+        tensor([1.0000e+07, 1.0000e+07, 1.0000e+00], dtype=torch.float64)
     """
     _check_matrix(matrix, "matrix")
+    dtype = matrix.dtype
+    matrix = matrix.to(working_dtype(dtype))
     a, b, c = matrix[..., 0, 0], matrix[..., 0, 1], matrix[..., 0, 2]
     d, e, f = matrix[..., 1, 0], matrix[..., 1, 1], matrix[..., 1, 2]
     g, h, i = matrix[..., 2, 0], matrix[..., 2, 1], matrix[..., 2, 2]
@@ -405,4 +432,10 @@ def inverse(matrix: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:
     G, H, I = b * f - c * e, -(a * f - c * d), a * e - b * d
     det = a * A + b * B + c * C
     adj = _from_rows(A, D, G, B, E, H, C, F, I)
-    return safe_div(adj, det[..., None, None], eps=eps)
+    if eps is None:
+        size = matrix.detach().abs().amax((-2, -1)) * adj.detach().abs().amax((-2, -1))
+        eps = torch.finfo(dtype).eps * size  # (*)
+        det = torch.where(det == 0, clamp_away_from_zero(det, eps), det)
+    else:
+        det = clamp_away_from_zero(det, eps)
+    return cast_back(adj / det[..., None, None], dtype)

@@ -11,6 +11,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.transforms.homogeneous import compose_trs, transform_points
 
 __all__ = ["TRSTransform", "HomogeneousTransform"]
@@ -33,8 +34,8 @@ class TRSTransform(nn.Module):
 
     Args:
         offset: ``(*, 2)`` translation.
-        angle: ``(*)`` rotation.
-        scale: ``(*)`` uniform or ``(*, 2)`` per-axis scale.
+        angle: ``(*)`` rotation, a tensor of ``offset``'s dtype and device or a number.
+        scale: ``(*)`` uniform or ``(*, 2)`` per-axis scale, like ``angle``.
         degrees: unit of ``angle``.
         learnable: make offset, angle and scale ``nn.Parameter`` (else buffers).
 
@@ -47,15 +48,17 @@ class TRSTransform(nn.Module):
     def __init__(
         self,
         offset: torch.Tensor,
-        angle: torch.Tensor,
-        scale: torch.Tensor,
+        angle: torch.Tensor | float,
+        scale: torch.Tensor | float,
         degrees: bool = True,
         learnable: bool = True,
     ) -> None:
         super().__init__()
         check_shape(offset, ["*", "2"], "offset")
+        check_float(offset, "offset")
+        angle = as_tensor_like(angle, offset, "angle", like_name="offset")
+        scale = as_tensor_like(scale, offset, "scale", like_name="offset")
         for name, value in (("offset", offset), ("angle", angle), ("scale", scale)):
-            check_float(value, name)
             _register(self, name, value.detach().clone(), learnable)
         self.degrees = degrees
 
@@ -72,15 +75,15 @@ class HomogeneousTransform(nn.Module):
     """A fixed or learnable ``(*, 3, 3)`` matrix applied with :func:`transform_points`.
 
     Convention:
-        Column vectors, ``p' = M @ [x, y, 1]`` then the perspective divide (``w`` near
-        0 divides by ``±eps``). The matrix is a parameter when ``learnable`` (entries
-        trained freely, no normalization of ``M[2, 2]``), else a buffer; ``.to()``
-        moves it either way.
+        Column vectors, ``p' = M @ [x, y, 1]`` then the perspective divide (``w``
+        numerically zero divides by a bound relative to ``M``'s bottom row). The
+        matrix is a parameter when ``learnable`` (entries trained freely, no
+        normalization of ``M[2, 2]``), else a buffer; ``.to()`` moves it either way.
 
     Args:
         matrix: ``(*, 3, 3)`` float, copied.
         learnable: register it as a ``nn.Parameter``.
-        eps: the divide's guard, as in :func:`transform_points`.
+        eps: the divide's guard, as in :func:`transform_points` (``None``: relative).
 
     Example:
         >>> m = HomogeneousTransform(torch.eye(3) * 2)
@@ -88,7 +91,8 @@ class HomogeneousTransform(nn.Module):
         tensor([[1., 2.]])
     """
 
-    def __init__(self, matrix: torch.Tensor, learnable: bool = False, eps: float = 1e-8) -> None:
+    def __init__(self, matrix: torch.Tensor, learnable: bool = False,
+                 eps: float | None = None) -> None:
         super().__init__()
         check_shape(matrix, ["*", "3", "3"], "matrix")
         check_float(matrix, "matrix")

@@ -1,0 +1,581 @@
+"""The API contract as data: every public callable, a generator of valid inputs and its scaling law.
+
+Each :class:`Entry` says how to call one public callable on tensors (``call``), how
+to generate valid tensor inputs (``args``: name, shape, generator, scaling law) and
+how its output scales when every length in the inputs is multiplied by ``s``
+(``out``). ``test_contract.py`` turns every entry into the generated tests.
+
+Scaling laws (``LAWS``): ``"length"`` x s, ``"unitless"`` x 1, ``"inv_length"`` / s,
+``"area"`` x s^2, ``"area2"`` x s^4, ``"matrix"`` conjugation ``S M S^-1`` of a
+homogeneous 3x3 (translation x s, perspective row / s), ``"h8"`` the 8 free
+entries of a homography (same conjugation), ``"index"`` (integers, unchanged) and
+``None`` (not compared).
+
+Names not in the table are in :data:`PENDING` (owned by another area, with the
+reason) or :data:`EXEMPT` (result types, exceptions and validators: no geometry).
+The completeness test fails for any public name in none of the three.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import torch
+
+import torchgeo_cg.core as core
+import torchgeo_cg.curves as C
+import torchgeo_cg.sdf as S
+import torchgeo_cg.transforms as T
+from torchgeo_cg.curves.bernstein import bernstein_basis
+
+__all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
+
+
+@dataclass(frozen=True)
+class Arg:
+    """One tensor input: its name (as in error messages), shape, generator and law."""
+
+    name: str
+    shape: tuple[int, ...]
+    gen: str = "normal"
+    law: str | None = "length"
+
+
+@dataclass
+class Entry:
+    """One public callable under contract.
+
+    Attributes:
+        name: ``"<subpackage>.<public name>"`` (a suffix ``[...]`` marks a variant).
+        call: ``call(*tensors)`` calls the public callable with the tensors of ``args``.
+        args: the tensor inputs; ``args[0]`` is the primary one (NaN, empty, int tests).
+        out: output law, or a tuple of laws for a NamedTuple/tuple result.
+        empty: ``(arg index, dim)`` set to size 0 for the empty-input test; ``None``
+            skips it (e.g. a closed-form matrix builder without a point dimension).
+        empty_scalar: the result of empty input is a scalar 0 (a reduction).
+        bad: wrong shapes for ``args[bad_arg]``: each must raise ``ShapeError`` naming it.
+        mixed: ``"raise"`` (TypeError naming both), ``"promote"`` (result float64),
+            ``("follow", i)`` (result has the dtype of ``args[i]``) or ``None`` (n/a).
+        low: float16/bfloat16 policy: ``"compute32"`` (same dtype out, close to the
+            float32 result) or ``"reject"`` (TypeError).
+        nan: ``"propagate"`` (NaN in the primary gives NaN out) or ``"raise"``
+            (ValueError: the argument must be finite, e.g. strictly increasing knots).
+        int_ok: integer tensors are valid for ``args[0]`` (e.g. grid indices).
+        rtol: relative tolerance of the scale test in float64 (float32: 1e-4 x ``rtol32``).
+    """
+
+    name: str
+    call: Callable
+    args: tuple[Arg, ...]
+    out: str | tuple | None = "length"
+    empty: tuple[int, int] | None = (0, -2)
+    empty_scalar: bool = False
+    bad: tuple[tuple[int, ...], ...] = ()
+    bad_arg: int = 0
+    mixed: object = "raise"
+    low: str = "compute32"
+    nan: str = "propagate"
+    int_ok: bool = False
+    rtol: float = 1e-9
+    rtol32: float = 1.0
+    extra: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------- laws
+
+
+def _conjugate(m: torch.Tensor, s: float) -> torch.Tensor:
+    out = m.clone()
+    out[..., :2, 2] = out[..., :2, 2] * s
+    out[..., 2, :2] = out[..., 2, :2] / s
+    return out
+
+
+def _h8(h: torch.Tensor, s: float) -> torch.Tensor:
+    out = h.clone()
+    out[..., [2, 5]] = out[..., [2, 5]] * s
+    out[..., [6, 7]] = out[..., [6, 7]] / s
+    return out
+
+
+LAWS: dict[str, Callable[[torch.Tensor, float], torch.Tensor]] = {
+    "length": lambda x, s: x * s,
+    "unitless": lambda x, s: x,
+    "index": lambda x, s: x,
+    "inv_length": lambda x, s: x / s,
+    "area": lambda x, s: x * (s * s),
+    "area2": lambda x, s: x * (s * s) * (s * s),
+    "matrix": _conjugate,
+    "h8": _h8,
+}
+
+
+def apply_law(law, value, s: float):
+    """Scale ``value`` (a tensor or a tuple of tensors) by ``law`` (or a tuple of laws)."""
+    if law is None:
+        return value
+    if isinstance(law, tuple):
+        return tuple(apply_law(w, v, s) for w, v in zip(law, value))
+    return LAWS[law](value, s)
+
+
+# ----------------------------------------------------------------------------- inputs
+
+
+def _rotation(shape, g, dtype):
+    d = shape[-1]
+    q, r = torch.linalg.qr(torch.randn(shape, generator=g, dtype=torch.float64))
+    q = q * torch.sign(torch.diagonal(r, dim1=-2, dim2=-1))[..., None, :]
+    flip = torch.linalg.det(q) < 0
+    q[..., :, 0] = torch.where(flip[..., None], -q[..., :, 0], q[..., :, 0])
+    return q.to(dtype) if d else q
+
+
+def _homography(shape, g, dtype):
+    m = torch.eye(3, dtype=torch.float64).expand(*shape).clone()
+    m = m + 0.2 * torch.randn(shape, generator=g, dtype=torch.float64)
+    m[..., 2, :2] = 0.02 * torch.randn(*shape[:-2], 2, generator=g, dtype=torch.float64)
+    m[..., 2, 2] = 1.0
+    m[..., :2, 2] = 3 * torch.randn(*shape[:-2], 2, generator=g, dtype=torch.float64)
+    return m
+
+
+def _affine(shape, g, dtype):
+    m = _homography(shape, g, dtype)
+    m[..., 2, :2] = 0.0
+    return m
+
+
+GENERATORS: dict[str, Callable] = {
+    "normal": lambda shape, g, dt: torch.randn(shape, generator=g, dtype=torch.float64),
+    "positive": lambda shape, g, dt: 0.5 + torch.rand(shape, generator=g, dtype=torch.float64),
+    "small_positive": lambda shape, g, dt: 0.1
+    + 0.2 * torch.rand(shape, generator=g, dtype=torch.float64),
+    "t01": lambda shape, g, dt: torch.rand(shape, generator=g, dtype=torch.float64),
+    "angle": lambda shape, g, dt: 170 * (2 * torch.rand(shape, generator=g,
+                                                        dtype=torch.float64) - 1),
+    "increasing": lambda shape, g, dt: (0.2 + torch.rand(shape, generator=g,
+                                                         dtype=torch.float64)).cumsum(-1),
+    "inside": lambda shape, g, dt: 0.05 + 0.9 * torch.rand(shape, generator=g,
+                                                           dtype=torch.float64),
+    "rotation": _rotation,
+    "bounds": lambda shape, g, dt: torch.randn(3, generator=g, dtype=torch.float64)
+    + torch.tensor([[0.0], [1.0]], dtype=torch.float64)
+    * (0.5 + torch.rand(3, generator=g, dtype=torch.float64)),
+    "homography": _homography,
+    "affine": _affine,
+    "index": lambda shape, g, dt: torch.randint(0, 4, shape, generator=g).double(),
+    "unit_vector": lambda shape, g, dt: torch.nn.functional.normalize(
+        torch.randn(shape, generator=g, dtype=torch.float64), dim=-1),
+}
+
+
+def generate(entry: Entry, seed: int) -> list[torch.Tensor]:
+    """float64 inputs for ``entry`` from ``seed`` (callers cast them)."""
+    g = torch.Generator().manual_seed(seed)
+    return [GENERATORS[a.gen](a.shape, g, torch.float64) for a in entry.args]
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _module_dtype(x: torch.Tensor) -> dict:
+    return {"dtype": x.dtype, "device": x.device}
+
+
+def _sample_grid(bounds: torch.Tensor):
+    lo, hi = bounds[0], bounds[-1]
+    return S.sample_grid(lambda p: S.sphere(p, 0.3 * (hi - lo).amin(), 0.5 * (lo + hi)), 5,
+                         bounds)
+
+
+def _level_set(values, origin, spacing, tol):
+    return S.zero_level_set(values, origin, spacing, tol=float(tol))
+
+
+def _spline_module(cls):
+    def call(knots, values, tangents, x):
+        return cls(knots, values, tangents)(x)
+
+    return call
+
+
+PTS3 = Arg("points", (2, 6, 3))
+PTS2 = Arg("points", (2, 6, 2))
+BAD3 = ((2, 6, 5), (3,))
+BAD2 = ((2, 6, 3), (2,))
+CTRL = Arg("control_points", (3, 4, 2))
+T_ = Arg("t", (7,), "t01", "unitless")
+BADCTRL = ((3,),)
+EMPTY2 = ((0, -1), (1, -1))
+EMPTY3 = ((0, -1), (1, -1), (2, -1))
+EMPTY4 = ((0, 0), (1, 0), (2, 0), (3, 0))
+
+# ----------------------------------------------------------------------------- the table
+
+TABLE: list[Entry] = [
+    # --- core numerics
+    Entry("core.hypot", lambda a, b, c: core.hypot(a, b, c),
+          (Arg("components[0]", (5,)), Arg("components[1]", (5,)), Arg("components[2]", (5,))),
+          empty=EMPTY3),
+    Entry("core.safe_norm", core.safe_norm, (Arg("x", (4, 3)),), empty=(0, 0)),
+    Entry("core.safe_norm[long]", core.safe_norm, (Arg("x", (4, 9)),), empty=(0, 0)),
+    Entry("core.safe_div", core.safe_div, (Arg("num", (5,)), Arg("den", (5,), "positive")),
+          out="unitless", empty=EMPTY2, mixed="promote"),
+    Entry("core.safe_sqrt", core.safe_sqrt, (Arg("x", (5,), "positive", "area"),),
+          empty=(0, -1)),
+    Entry("core.clamp_away_from_zero", core.clamp_away_from_zero, (Arg("x", (5,), "positive"),),
+          empty=(0, -1)),
+    # --- transforms: homogeneous
+    Entry("transforms.translation", T.translation, (Arg("offset", (4, 2)),), out="matrix",
+          empty=(0, 0), bad=((4, 3), ())),
+    Entry("transforms.rotation", T.rotation, (Arg("angle", (4,), "angle", "unitless"),),
+          out="matrix", empty=(0, 0)),
+    Entry("transforms.scaling", T.scaling, (Arg("factor", (4,), "positive", "unitless"),),
+          out="matrix", empty=(0, 0)),
+    Entry("transforms.scaling[per_axis]", lambda f: T.scaling(f, per_axis=True),
+          (Arg("factor", (4, 2), "positive", "unitless"),), out="matrix", empty=(0, 0),
+          bad=((4, 3),)),
+    Entry("transforms.scale_x", T.scale_x, (Arg("factor", (4,), "positive", "unitless"),),
+          out="matrix", empty=(0, 0)),
+    Entry("transforms.scale_y", T.scale_y, (Arg("factor", (4,), "positive", "unitless"),),
+          out="matrix", empty=(0, 0)),
+    Entry("transforms.shear", T.shear, (Arg("a", (4,), "normal", "unitless"),
+                                        Arg("b", (4,), "normal", "unitless")),
+          out="matrix", empty=((0, 0), (1, 0))),
+    Entry("transforms.homography", T.homography, (Arg("h", (4, 8), "normal", "h8"),),
+          out="matrix", empty=(0, 0), bad=((4, 9), ())),
+    Entry("transforms.compose", T.compose, (Arg("matrices[0]", (4, 3, 3), "homography", "matrix"),
+                                            Arg("matrices[1]", (4, 3, 3), "homography",
+                                                "matrix")),
+          out="matrix", empty=((0, 0), (1, 0)), bad=((4, 3, 2), (3,))),
+    Entry("transforms.compose_trs", T.compose_trs,
+          (Arg("offset", (4, 2)), Arg("angle", (4,), "angle", "unitless"),
+           Arg("scale", (4,), "positive", "unitless")),
+          out="matrix", empty=None, bad=((4, 3), ())),
+    Entry("transforms.transform_points", lambda p, m: T.transform_points(m, p),
+          (Arg("points", (4, 6, 2)), Arg("matrix", (4, 3, 3), "homography", "matrix")),
+          bad=((4, 6, 3), (2,))),
+    Entry("transforms.transform_points[projective]", lambda p, m: T.transform_points(m, p),
+          (Arg("points", (4, 6, 2), "normal", "unitless"),
+           Arg("matrix", (4, 3, 3), "homography", "length")),
+          out="unitless", bad=((4, 6, 3), (2,))),  # M and s M are the same transform
+    Entry("transforms.inverse[magnitude]", T.inverse,
+          (Arg("matrix", (4, 3, 3), "homography", "length"),), out="inv_length", empty=(0, 0),
+          bad=((4, 3, 2), (3,))),  # inverse(s M) = inverse(M) / s: no absolute det test
+    Entry("transforms.inverse", T.inverse, (Arg("matrix", (4, 3, 3), "homography", "matrix"),),
+          out="matrix", empty=(0, 0), bad=((4, 3, 2), (3,))),
+    Entry("transforms.decompose_affine", T.decompose_affine,
+          (Arg("matrix", (4, 3, 3), "affine", "matrix"),),
+          out=("length", "unitless", "unitless", "unitless"), empty=(0, 0),
+          bad=((4, 2, 3), (3,))),
+    Entry("transforms.TRSTransform",
+          lambda p, off, ang, sc: T.TRSTransform(off, ang, sc)(p),
+          (Arg("points", (4, 6, 2)), Arg("offset", (4, 2)), Arg("angle", (4,), "angle",
+                                                                "unitless"),
+           Arg("scale", (4,), "positive", "unitless")),
+          bad=((4, 6, 3), (2,))),
+    Entry("transforms.HomogeneousTransform",
+          lambda p, m: T.HomogeneousTransform(m)(p),
+          (Arg("points", (4, 6, 2)), Arg("matrix", (4, 3, 3), "homography", "matrix")),
+          bad=((4, 6, 3), (2,))),
+    # --- curves: bernstein / bezier
+    Entry("curves.bernstein_basis", lambda t: bernstein_basis(t, 5),
+          (Arg("t", (3, 7), "t01", "unitless"),), out="unitless", empty=(0, -1), low="reject",
+          bad=((),)),
+    Entry("curves.bezier", C.bezier, (CTRL, T_), empty=(1, -1), mixed="promote", low="reject",
+          bad=BADCTRL),
+    Entry("curves.cubic_bezier", C.cubic_bezier, (CTRL, T_), empty=(1, -1), mixed="promote",
+          low="reject", bad=((3, 5, 2), (3,))),
+    Entry("curves.quartic_bezier", C.quartic_bezier, (Arg("control_points", (3, 5, 2)), T_),
+          empty=(1, -1), mixed="promote", low="reject", bad=((3, 4, 2), (3,))),
+    Entry("curves.de_casteljau", C.de_casteljau, (CTRL, T_), empty=(1, -1), mixed="promote",
+          low="reject", bad=BADCTRL),
+    Entry("curves.bezier_derivative", C.bezier_derivative, (CTRL,), empty=(0, 0), mixed=None,
+          low="reject", bad=BADCTRL),
+    Entry("curves.split_bezier", C.split_bezier,
+          (CTRL, Arg("t0", (3,), "t01", "unitless")), out=("length", "length"),
+          empty=((0, 0), (1, 0)), mixed="promote", low="reject", bad=BADCTRL),
+    Entry("curves.elevate_bezier", lambda cp: C.elevate_bezier(cp, 2), (CTRL,), empty=(0, 0),
+          mixed=None, low="reject", bad=BADCTRL),
+    Entry("curves.bezier_tangent", C.bezier_tangent, (CTRL, T_), out="unitless", empty=(1, -1),
+          mixed="promote", low="reject", bad=BADCTRL),
+    Entry("curves.bezier_normal", C.bezier_normal, (CTRL, T_), out="unitless", empty=(1, -1),
+          mixed="promote", low="reject", bad=BADCTRL),
+    Entry("curves.bezier_normal[3d]", C.bezier_normal, (Arg("control_points", (3, 4, 3)), T_),
+          out="unitless", empty=(1, -1), mixed="promote", low="reject", bad=BADCTRL,
+          rtol=1e-7),
+    Entry("curves.bezier_curvature", C.bezier_curvature, (CTRL, T_), out="inv_length",
+          empty=(1, -1), mixed="promote", low="reject", bad=BADCTRL, rtol=1e-7),
+    Entry("curves.bezier_length", C.bezier_length, (CTRL,), empty=(0, 0), mixed=None,
+          low="reject", bad=BADCTRL, rtol=1e-7),
+    Entry("curves.bezier_arclength_params", lambda cp: C.bezier_arclength_params(cp, 5),
+          (CTRL,), out="unitless", empty=(0, 0), mixed=None, low="reject", bad=BADCTRL,
+          rtol=1e-7),
+    Entry("curves.BezierCurve", lambda cp, t: C.BezierCurve(cp)(t), (CTRL, T_), empty=(1, -1),
+          mixed="promote", low="reject", bad=BADCTRL),
+    # --- curves: hermite
+    Entry("curves.hermite_basis", C.hermite_basis, (Arg("t", (3, 7), "t01", "unitless"),),
+          out="unitless", empty=(0, -1), low="reject", bad=((),)),
+    Entry("curves.hermite", lambda t, p0, p1, m0, m1: C.hermite(p0, p1, m0, m1, t),
+          (T_, Arg("p0", (3, 2)), Arg("p1", (3, 2)), Arg("m0", (3, 2)), Arg("m1", (3, 2))),
+          empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+    Entry("curves.HermiteCurve", lambda t, p0, p1, m0, m1: C.HermiteCurve(p0, p1, m0, m1)(t),
+          (T_, Arg("p0", (3, 2)), Arg("p1", (3, 2)), Arg("m0", (3, 2)), Arg("m1", (3, 2))),
+          empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+    Entry("curves.hermite_to_bezier", C.hermite_to_bezier,
+          (Arg("p0", (3, 2)), Arg("p1", (3, 2)), Arg("m0", (3, 2)), Arg("m1", (3, 2))),
+          empty=EMPTY4, mixed="promote", low="reject", bad=((),)),
+    Entry("curves.bezier_to_hermite", C.bezier_to_hermite, (CTRL,),
+          out=("length",) * 4, empty=(0, 0), mixed=None, low="reject", bad=((3, 5, 2), (3,))),
+    Entry("curves.hermite_spline",
+          lambda x, knots, values, tangents: C.hermite_spline(knots, values, tangents, x),
+          (Arg("x", (3, 9), "inside", "length"), Arg("knots", (6,), "increasing"),
+           Arg("values", (3, 6)), Arg("tangents", (3, 6), "normal", "unitless")),
+          empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+    Entry("curves.HermiteSpline", lambda x, k, v, m: C.HermiteSpline(k, v, m)(x),
+          (Arg("x", (3, 9), "inside", "length"), Arg("knots", (6,), "increasing"),
+           Arg("values", (3, 6)), Arg("tangents", (3, 6), "normal", "unitless")),
+          empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+    Entry("curves.pchip_tangents", C.pchip_tangents,
+          (Arg("x", (6,), "increasing"), Arg("y", (3, 6))), out="unitless", empty=(1, 0),
+          mixed="promote", low="reject", nan="raise", bad=((),)),
+    Entry("curves.pchip_interpolate", lambda xq, x, y: C.pchip_interpolate(x, y, xq),
+          (Arg("xq", (3, 9), "inside", "length"), Arg("x", (6,), "increasing"),
+           Arg("y", (3, 6))), empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+    Entry("curves.PchipInterpolator", lambda xq, x, y: C.PchipInterpolator(x, y)(xq),
+          (Arg("xq", (3, 9), "inside", "length"), Arg("x", (6,), "increasing"),
+           Arg("y", (3, 6))), empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+    Entry("curves.cardinal_tangents", lambda v, k: C.cardinal_tangents(k, v, 0.3),
+          (Arg("values", (3, 6)), Arg("knots", (6,), "increasing")), out="unitless",
+          empty=(0, 0), mixed="promote", low="reject", bad=((),)),
+    Entry("curves.catmull_rom_tangents", lambda v, k: C.catmull_rom_tangents(k, v),
+          (Arg("values", (3, 6)), Arg("knots", (6,), "increasing")), out="unitless",
+          empty=(0, 0), mixed="promote", low="reject", bad=((),)),
+    # --- curves: parametric
+    Entry("curves.circle", C.circle,
+          (Arg("t", (3, 7), "angle", "unitless"), Arg("center", (3, 2)),
+           Arg("radius", (3,), "positive")),
+          empty=(0, -1), mixed=("follow", 0), low="reject", bad=((),)),
+    Entry("curves.implicit_circle", C.implicit_circle,
+          (Arg("xy", (3, 7, 2)), Arg("center", (3, 1, 2)), Arg("radius", (3, 1), "positive")),
+          out="area", empty=(0, -2), mixed=("follow", 0), low="reject", bad=((3, 7, 3), ())),
+    Entry("curves.cycloid", C.cycloid, (Arg("t", (3, 7), "angle", "unitless"),
+                                        Arg("radius", (3,), "positive")),
+          empty=(0, -1), mixed=("follow", 0), low="reject", bad=((),)),
+    Entry("curves.figure_eight_implicit", C.figure_eight_implicit,
+          (Arg("xy", (3, 7, 2)), Arg("radius", (3, 1), "positive")), out="area2",
+          empty=(0, -2), mixed=("follow", 0), low="reject", bad=((3, 7, 3), ()), rtol=1e-7),
+    Entry("curves.figure_eight_parametric", C.figure_eight_parametric,
+          (Arg("t", (3, 7), "angle", "unitless"), Arg("radius", (3,), "positive")),
+          empty=(0, -1), mixed=("follow", 0), low="reject", bad=((),)),
+    # --- sdf: primitives
+    Entry("sdf.sphere", S.sphere, (PTS3, Arg("radius", (2,), "positive"), Arg("center", (3,))),
+          mixed=("follow", 0), bad=BAD3),
+    Entry("sdf.circle", S.circle, (PTS2, Arg("radius", (2,), "positive"), Arg("center", (2,))),
+          mixed=("follow", 0), bad=BAD2),
+    Entry("sdf.box", S.box, (PTS3, Arg("half_size", (2, 3), "positive"),
+                             Arg("radius", (2,), "small_positive"), Arg("center", (3,))),
+          mixed=("follow", 0), bad=BAD3),
+    Entry("sdf.rectangle", S.rectangle, (PTS2, Arg("half_size", (2, 2), "positive"),
+                                         Arg("radius", (2,), "small_positive")),
+          mixed=("follow", 0), bad=BAD2),
+    Entry("sdf.capsule", S.capsule, (PTS3, Arg("start", (3,)), Arg("end", (2, 3)),
+                                     Arg("radius", (2,), "positive")),
+          mixed=("follow", 0), bad=BAD3),
+    Entry("sdf.plane", S.plane, (PTS3, Arg("normal", (2, 3), "normal", "unitless"),
+                                 Arg("offset", (2,))),
+          mixed=("follow", 0), bad=BAD3),
+    Entry("sdf.torus", S.torus, (PTS3, Arg("major_radius", (2,), "positive"),
+                                 Arg("minor_radius", (2,), "small_positive")),
+          mixed=("follow", 0), bad=BAD3),
+    Entry("sdf.torus[algebraic]", lambda p, R, r: S.torus(p, R, r, exact=False),
+          (PTS3, Arg("major_radius", (2,), "positive"),
+           Arg("minor_radius", (2,), "small_positive")),
+          out="area", mixed=("follow", 0), bad=BAD3),
+    Entry("sdf.annulus", S.annulus, (PTS2, Arg("major_radius", (2,), "positive"),
+                                     Arg("minor_radius", (2,), "small_positive")),
+          mixed=("follow", 0), bad=BAD2),
+    Entry("sdf.gyroid", S.gyroid, (PTS3, Arg("scale", (2,), "positive", "inv_length"),
+                                   Arg("thickness", (2,), "small_positive")),
+          mixed=("follow", 0), bad=BAD3, rtol=1e-7),
+    Entry("sdf.Sphere", lambda p, r, c: S.Sphere(r, c, **_module_dtype(c))(p),
+          (PTS3, Arg("radius", (), "positive"), Arg("center", (3,))), mixed=None, bad=BAD3),
+    Entry("sdf.Circle", lambda p, r, c: S.Circle(r, c, **_module_dtype(c))(p),
+          (PTS2, Arg("radius", (), "positive"), Arg("center", (2,))), mixed=None, bad=BAD2),
+    Entry("sdf.Box", lambda p, h, r, c: S.Box(h, r, c, **_module_dtype(c))(p),
+          (PTS3, Arg("half_size", (3,), "positive"), Arg("radius", (), "small_positive"),
+           Arg("center", (3,))), mixed=None, bad=BAD3),
+    Entry("sdf.Rectangle", lambda p, h, r, c: S.Rectangle(h, r, c, **_module_dtype(c))(p),
+          (PTS2, Arg("half_size", (2,), "positive"), Arg("radius", (), "small_positive"),
+           Arg("center", (2,))), mixed=None, bad=BAD2),
+    Entry("sdf.Capsule", lambda p, a, b, r: S.Capsule(a, b, r, **_module_dtype(r))(p),
+          (PTS3, Arg("start", (3,)), Arg("end", (3,)), Arg("radius", (), "positive")),
+          mixed=None, bad=BAD3),
+    Entry("sdf.Plane", lambda p, n, d: S.Plane(n, d, **_module_dtype(d))(p),
+          (PTS3, Arg("normal", (3,), "normal", "unitless"), Arg("offset", ())), mixed=None,
+          bad=BAD3),
+    Entry("sdf.Torus", lambda p, R, r: S.Torus(R, r, **_module_dtype(r))(p),
+          (PTS3, Arg("major_radius", (), "positive"), Arg("minor_radius", (), "small_positive")),
+          mixed=None, bad=BAD3),
+    Entry("sdf.Annulus", lambda p, R, r: S.Annulus(R, r, **_module_dtype(r))(p),
+          (PTS2, Arg("major_radius", (), "positive"), Arg("minor_radius", (), "small_positive")),
+          mixed=None, bad=BAD2),
+    Entry("sdf.Gyroid", lambda p, k, w: S.Gyroid(k, w, **_module_dtype(w))(p),
+          (PTS3, Arg("scale", (), "positive", "inv_length"), Arg("thickness", (),
+                                                                 "small_positive")),
+          mixed=None, bad=BAD3, rtol=1e-7),
+    # --- sdf: operators on values
+    Entry("sdf.union", S.union, (Arg("sdf[0]", (2, 6)), Arg("sdf[1]", (2, 6)),
+                                 Arg("sdf[2]", (2, 6))), empty=EMPTY3, bad=((3, 6),)),
+    Entry("sdf.intersection", S.intersection, (Arg("sdf[0]", (2, 6)), Arg("sdf[1]", (2, 6))),
+          empty=EMPTY2, bad=((3, 6),)),
+    Entry("sdf.difference", S.difference, (Arg("sdf[0]", (2, 6)), Arg("sdf[1]", (2, 6))),
+          empty=EMPTY2, bad=((3, 6),)),
+    Entry("sdf.smooth_union", S.smooth_union, (Arg("sdf[0]", (2, 6)), Arg("sdf[1]", (2, 6)),
+                                               Arg("k", (), "positive")),
+          empty=EMPTY2, bad=((3, 6),)),
+    Entry("sdf.smooth_intersection", S.smooth_intersection,
+          (Arg("sdf[0]", (2, 6)), Arg("sdf[1]", (2, 6)), Arg("k", (), "positive")),
+          empty=EMPTY2, bad=((3, 6),)),
+    Entry("sdf.product", S.product, (Arg("sdf[0]", (2, 6)), Arg("sdf[1]", (2, 6))),
+          out="area", empty=EMPTY2, bad=((3, 6),)),
+    # --- sdf: operators on functions and their modules
+    Entry("sdf.translate", lambda p, off, r: S.translate(lambda q: S.sphere(q, r), off)(p),
+          (PTS3, Arg("offset", (3,)), Arg("radius", (), "positive")), mixed=("follow", 0),
+          bad=((2, 6, 2), (3,))),
+    Entry("sdf.rotate",
+          lambda p, rot, a: S.rotate(lambda q: S.capsule(q, a, -a, a.abs().sum()), rot)(p),
+          (PTS3, Arg("world_from_local", (3, 3), "rotation", "unitless"), Arg("start", (3,))),
+          mixed=("follow", 0), bad=((2, 6, 2), (3,))),
+    Entry("sdf.scale", lambda p, f, r: S.scale(lambda q: S.sphere(q, r), f)(p),
+          (PTS3, Arg("factor", (2,), "positive", "unitless"), Arg("radius", (), "positive")),
+          mixed=("follow", 0), bad=BAD3),
+    Entry("sdf.Union", lambda p, r: S.Union(S.Sphere(r, **_module_dtype(r)),
+                                            S.Sphere(r / 2, [r, 0, 0], **_module_dtype(r)))(p),
+          (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
+    Entry("sdf.Intersection",
+          lambda p, r: S.Intersection(S.Sphere(r, **_module_dtype(r)),
+                                      S.Sphere(r, [r, 0, 0], **_module_dtype(r)))(p),
+          (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
+    Entry("sdf.Difference",
+          lambda p, r: S.Difference(S.Sphere(r, **_module_dtype(r)),
+                                    S.Sphere(r / 2, **_module_dtype(r)))(p),
+          (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
+    Entry("sdf.SmoothUnion",
+          lambda p, r: S.SmoothUnion(S.Sphere(r, **_module_dtype(r)),
+                                     S.Sphere(r, [r, 0, 0], **_module_dtype(r)), k=r / 4,
+                                     **_module_dtype(r))(p),
+          (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
+    Entry("sdf.SmoothIntersection",
+          lambda p, r: S.SmoothIntersection(S.Sphere(r, **_module_dtype(r)),
+                                            S.Sphere(r, [r, 0, 0], **_module_dtype(r)),
+                                            k=r / 4, **_module_dtype(r))(p),
+          (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
+    Entry("sdf.Product",
+          lambda p, r: S.Product(S.Sphere(r, **_module_dtype(r)),
+                                 S.Sphere(r, [r, 0, 0], **_module_dtype(r)))(p),
+          (PTS3, Arg("radius", (), "positive")), out="area", mixed=None, bad=BAD3),
+    Entry("sdf.Translate",
+          lambda p, off, r: S.Translate(S.Sphere(r, **_module_dtype(r)), off,
+                                        **_module_dtype(r))(p),
+          (PTS3, Arg("offset", (3,)), Arg("radius", (), "positive")), mixed=None, bad=BAD3),
+    Entry("sdf.Rotate",
+          lambda p, rot, r: S.Rotate(S.Sphere(r, [r, 0, 0], **_module_dtype(r)), rot)(p),
+          (PTS3, Arg("world_from_local", (3, 3), "rotation", "unitless"),
+           Arg("radius", (), "positive")), mixed=None, bad=((2, 6, 2), (3,))),
+    Entry("sdf.Scale", lambda p, f, r: S.Scale(S.Sphere(r, **_module_dtype(r)), f,
+                                               **_module_dtype(r))(p),
+          (PTS3, Arg("factor", (), "positive", "unitless"), Arg("radius", (), "positive")),
+          mixed=None, bad=BAD3),
+    # --- sdf: the grid
+    Entry("sdf.grid_spacing", lambda b: S.grid_spacing(5, b), (Arg("bounds", (2, 3), "bounds"),),
+          out=("length", "length"), empty=None, mixed=None, nan="raise", bad=((3, 3),)),
+    Entry("sdf.grid_points", lambda b: S.grid_points((3, 4, 2), b),
+          (Arg("bounds", (2, 3), "bounds"),), empty=None, mixed=None, nan="raise",
+          bad=((3, 3),)),
+    Entry("sdf.sample_grid", _sample_grid, (Arg("bounds", (2, 3), "bounds"),),
+          out=("length", "length", "length"), empty=None, mixed=None, nan="raise",
+          bad=((3, 3),)),
+    Entry("sdf.index_to_world", S.index_to_world,
+          (Arg("indices", (2, 5, 3), "index", "unitless"), Arg("origin", (3,)),
+           Arg("spacing", (3,), "positive")), int_ok=True, mixed=("follow", 1),
+          bad=((2, 5, 2),), low="compute32"),
+    Entry("sdf.world_to_index", S.world_to_index,
+          (Arg("points", (2, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive")),
+          out="unitless", mixed=("follow", 0), bad=((2, 5, 2), ())),
+    Entry("sdf.grid_interpolate",
+          lambda p, v, o, sp: S.grid_interpolate(v, p, o, sp),
+          (Arg("points", (2, 5, 3), "inside"), Arg("volume", (4, 5, 3)), Arg("origin", (3,), "t01"),
+           Arg("spacing", (3,), "positive")), mixed=("follow", 0), bad=((2, 5, 2), (3,)),
+          rtol=1e-7),
+    Entry("sdf.zero_level_set", _level_set,
+          (Arg("volume", (2, 4, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive"),
+           Arg("tol", (), "positive")),
+          out=("length", "index", "index", "index"), empty=(0, 0), mixed=("follow", 0),
+          bad=((5, 3),), nan="skip"),
+    # --- sdf: gradients
+    Entry("sdf.sdf_gradient", lambda p: S.sdf_gradient(S.sphere, p), (PTS3,), out="unitless",
+          bad=((2, 6), ())),
+    Entry("sdf.sdf_normal", lambda p: S.sdf_normal(S.sphere, p), (PTS3,), out="unitless",
+          bad=((2, 6), ())),
+    Entry("sdf.eikonal_loss", S.eikonal_loss, (Arg("gradients", (2, 6, 3), "normal",
+                                                   "unitless"),),
+          out="unitless", empty_scalar=True, bad=((6,),)),
+]
+
+#: Public names covered by other areas' issues (name -> (owner, reason)).
+PENDING: dict[str, tuple[str, str]] = {
+    **{f"curves.{n}": ("i15", "curves/fitting.py: fitting glue, issue 15")
+       for n in ("BezierFit", "fit_bezier", "fit_parameters")},
+    **{f"curves.{n}": ("i13", "curves/marching_squares.py: issue 13")
+       for n in ("MarchingSquaresResult", "marching_squares")},
+    **{f"sdf.{n}": ("i16", "sdf/mesh_distance.py: mesh queries, issue 16")
+       for n in ("MeshSDFResult", "TriangleClosestPoint", "closest_point_on_triangle",
+                 "is_watertight", "winding_number", "mesh_sdf")},
+    **{f"sdf.{n}": ("i15", "sdf/sampler.py: learning glue, issue 15")
+       for n in ("SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples",
+                 "load_samples")},
+    **{f"transforms.{n}": ("i12", "transforms/estimation.py, fitting.py: issue 12")
+       for n in ("FitResult", "HartleyNormalization", "HomographyFit", "HomographyModel",
+                 "find_affine", "find_euclidean", "find_homography_dlt", "find_similarity",
+                 "find_translation", "fit_transform", "hartley_normalize",
+                 "matrix_to_parameters", "parameters_to_matrix", "reprojection_error")},
+    **{f"transforms.{n}": ("i11pkg", "transforms/scene_graph.py, report_shapes.py: issue 11")
+       for n in ("FixedTransform", "Orbit", "SceneGraph", "WorldTransforms", "solar_system",
+                 "ReportShapes", "ShapeFit", "fit_report_shapes", "report_shapes")},
+    **{f"mesh.{n}": ("i13", "mesh/marching_cubes.py: issue 13")
+       for n in ("marching_cubes", "MarchingCubes", "MarchingCubesResult")},
+    **{f"mesh.{n}": ("i14io", "mesh/io.py: issue 14 (files, not geometry)")
+       for n in ("Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh")},
+    **{f"mesh.{n}": ("i11sub", "mesh/subdivision.py, loop.py, faces.py, tags.py: issue 11")
+       for n in ("pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces",
+                 "SubdivisionOperator", "catmull_clark_operator", "apply_operator",
+                 "catmull_clark", "CatmullClark", "limit_positions", "loop_operator",
+                 "loop_subdivide", "LoopSubdivision", "SubdivisionTags")},
+    **{f"viz.{n}": ("i11pkg", "figures: no numeric contract")
+       for n in ("GalleryFigure", "build_gallery", "figure", "registered_figures")},
+    "cli.main": ("i11pkg", "the command line: tested by tests/cli"),
+}
+
+#: Public names with no geometry to put under contract (name -> reason).
+EXEMPT: dict[str, str] = {
+    "ShapeError": "exception type",
+    "core.ShapeError": "exception type",
+    "core.as_tensor_like": "coercion helper (tests/core/test_coerce.py)",
+    "core.check_same_dtype": "validation helper (tests/core/test_coerce.py)",
+    "core.check_broadcastable": "validation helper (tests/core/test_check.py)",
+    "core.check_float": "validation helper (tests/core/test_check.py)",
+    "core.check_shape": "validation helper (tests/core/test_check.py)",
+    "core.check_tensor": "validation helper (tests/core/test_check.py)",
+    "core.cast_back": "dtype helper (tests/core/test_numerics.py)",
+    "core.working_dtype": "dtype helper (tests/core/test_numerics.py)",
+    "curves.check_knots": "validation helper (tests/curves/test_hermite.py)",
+    "curves.SplitResult": "NamedTuple result type",
+    "curves.HermiteControls": "NamedTuple result type",
+    "curves.grid_2d": "factory of numbers (n, low, high), no tensor input; tests/curves",
+    "sdf.Volume": "NamedTuple result type",
+    "sdf.LevelSetPoints": "NamedTuple result type",
+    "transforms.AffineDecomposition": "NamedTuple result type",
+}
