@@ -24,7 +24,8 @@ import torch
 
 from benchmarks.harness import Case
 from torchgeo_cg.sdf import grid_points, mesh_sdf, sample_grid, torus, winding_number
-from torchgeo_cg.sdf.mesh_distance import _face_table, _pair_d2
+from torchgeo_cg.sdf.mesh_search import face_table as _face_table
+from torchgeo_cg.sdf.mesh_search import pair_d2 as _pair_d2
 from torchgeo_cg.sdf.sampler import sample_mesh_surface
 
 # VmHWM (peak resident set) of a fresh process; unlike ru_maxrss it is not inherited

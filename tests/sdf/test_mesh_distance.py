@@ -206,3 +206,137 @@ def test_bad_input():
         M.mesh_sdf(V, F.double(), p)
     with pytest.raises(ValueError, match="sign"):
         M.mesh_sdf(V, F, p, sign="rays")
+
+
+# --- batched meshes and polygon faces (issue 15) --------------------------------------------
+
+
+def test_batched_vertices_match_a_loop():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=2))
+    gen = torch.Generator().manual_seed(1)
+    verts = V * (1.0 + 0.3 * torch.rand(3, 1, 1, generator=gen, dtype=V.dtype))  # 3 shapes
+    verts = verts + 0.05 * torch.randn(verts.shape, generator=gen, dtype=V.dtype)
+    p = 1.5 * (torch.rand(3, 70, 3, generator=gen, dtype=V.dtype) * 2 - 1)
+    r = M.mesh_sdf(verts, F, p, return_closest=True, sign="winding")
+    for b in range(3):
+        one = M.mesh_sdf(verts[b], F, p[b], return_closest=True, sign="winding")
+        assert_close(r.sdf[b], one.sdf, atol=1e-14, rtol=0)
+        assert_close(r.closest_points[b], one.closest_points, atol=1e-14, rtol=0)
+        assert torch.equal(r.face_ids[b], one.face_ids)
+        assert_close(M.winding_number(verts, F, p)[b], M.winding_number(verts[b], F, p[b]))
+    # one point set against every shape (batch dims broadcast), and batch dims (2, 3)
+    shared = M.mesh_sdf(verts, F, p[0]).sdf
+    assert shared.shape == (3, 70)
+    assert_close(shared[2], M.mesh_sdf(verts[2], F, p[0]).sdf, atol=1e-14, rtol=0)
+    two = M.mesh_sdf(verts.expand(2, 3, -1, -1), F, p).sdf
+    assert two.shape == (2, 3, 70) and torch.equal(two[1], r.sdf)
+
+
+def test_polygon_faces_are_triangulated():
+    from torchgeo_cg.mesh.faces import triangulate_faces
+
+    # a unit cube of 6 quads, wound outward; mixed with a padded triangle row
+    V = torch.tensor([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1],
+                      [1, 1, 1], [0, 1, 1]], dtype=torch.float64)
+    quads = torch.tensor([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [2, 3, 7, 6],
+                          [1, 2, 6, 5], [0, 4, 7, 3]])
+    p = torch.tensor([[0.5, 0.5, 0.5], [0.2, 0.9, 0.5], [2.0, 0.5, 0.5], [1.5, 1.5, 1.5]],
+                     dtype=torch.float64)
+    r = M.mesh_sdf(V, quads, p, return_closest=True)
+    from torchgeo_cg.sdf.primitives import box
+
+    assert_close(r.sdf, box(p - 0.5, torch.tensor([0.5, 0.5, 0.5], dtype=torch.float64)),
+                 atol=1e-12, rtol=0)
+    tris = triangulate_faces(quads)
+    assert torch.equal(r.face_ids, M.mesh_sdf(V, tris, p, return_closest=True).face_ids)
+    assert_close(M.winding_number(V, quads, p), torch.tensor([1.0, 1, 0, 0],
+                                                              dtype=torch.float64))
+    with pytest.raises(ValueError, match="indices"):
+        M.mesh_sdf(V, torch.tensor([[0, 1, 2, 9]]), p)
+
+
+# --- numerics at every scale, empty inputs (issue 10) ---------------------------------------
+
+TET_V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
+TET_F = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+TET_P = torch.tensor([[0.1, 0.2, 0.3], [0.2, 0.2, -2.0], [0.05, 0.05, 0.05], [1.0, 1.0, 1.0]],
+                     dtype=torch.float64)
+# hand-derived: distances to the planes x = 0, z = 0, and to the slanted face x + y + z = 1
+TET_SDF = torch.tensor([-0.1, 2.0, -0.05, 2.0 / math.sqrt(3.0)], dtype=torch.float64)
+
+
+@pytest.mark.parametrize("s", [1e-15, 1e-6, 1.0, 1e6, 1e77, 1e155, 1e-150])
+@pytest.mark.parametrize("sign", ["pseudonormal", "winding"])
+def test_scale_equivariance_float64(s, sign):
+    r = M.mesh_sdf(TET_V * s, TET_F, TET_P * s, sign=sign, return_closest=True)
+    assert torch.isfinite(r.sdf).all()
+    assert_close(r.sdf / s, TET_SDF, atol=1e-12, rtol=1e-12)
+    assert torch.equal(r.face_ids, M.mesh_sdf(TET_V, TET_F, TET_P, sign=sign,
+                                              return_closest=True).face_ids)
+    w = M.winding_number(TET_V * s, TET_F, TET_P * s)
+    assert_close(w.abs(), torch.tensor([1.0, 0, 1, 0], dtype=torch.float64), atol=1e-12, rtol=0)
+
+
+def test_scale_float32():
+    for s in (1e-6, 1e-3, 1e3, 1e6):
+        r = M.mesh_sdf((TET_V * s).float(), TET_F, (TET_P * s).float()).sdf
+        assert_close(r / s, TET_SDF.float(), atol=1e-5, rtol=1e-5)
+
+
+def test_empty_inputs_give_empty_outputs():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    empty = torch.zeros(0, 3, dtype=torch.float64)
+    assert M.winding_number(V, F, empty).shape == (0,)
+    for sign in ("auto", "pseudonormal", "winding", "none"):
+        r = M.mesh_sdf(V, F, empty, sign=sign, return_closest=True)
+        assert r.sdf.shape == (0,) and r.closest_points.shape == (0, 3)
+        assert r.face_ids.shape == (0,)
+    with pytest.warns(RuntimeWarning, match="watertight"):
+        assert M.mesh_sdf(V, F[3:], empty).sdf.shape == (0,)
+    assert M.mesh_sdf(V, F, torch.zeros(4, 0, 3, dtype=torch.float64)).sdf.shape == (4, 0)
+    assert M.mesh_sdf(V.expand(0, -1, -1), F, empty).sdf.shape == (0, 0)
+    assert M.winding_number(V, F, torch.zeros(2, 0, 3, dtype=torch.float64)).shape == (2, 0)
+
+
+def test_nan_points_give_nan():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    p = torch.tensor([[0.0, 0.0, 0.0], [math.nan, 0.0, 0.0], [0.0, 0.0, 2.0]],
+                     dtype=torch.float64)
+    r = M.mesh_sdf(V, F, p).sdf
+    assert torch.isnan(r[1]) and torch.isfinite(r[[0, 2]]).all()
+    assert_close(r[[0, 2]], M.mesh_sdf(V, F, p[[0, 2]]).sdf)
+
+
+# --- progress, vmap, jacrev (issue 11) ------------------------------------------------------
+
+
+def test_progress_bar(capsys):
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    p = _points(trimesh.creation.icosphere(subdivisions=1), 50)
+    quiet = M.mesh_sdf(V, F, p, backend="torch").sdf
+    assert capsys.readouterr().err == ""
+    loud = M.mesh_sdf(V, F, p, backend="torch", progress=True).sdf
+    assert "mesh_sdf" in capsys.readouterr().err
+    assert torch.equal(quiet, loud)
+
+
+def test_vmap_and_jacrev():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    gen = torch.Generator().manual_seed(2)
+    p = 1.5 * (torch.rand(4, 9, 3, generator=gen, dtype=V.dtype) * 2 - 1)
+    verts = V * (1 + 0.2 * torch.rand(4, 1, 1, generator=gen, dtype=V.dtype))
+    direct = M.mesh_sdf(V, F, p).sdf
+    assert_close(torch.func.vmap(lambda q: M.mesh_sdf(V, F, q).sdf)(p), direct)
+    batched = torch.func.vmap(lambda v, q: M.mesh_sdf(v, F, q).sdf)(verts, p)
+    assert_close(batched, M.mesh_sdf(verts, F, p).sdf)
+    # jacrev w.r.t. the points: the gradient of a distance is the unit vector (p - q)/|p - q|
+    jac = torch.func.jacrev(lambda q: M.mesh_sdf(V, F, q).sdf)(p[0])  # (9, 9, 3)
+    r = M.mesh_sdf(V, F, p[0], return_closest=True)
+    unit = (p[0] - r.closest_points) / r.sdf[:, None]
+    assert_close(jac.diagonal(dim1=0, dim2=1).t(), unit, atol=1e-10, rtol=0)
+    assert_close(jac.sum((1, 2)) - jac.diagonal(dim1=0, dim2=1).sum(0),
+                 torch.zeros(9, dtype=V.dtype))
+    jv = torch.func.jacrev(lambda v: M.mesh_sdf(v, F, p[0]).sdf)(V)
+    vv = V.clone().requires_grad_(True)
+    M.mesh_sdf(vv, F, p[0]).sdf[3].backward()
+    assert_close(jv[3], vv.grad)
