@@ -340,3 +340,155 @@ def test_vmap_and_jacrev():
     vv = V.clone().requires_grad_(True)
     M.mesh_sdf(vv, F, p[0]).sdf[3].backward()
     assert_close(jv[3], vv.grad)
+
+
+# --- backends (issue 16) --------------------------------------------------------------------
+
+from torchgeo_cg.sdf import engines as E  # noqa: E402
+
+BACKENDS = ["torch", *E.ENGINES]
+
+
+def _backend(name):
+    if name != "torch":
+        pytest.importorskip(E.ENGINES[name])
+    return name
+
+
+def _all_face_d2(vertices, faces, points):
+    """(N, F) squared distance of every point to every face, written here (Ericson's
+    region tests, 'Real-Time Collision Detection' 5.1.5), float64."""
+    tri = vertices[faces]
+    p = points[:, None]
+    a, b, c = tri[None, :, 0], tri[None, :, 1], tri[None, :, 2]
+
+    def d2_seg(u, v):
+        t = (((p - u) * (v - u)).sum(-1) / ((v - u) ** 2).sum(-1)).clamp(0, 1)
+        return ((p - u - t[..., None] * (v - u)) ** 2).sum(-1)
+
+    n = torch.cross(b - a, c - a, dim=-1)
+    h = ((p - a) * n).sum(-1) / (n * n).sum(-1)
+    q = p - h[..., None] * n
+    s1 = (torch.cross(b - a, q - a, dim=-1) * n).sum(-1)
+    s2 = (torch.cross(c - b, q - b, dim=-1) * n).sum(-1)
+    s3 = (torch.cross(a - c, q - c, dim=-1) * n).sum(-1)
+    edges = torch.minimum(torch.minimum(d2_seg(a, b), d2_seg(b, c)), d2_seg(c, a))
+    plane = ((p - q) ** 2).sum(-1)
+    return torch.where((s1 >= 0) & (s2 >= 0) & (s3 >= 0), torch.minimum(plane, edges), edges)
+
+
+def _winding_reference(vertices, faces, points):
+    """Solid-angle sum (Van Oosterom & Strackee), written here in numpy."""
+    tri = vertices[faces].numpy()[None]
+    x = tri - points.numpy()[:, None, None]
+    a, b, c = x[:, :, 0], x[:, :, 1], x[:, :, 2]
+    la, lb, lc = (np.linalg.norm(y, axis=-1) for y in (a, b, c))
+    det = np.einsum("nfk,nfk->nf", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("nfk,nfk->nf", a, b) * lc
+           + np.einsum("nfk,nfk->nf", a, c) * lb + np.einsum("nfk,nfk->nf", b, c) * la)
+    return torch.from_numpy(2 * np.arctan2(det, den).sum(1) / (4 * np.pi))
+
+
+def _bumpy_sphere():
+    m = trimesh.creation.icosphere(subdivisions=3)
+    v = m.vertices
+    r = 1 + 0.15 * np.sin(5 * v[:, 0]) * np.sin(4 * v[:, 1]) * np.cos(3 * v[:, 2])
+    return trimesh.Trimesh(v * r[:, None], m.faces, process=False)
+
+
+REFERENCE_MESHES = {
+    "torus": lambda: trimesh.creation.torus(1.0, 0.3, major_sections=32, minor_sections=16),
+    "bumpy_sphere": _bumpy_sphere,
+    "open_sphere": lambda: trimesh.Trimesh(*(lambda m: (m.vertices, m.faces[12:]))(
+        trimesh.creation.icosphere(subdivisions=2)), process=False),
+}
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 1e6])
+@pytest.mark.parametrize("mesh", sorted(REFERENCE_MESHES))
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_backend_against_all_faces(backend, mesh, scale):
+    m = REFERENCE_MESHES[mesh]()
+    V, F = _mesh(m)
+    p = _points(m, 400, seed=5)
+    V, p = V * scale, p * scale
+    sign = "winding" if mesh == "open_sphere" else "pseudonormal"
+    r = M.mesh_sdf(V, F, p, sign=sign, return_closest=True, backend=_backend(backend))
+    d2 = _all_face_d2(V, F, p)
+    best = d2.min(1).values
+    # same face, or an equidistant one; distance within 1e-12 of the mesh size
+    chosen = d2.gather(1, r.face_ids[:, None]).squeeze(1)
+    size = float((V.amax(0) - V.amin(0)).max())
+    assert ((chosen.sqrt() - best.sqrt()).abs() <= 1e-12 * size).all()
+    assert_close(r.sdf.abs(), best.sqrt(), atol=1e-12 * size, rtol=0)
+    assert torch.equal(r.sdf < 0, _winding_reference(V, F, p) > 0.5)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_backends_agree_and_gradients_identical(backend):
+    m = _bumpy_sphere()
+    V, F = _mesh(m)
+    p = _points(m, 300, seed=7)
+    ref = M.mesh_sdf(V, F, p, return_closest=True, backend="torch")
+    r = M.mesh_sdf(V, F, p, return_closest=True, backend=_backend(backend))
+    assert_close(r.sdf, ref.sdf, atol=1e-12, rtol=0)
+    assert_close(r.closest_points, ref.closest_points, atol=1e-12, rtol=0)
+    grads = []
+    for name in ("torch", backend):
+        vv, pp = V.clone().requires_grad_(True), p.clone().requires_grad_(True)
+        M.mesh_sdf(vv, F, pp, backend=name).sdf.square().sum().backward()
+        grads.append((vv.grad, pp.grad))
+    assert_close(grads[1][0], grads[0][0], atol=1e-12, rtol=0)
+    assert_close(grads[1][1], grads[0][1], atol=1e-12, rtol=0)
+
+
+@pytest.mark.grad
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_gradcheck_with_each_backend(backend):
+    V0, F0 = _mesh(trimesh.creation.icosphere(subdivisions=0))
+    q = torch.tensor([[0.3, 0.1, 0.2], [1.5, 0.2, -0.4], [0.0, -1.2, 0.1]], dtype=torch.float64)
+    fn = lambda a, b: M.mesh_sdf(b, F0, a, backend=_backend(backend)).sdf  # noqa: E731
+    assert torch.autograd.gradcheck(fn, (q.requires_grad_(True), V0.clone().requires_grad_(True)))
+
+
+def test_backend_names_and_missing_engine(monkeypatch):
+    V, F = TET_V, TET_F
+    with pytest.raises(ValueError, match="backend"):
+        M.mesh_sdf(V, F, TET_P, backend="embree9")
+    monkeypatch.setitem(E.ENGINES, "ghost", "no_such_module_for_torchgeo_cg")
+    with pytest.raises(ImportError, match="fast"):
+        M.mesh_sdf(V, F, TET_P, backend="ghost")
+    assert "ghost" not in E.available_engines()
+    expected = E.available_engines()[0] if E.available_engines() else "torch"
+    assert E.resolve_backend("auto") == expected
+    with pytest.raises(ImportError, match="fast"):
+        M.MeshSDF(V, F, backend="ghost")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
+    import copy
+
+    backend = _backend(backend)
+    m = trimesh.creation.icosphere(subdivisions=2)
+    V, F = _mesh(m)
+    p = _points(m, 100, seed=9)
+    module = M.MeshSDF(V, F, backend=backend)
+    ref = M.mesh_sdf(V, F, p, return_closest=True, backend=backend)
+    ref2 = M.mesh_sdf(2 * V, F, p, backend=backend)
+    builds = []
+    real = E.build_search
+    monkeypatch.setattr(E, "build_search", lambda *a: builds.append(1) or real(*a))
+    first = module(p, return_closest=True)
+    second = module(p.flip(0))
+    assert len(builds) == 1  # the second query reused the structure
+    assert torch.equal(first.sdf, ref.sdf) and torch.equal(second.sdf, ref.sdf.flip(0))
+    module.vertices.mul_(2.0)  # an in-place edit rebuilds
+    assert_close(module(p).sdf, ref2.sdf, atol=1e-12, rtol=0)
+    assert len(builds) == 2
+    twin = copy.deepcopy(module)
+    assert_close(twin(p).sdf, module(p).sdf, atol=0, rtol=0)
+    fresh = M.MeshSDF(V, F, backend=backend)
+    fresh.load_state_dict(module.state_dict())
+    assert_close(fresh(p).sdf, module(p).sdf, atol=0, rtol=0)
+    assert module.to(torch.float32)(p.float()).sdf.dtype == torch.float32
