@@ -24,7 +24,7 @@ import torch
 import warp as wp
 from tqdm.auto import tqdm
 
-__all__ = ["WarpSearch", "build_warp_search", "warp_closest_faces"]
+__all__ = ["WarpSearch", "face_rings", "build_warp_search", "warp_closest_faces"]
 
 wp.config.quiet = True
 wp.init()
@@ -71,8 +71,8 @@ def _closest_face_kernel(
     points64: wp.array(dtype=wp.vec3d),
     verts64: wp.array(dtype=wp.vec3d),
     tris: wp.array(dtype=wp.int32, ndim=2),
-    vf_start: wp.array(dtype=wp.int32),
-    vf_faces: wp.array(dtype=wp.int32),
+    ring_start: wp.array(dtype=wp.int32),
+    ring_faces: wp.array(dtype=wp.int32),
     first: int,
     points_per_mesh: int,
     num_vertices: int,
@@ -87,15 +87,13 @@ def _closest_face_kernel(
     best_d2 = _triangle_d2(p, verts64[base + tris[best, 0]], verts64[base + tris[best, 1]],
                            verts64[base + tris[best, 2]])
     f0 = best
-    for k in range(3):  # float64 check of the faces around the engine's choice
-        v = tris[f0, k]
-        for j in range(vf_start[v], vf_start[v + 1]):
-            g = vf_faces[j]
-            d2 = _triangle_d2(p, verts64[base + tris[g, 0]], verts64[base + tris[g, 1]],
-                              verts64[base + tris[g, 2]])
-            if d2 < best_d2 or (d2 == best_d2 and g < best):
-                best_d2 = d2
-                best = g
+    for j in range(ring_start[f0], ring_start[f0 + 1]):  # float64 check of the 1-ring
+        g = ring_faces[j]
+        d2 = _triangle_d2(p, verts64[base + tris[g, 0]], verts64[base + tris[g, 1]],
+                          verts64[base + tris[g, 2]])
+        if d2 < best_d2 or (d2 == best_d2 and g < best):
+            best_d2 = d2
+            best = g
     out[i] = best
 
 
@@ -108,9 +106,36 @@ class WarpSearch(NamedTuple):
     verts32: torch.Tensor  # (B V, 3) float32
     verts64: torch.Tensor  # (B V, 3) float64
     tris: torch.Tensor  # (T, 3) int32
-    vf_start: torch.Tensor  # (V + 1,) int32 CSR: faces around each vertex
-    vf_faces: torch.Tensor  # (3 T,) int32
+    ring_start: torch.Tensor  # (T + 1,) int32 CSR: the other faces sharing a vertex
+    ring_faces: torch.Tensor  # (nnz,) int32
     num_vertices: int
+
+
+def face_rings(tris_t3: torch.Tensor, num_vertices: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """For every face, the other faces sharing at least one vertex with it, as int32 CSR
+    ``(start (T + 1,), faces (nnz,))``, each neighbour once (sort and unique, no loop).
+
+    Example:
+        >>> start, faces = face_rings(torch.tensor([[0, 1, 2], [0, 2, 3], [4, 5, 6]]), 7)
+        >>> start.tolist(), faces.tolist()
+        ([0, 1, 2, 2], [1, 0])
+    """
+    T = tris_t3.shape[0]
+    flat = tris_t3.reshape(-1)
+    order = torch.argsort(flat, stable=True)
+    counts = torch.bincount(flat, minlength=num_vertices)
+    start = torch.cat([counts.new_zeros(1), counts.cumsum(0)])
+    around = order // 3  # faces grouped by vertex
+    # every (face, corner) meets every face around that corner's vertex
+    per = counts[flat]  # (3 T,)
+    owner = torch.arange(T, device=flat.device).repeat_interleave(3).repeat_interleave(per)
+    offset = torch.arange(int(per.sum()), device=flat.device) - torch.repeat_interleave(
+        per.cumsum(0) - per, per)
+    other = around[torch.repeat_interleave(start[flat], per) + offset]
+    key = torch.unique((owner * T + other)[owner != other])  # sorted by owner
+    owner, other = key // T, key % T
+    ring_start = torch.cat([key.new_zeros(1), torch.bincount(owner, minlength=T).cumsum(0)])
+    return ring_start.to(torch.int32), other.to(torch.int32).contiguous()
 
 
 def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSearch:
@@ -128,16 +153,12 @@ def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSea
     verts32 = verts_bv3.detach().reshape(B * V, 3).float().contiguous()
     verts64 = verts_bv3.detach().reshape(B * V, 3).double().contiguous()
     tris = tris_t3.to(device=verts_bv3.device, dtype=torch.int32).contiguous()
-    flat = tris_t3.reshape(-1).to(verts_bv3.device)
-    order = torch.argsort(flat, stable=True)
-    counts = torch.bincount(flat, minlength=V)
-    vf_start = torch.cat([counts.new_zeros(1), counts.cumsum(0)]).to(torch.int32)
-    vf_faces = (order // 3).to(torch.int32).contiguous()
+    ring_start, ring_faces = face_rings(tris_t3.to(verts_bv3.device), V)
     indices = wp.from_torch(tris.reshape(-1), dtype=wp.int32)
     meshes = [wp.Mesh(points=wp.from_torch(verts32[b * V:(b + 1) * V], dtype=wp.vec3),
                       indices=indices) for b in range(B)]  # Warp builds one BVH per call
     ids = wp.array([m.id for m in meshes], dtype=wp.uint64, device=device)
-    return WarpSearch(meshes, ids, verts32, verts64, tris, vf_start, vf_faces, V)
+    return WarpSearch(meshes, ids, verts32, verts64, tris, ring_start, ring_faces, V)
 
 
 def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, block: int = 1 << 16,
@@ -157,8 +178,8 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, block: int 
     out = torch.empty(B * N, dtype=torch.int32, device=points_bn3.device)
     args = [search.mesh_ids, wp.from_torch(p32, dtype=wp.vec3),
             wp.from_torch(p64, dtype=wp.vec3d), wp.from_torch(search.verts64, dtype=wp.vec3d),
-            wp.from_torch(search.tris, dtype=wp.int32), wp.from_torch(search.vf_start),
-            wp.from_torch(search.vf_faces)]
+            wp.from_torch(search.tris, dtype=wp.int32), wp.from_torch(search.ring_start),
+            wp.from_torch(search.ring_faces)]
     out_wp = wp.from_torch(out)
     for s in tqdm(range(0, B * N, block), disable=not progress, desc="mesh_sdf search",
                   unit="block"):

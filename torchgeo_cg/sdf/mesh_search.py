@@ -10,11 +10,13 @@ Algorithm (no Python loop over points, faces or batch items):
    nearby face of its own mesh, hence an upper bound ``u`` on its distance. With several
    meshes the tree is 4-D, the mesh index times a separation larger than any distance
    being the 4th coordinate, so a point only ever meets its own mesh.
-2. A pyramid of uniform grids (cell size doubling) bins the faces by bounding box (CSR,
-   built with sort and bincount; cells keyed by ``(mesh, i, j, k)``). Each point scans the
-   cells whose content box (the faces' boxes clipped to the cell) meets its ball of
-   radius ``u``, on the finest level where the ball spans at most 2 (else 4, else 8) cells
-   per axis. A face is kept only if its bounding sphere, then its bounding disc in its
+2. A pyramid of uniform grids (cell size doubling) bins each face once, in the cell of
+   its bounding-box centre (CSR, built with sort and bincount; cells keyed by
+   ``(mesh, i, j, k)``), so no face is scanned twice for a point. Each point scans the
+   cells whose content box (the union of its faces' boxes) meets its ball of radius
+   ``u``, among the cells its ball grown by the largest overhang of a face box out of
+   its cell reaches, on the finest level where that spans at most 2 (else 4, else 8)
+   cells per axis. A face is kept only if its bounding sphere, then its bounding disc in its
    plane, may hold a point within ``u``; the exact distance to the face of smallest
    bound tightens ``u``, and only the faces whose bound is within it get the exact
    point-triangle distance. No face that could be closer is skipped, so the search
@@ -147,17 +149,21 @@ def pair_d2(table: torch.Tensor, p_3m: torch.Tensor, f_m: torch.Tensor) -> torch
 
 
 class FaceGrid(NamedTuple):
-    """Faces binned by bounding box into a uniform grid of cell size ``h`` (CSR), one
-    block of ``cells`` per mesh: key ``b * cells + (i * Y + j) * Z + k``."""
+    """Faces binned into a uniform grid of cell size ``h`` (CSR), each face once, in the
+    cell of its bounding-box centre; one block of ``cells`` per mesh: key
+    ``b * cells + (i * Y + j) * Z + k``. A face's box sticks out of its cell by at most
+    ``overhang`` on any side, so a ball meets a face's box only if the ball grown by
+    ``overhang`` meets the face's cell."""
 
     lo: torch.Tensor  # (3,) float64
     h: float
     dims: torch.Tensor  # (3,) long
     cells: int  # cells per mesh
+    overhang: float
     start: torch.Tensor  # (B cells + 1,) long, CSR row pointers
     count: torch.Tensor  # (B cells,) long, faces per cell
-    faces: torch.Tensor  # (nnz,) long global face ids, grouped by cell
-    box_lo: torch.Tensor  # (B cells, 3) tight box of the faces' boxes clipped to the cell
+    faces: torch.Tensor  # (F,) long global face ids, grouped by cell
+    box_lo: torch.Tensor  # (B cells, 3) tight box of the boxes of the cell's faces
     box_hi: torch.Tensor  # (B cells, 3)
 
 
@@ -171,34 +177,23 @@ def _cell_coords(key: torch.Tensor, dims: torch.Tensor) -> torch.Tensor:
 
 def _face_grid(fmin: torch.Tensor, fmax: torch.Tensor, item: torch.Tensor, items: int,
                lo: torch.Tensor, h: float, dims: torch.Tensor) -> FaceGrid:
-    """Bin every face into each cell its bounding box overlaps (no loop over faces)."""
-    c0 = ((fmin - lo) / h).floor().long().clamp(min=torch.zeros_like(dims), max=dims - 1)
-    c1 = ((fmax - lo) / h).floor().long().clamp(min=torch.zeros_like(dims), max=dims - 1)
-    ext = c1 - c0 + 1  # (F, 3)
-    count = ext.prod(1)
-    fid = torch.repeat_interleave(torch.arange(fmin.shape[0]), count)
-    local = torch.arange(fid.numel()) - (torch.cumsum(count, 0) - count)[fid]
-    e = ext[fid]
-    dz = local % e[:, 2]
-    dy = (local // e[:, 2]) % e[:, 1]
-    dx = local // (e[:, 1] * e[:, 2])
-    cell = c0[fid] + torch.stack([dx, dy, dz], dim=1)
+    """Bin every face once, into the cell of its box centre (sort and bincount, no loop):
+    no face is ever scanned twice for one point, unlike binning into every cell a box
+    overlaps."""
+    cell = (((fmin + fmax) / 2 - lo) / h).floor().long().clamp(
+        min=torch.zeros_like(dims), max=dims - 1)
+    cmin = lo + cell.to(fmin.dtype) * h
+    overhang = float(torch.maximum(cmin - fmin, fmax - (cmin + h)).clamp_min(0.0).max())
     cells = int(dims.prod())
-    key = item[fid] * cells + (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+    key = item * cells + (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
     order = torch.argsort(key, stable=True)
     per_cell = torch.bincount(key, minlength=cells * items)
     start = torch.cat([per_cell.new_zeros(1), torch.cumsum(per_cell, 0)])
-    # the part of each face box inside the cell; a cell is tested by the union of those
-    cmin = lo + cell.to(fmin.dtype) * h
-    clip_lo = torch.maximum(fmin[fid], cmin)
-    clip_hi = torch.minimum(fmax[fid], cmin + h)
-    center = lo + h * (_cell_coords(torch.arange(cells), dims).to(fmin.dtype) + 0.5)
-    center = center.repeat(items, 1)
-    box_lo = center.clone().scatter_reduce_(0, key[:, None].expand(-1, 3), clip_lo, "amin",
-                                            include_self=False)
-    box_hi = center.clone().scatter_reduce_(0, key[:, None].expand(-1, 3), clip_hi, "amax",
-                                            include_self=False)
-    return FaceGrid(lo, h, dims, cells, start, per_cell, fid[order], box_lo, box_hi)
+    empty = fmin.new_zeros(cells * items, 3)
+    index = key[:, None].expand(-1, 3)
+    box_lo = empty.scatter_reduce(0, index, fmin, "amin", include_self=False)
+    box_hi = empty.scatter_reduce(0, index, fmax, "amax", include_self=False)
+    return FaceGrid(lo, h, dims, cells, overhang, start, per_cell, order, box_lo, box_hi)
 
 
 def _candidate_cells(grid: FaceGrid, p: torch.Tensor, item: torch.Tensor, u2: torch.Tensor,
@@ -206,7 +201,7 @@ def _candidate_cells(grid: FaceGrid, p: torch.Tensor, item: torch.Tensor, u2: to
     """Cells (point row, cell key) whose content box meets each point's ball, for the
     points whose ball spans <= ``m_max`` cells per axis (mask ``ok``)."""
     lo, h, dims = grid.lo, grid.h, grid.dims
-    u = u2.sqrt()[:, None]
+    u = u2.sqrt()[:, None] + grid.overhang
     zero = torch.zeros_like(dims)
     a = ((p - u - lo) / h).floor().long().clamp(min=zero, max=dims - 1)
     b = ((p + u - lo) / h).floor().long().clamp(min=zero, max=dims - 1)
@@ -317,7 +312,7 @@ def build_torch_search(tri_bf33: torch.Tensor) -> TorchSearch:
     lo, hi = fmin.amin(0), fmax.amax(0)
     extent = float((hi - lo).max())
     edge = float((tri - tri.roll(1, dims=1)).norm(dim=-1).mean())
-    h = max(2.0 * edge, extent / 128.0, 2.0**-40)
+    h = max(2.5 * edge, extent / 128.0, 2.0**-40)
     grids = []
     while True:
         dims = ((hi - lo) / h).floor().long() + 1
