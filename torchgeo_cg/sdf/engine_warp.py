@@ -18,6 +18,7 @@ Convention:
 
 from __future__ import annotations
 
+import logging
 from typing import NamedTuple
 
 import torch
@@ -26,8 +27,11 @@ from tqdm.auto import tqdm
 
 __all__ = ["WarpSearch", "face_rings", "build_warp_search", "warp_closest_faces"]
 
-wp.config.quiet = True
+# Warp's info banner and kernel-load lines would print on every import; warnings stay
+if wp.config.log_level < logging.WARNING:
+    wp.config.log_level = logging.WARNING
 wp.init()
+wp.set_module_options({"enable_backward": False})  # the search needs no adjoint kernels
 
 
 @wp.func
