@@ -150,7 +150,8 @@ def closest_point_on_triangle(
         check_float(x, name)
         check_shape(x, ["*", "3"], name)
     shape = torch.broadcast_shapes(points.shape, v0.shape, v1.shape, v2.shape)
-    p, a, b, c = (x.unbind(-1) for x in (points, v0, v1, v2))  # structure of arrays
+    p, a, b, c = (x.movedim(-1, 0).contiguous().unbind(0)  # structure of arrays
+                  for x in (points, v0, v1, v2))
     e0, e1 = [y - x for x, y in zip(a, b)], [y - x for x, y in zip(a, c)]
     w = [y - x for x, y in zip(a, p)]
     d00, d01, d11 = _dot(e0, e0), _dot(e0, e1), _dot(e1, e1)
@@ -472,9 +473,12 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
                 normals_bt73 = pseudo_normals(gather_triangles(vn.detach(), tris_t3), tris_t3,
                                               verts_bv3.shape[1])
             B, T = normals_bt73.shape[:2]
-            flat = (face_ids_bn * 7 + cp.feature).reshape(B, -1, 1).expand(-1, -1, 3)
-            normal = torch.gather(normals_bt73.to(dtype).reshape(B, T * 7, 3), 1, flat)
-            inside = (diff.detach() * normal).sum(-1) < 0
+            rows = torch.arange(B, device=face_ids_bn.device)[:, None] * (T * 7)
+            flat = (rows + face_ids_bn * 7 + cp.feature).reshape(-1)
+            table = normals_bt73.to(dtype).reshape(B * T * 7, 3).t()  # (3, B T 7)
+            normal = [table[k].index_select(0, flat).reshape(face_ids_bn.shape)
+                      for k in range(3)]
+            inside = _dot(diff.detach().unbind(-1), normal) < 0
         dist = torch.where(inside, -dist, dist)
     elif sign == "winding":
         with torch.no_grad():
