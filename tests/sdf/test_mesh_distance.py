@@ -492,3 +492,34 @@ def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
     fresh.load_state_dict(module.state_dict())
     assert_close(fresh(p).sdf, module(p).sdf, atol=0, rtol=0)
     assert module.to(torch.float32)(p.float()).sdf.dtype == torch.float32
+
+
+def test_without_the_extra_auto_falls_back_to_torch():
+    """A fresh process where the engine cannot be imported, as on an install without
+    ``fast``: ``auto`` is torch, an explicit engine raises ImportError naming the extra,
+    and the engine module still imports (its doctests pass)."""
+    import subprocess
+    import sys
+
+    script = """
+import sys, doctest, warnings
+sys.modules["warp"] = None  # import warp now fails, find_spec finds nothing
+import torch
+from torchgeo_cg.sdf import engine_warp, engines, mesh_sdf
+assert engines.available_engines() == [] and engines.resolve_backend("auto") == "torch"
+v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
+f = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+p = torch.tensor([[0.1, 0.2, 0.3]], dtype=torch.float64)
+assert abs(float(mesh_sdf(v, f, p).sdf[0]) + 0.1) < 1e-12
+try:
+    mesh_sdf(v, f, p, backend="warp")
+    raise SystemExit("no ImportError")
+except ImportError as e:
+    assert "fast" in str(e), e
+failed, tried = doctest.testmod(engine_warp, optionflags=doctest.ELLIPSIS)
+assert failed == 0 and tried > 0, (failed, tried)
+print("ok")
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]

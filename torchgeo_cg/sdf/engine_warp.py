@@ -22,83 +22,87 @@ import logging
 from typing import NamedTuple
 
 import torch
-import warp as wp
 from tqdm.auto import tqdm
+
+try:
+    import warp as wp
+except ImportError:  # the optional extra "fast" is not installed
+    wp = None
 
 __all__ = ["WarpSearch", "morton_order", "face_rings", "build_warp_search", "warp_closest_faces"]
 
-# Warp's info banner and kernel-load lines would print on every import; warnings stay
-if wp.config.log_level < logging.WARNING:
-    wp.config.log_level = logging.WARNING
-wp.init()
-wp.set_module_options({"enable_backward": False})  # the search needs no adjoint kernels
+if wp is not None:  # kernels exist only with the optional extra
+    # Warp's info banner and kernel-load lines would print on every import; warnings stay
+    if wp.config.log_level < logging.WARNING:
+        wp.config.log_level = logging.WARNING
+    wp.init()
+    wp.set_module_options({"enable_backward": False})  # the search needs no adjoint kernels
+
+    @wp.func
+    def _segment_d2(w: wp.vec3d, e: wp.vec3d) -> wp.float64:
+        """Squared distance from ``w`` to the segment ``[0, e]`` (zero length safe)."""
+        ee = wp.dot(e, e)
+        t = wp.float64(0.0)
+        if ee > wp.float64(0.0):
+            t = wp.clamp(wp.dot(w, e) / ee, wp.float64(0.0), wp.float64(1.0))
+        d = w - t * e
+        return wp.dot(d, d)
 
 
-@wp.func
-def _segment_d2(w: wp.vec3d, e: wp.vec3d) -> wp.float64:
-    """Squared distance from ``w`` to the segment ``[0, e]`` (zero length safe)."""
-    ee = wp.dot(e, e)
-    t = wp.float64(0.0)
-    if ee > wp.float64(0.0):
-        t = wp.clamp(wp.dot(w, e) / ee, wp.float64(0.0), wp.float64(1.0))
-    d = w - t * e
-    return wp.dot(d, d)
+    @wp.func
+    def _triangle_d2(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.float64:
+        """Squared point-triangle distance: the plane projection when it falls inside the
+        (non-degenerate) triangle, else the closest of the three edges."""
+        e0 = b - a
+        e1 = c - a
+        w = p - a
+        d00 = wp.dot(e0, e0)
+        d01 = wp.dot(e0, e1)
+        d11 = wp.dot(e1, e1)
+        dot0 = wp.dot(w, e0)
+        dot1 = wp.dot(w, e1)
+        den = d00 * d11 - d01 * d01
+        if den > wp.float64(1.0e-12) * d00 * d11:
+            bv = (d11 * dot0 - d01 * dot1) / den
+            bw = (d00 * dot1 - d01 * dot0) / den
+            if bv >= wp.float64(0.0) and bw >= wp.float64(0.0) and bv + bw <= wp.float64(1.0):
+                q = w - bv * e0 - bw * e1
+                return wp.dot(q, q)
+        best = wp.min(_segment_d2(w, e0), _segment_d2(w, e1))
+        return wp.min(best, _segment_d2(p - b, c - b))
 
 
-@wp.func
-def _triangle_d2(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.float64:
-    """Squared point-triangle distance: the plane projection when it falls inside the
-    (non-degenerate) triangle, else the closest of the three edges."""
-    e0 = b - a
-    e1 = c - a
-    w = p - a
-    d00 = wp.dot(e0, e0)
-    d01 = wp.dot(e0, e1)
-    d11 = wp.dot(e1, e1)
-    dot0 = wp.dot(w, e0)
-    dot1 = wp.dot(w, e1)
-    den = d00 * d11 - d01 * d01
-    if den > wp.float64(1.0e-12) * d00 * d11:
-        bv = (d11 * dot0 - d01 * dot1) / den
-        bw = (d00 * dot1 - d01 * dot0) / den
-        if bv >= wp.float64(0.0) and bw >= wp.float64(0.0) and bv + bw <= wp.float64(1.0):
-            q = w - bv * e0 - bw * e1
-            return wp.dot(q, q)
-    best = wp.min(_segment_d2(w, e0), _segment_d2(w, e1))
-    return wp.min(best, _segment_d2(p - b, c - b))
-
-
-@wp.kernel
-def _closest_face_kernel(
-    mesh_ids: wp.array(dtype=wp.uint64),
-    points32: wp.array(dtype=wp.vec3),
-    points64: wp.array(dtype=wp.vec3d),
-    verts64: wp.array(dtype=wp.vec3d),
-    tris: wp.array(dtype=wp.int32, ndim=2),
-    ring_start: wp.array(dtype=wp.int32),
-    ring_faces: wp.array(dtype=wp.int32),
-    first: int,
-    points_per_mesh: int,
-    num_vertices: int,
-    out: wp.array(dtype=wp.int32),
-):
-    i = wp.tid() + first
-    item = i // points_per_mesh
-    query = wp.mesh_query_point_no_sign(mesh_ids[item], points32[i], 1.0e30)
-    best = query.face
-    p = points64[i]
-    base = item * num_vertices
-    best_d2 = _triangle_d2(p, verts64[base + tris[best, 0]], verts64[base + tris[best, 1]],
-                           verts64[base + tris[best, 2]])
-    f0 = best
-    for j in range(ring_start[f0], ring_start[f0 + 1]):  # float64 check of the 1-ring
-        g = ring_faces[j]
-        d2 = _triangle_d2(p, verts64[base + tris[g, 0]], verts64[base + tris[g, 1]],
-                          verts64[base + tris[g, 2]])
-        if d2 < best_d2 or (d2 == best_d2 and g < best):
-            best_d2 = d2
-            best = g
-    out[i] = best
+    @wp.kernel
+    def _closest_face_kernel(
+        mesh_ids: wp.array(dtype=wp.uint64),
+        points32: wp.array(dtype=wp.vec3),
+        points64: wp.array(dtype=wp.vec3d),
+        verts64: wp.array(dtype=wp.vec3d),
+        tris: wp.array(dtype=wp.int32, ndim=2),
+        ring_start: wp.array(dtype=wp.int32),
+        ring_faces: wp.array(dtype=wp.int32),
+        first: int,
+        points_per_mesh: int,
+        num_vertices: int,
+        out: wp.array(dtype=wp.int32),
+    ):
+        i = wp.tid() + first
+        item = i // points_per_mesh
+        query = wp.mesh_query_point_no_sign(mesh_ids[item], points32[i], 1.0e30)
+        best = query.face
+        p = points64[i]
+        base = item * num_vertices
+        best_d2 = _triangle_d2(p, verts64[base + tris[best, 0]], verts64[base + tris[best, 1]],
+                               verts64[base + tris[best, 2]])
+        f0 = best
+        for j in range(ring_start[f0], ring_start[f0 + 1]):  # float64 check of the 1-ring
+            g = ring_faces[j]
+            d2 = _triangle_d2(p, verts64[base + tris[g, 0]], verts64[base + tris[g, 1]],
+                              verts64[base + tris[g, 2]])
+            if d2 < best_d2 or (d2 == best_d2 and g < best):
+                best_d2 = d2
+                best = g
+        out[i] = best
 
 
 class WarpSearch(NamedTuple):
@@ -176,7 +180,23 @@ def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSea
 
     Returns:
         :class:`WarpSearch`.
+
+    Raises:
+        ImportError: Warp is not installed (the message names the extra ``fast``).
+
+    Example:
+        >>> v = torch.tensor([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]])
+        >>> tris = torch.tensor([[0, 1, 2], [0, 1, 3]])
+        >>> try:
+        ...     rings = build_warp_search(v, tris).ring_start.tolist()
+        ... except ImportError as e:  # without the extra: the message names it
+        ...     rings = face_rings(tris, 4)[0].tolist() if "fast" in str(e) else None
+        >>> rings
+        [0, 1, 2]
     """
+    if wp is None:
+        raise ImportError("the Warp engine needs the optional extra 'fast': "
+                          "pip install 'torchgeo_cg[fast]'")
     B, V = verts_bv3.shape[:2]
     device = wp.device_from_torch(verts_bv3.device)
     verts32 = verts_bv3.detach().reshape(B * V, 3).float().contiguous()
@@ -199,6 +219,17 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, block: int 
         points_bn3: ``(B, N, 3)`` scaled finite points.
         block: points per launch (for the progress bar).
         progress: show a tqdm progress bar over the launches.
+
+    Example:
+        >>> v = torch.tensor([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]])
+        >>> tris = torch.tensor([[0, 1, 2], [0, 1, 3]])
+        >>> p = torch.tensor([[[0.2, 0.2, -1.0], [0.2, -1.0, 0.2]]])
+        >>> if wp is not None:
+        ...     print(warp_closest_faces(build_warp_search(v, tris), p))
+        ... else:  # without the extra, the same answer from the torch search
+        ...     from torchgeo_cg.sdf.engines import search_faces
+        ...     print(search_faces(v, tris, p, "torch"))
+        tensor([[0, 1]])
     """
     B, N = points_bn3.shape[:2]
     device = wp.device_from_torch(points_bn3.device)
