@@ -523,3 +523,17 @@ print("ok")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+@pytest.mark.slow
+def test_mesh_sdf_module_under_compile_vmap_jacrev():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    p = torch.rand(2, 30, 3, generator=torch.Generator().manual_seed(4), dtype=V.dtype) * 2 - 1
+    module = M.MeshSDF(V, F)
+    eager = module(p).sdf
+    assert_close(torch.compile(module)(p).sdf, eager, atol=1e-14, rtol=0)
+    assert_close(torch.func.vmap(lambda q: module(q).sdf)(p), eager, atol=1e-14, rtol=0)
+    jac = torch.func.jacrev(lambda q: module(q).sdf)(p[0])
+    r = module(p[0], return_closest=True)
+    unit = (p[0] - r.closest_points) / r.sdf[:, None]
+    assert_close(jac.diagonal(dim1=0, dim2=1).t(), unit, atol=1e-10, rtol=0)

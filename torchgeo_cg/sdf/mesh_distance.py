@@ -602,6 +602,7 @@ class MeshSDF(nn.Module):
         self.register_buffer("faces", tris.clone())
         self._search_key = (None, -1)
 
+    @torch.compiler.disable  # bookkeeping (a weakref finalizer), not part of any graph
     def _cache_key(self) -> int:
         from torchgeo_cg.sdf.engines import new_cache_key
 
