@@ -15,7 +15,8 @@ EXPECTED = {
     "Volume", "grid_spacing", "grid_points", "sample_grid", "index_to_world", "world_to_index",
     "grid_interpolate", "LevelSetPoints", "zero_level_set", "sdf_gradient", "sdf_normal",
     "eikonal_loss", "MeshSDFResult", "TriangleClosestPoint", "closest_point_on_triangle",
-    "is_watertight", "winding_number", "mesh_sdf", "SDFSamples", "SDFSampler",
+    "is_watertight", "winding_number", "mesh_sdf", "MeshSDF", "available_engines",
+    "SDFSamples", "SDFSampler",
     "sample_mesh_surface", "save_samples", "load_samples",
 }
 

@@ -206,3 +206,334 @@ def test_bad_input():
         M.mesh_sdf(V, F.double(), p)
     with pytest.raises(ValueError, match="sign"):
         M.mesh_sdf(V, F, p, sign="rays")
+
+
+# --- batched meshes and polygon faces (issue 15) --------------------------------------------
+
+
+def test_batched_vertices_match_a_loop():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=2))
+    gen = torch.Generator().manual_seed(1)
+    verts = V * (1.0 + 0.3 * torch.rand(3, 1, 1, generator=gen, dtype=V.dtype))  # 3 shapes
+    verts = verts + 0.05 * torch.randn(verts.shape, generator=gen, dtype=V.dtype)
+    p = 1.5 * (torch.rand(3, 70, 3, generator=gen, dtype=V.dtype) * 2 - 1)
+    r = M.mesh_sdf(verts, F, p, return_closest=True, sign="winding")
+    for b in range(3):
+        one = M.mesh_sdf(verts[b], F, p[b], return_closest=True, sign="winding")
+        assert_close(r.sdf[b], one.sdf, atol=1e-14, rtol=0)
+        assert_close(r.closest_points[b], one.closest_points, atol=1e-14, rtol=0)
+        assert torch.equal(r.face_ids[b], one.face_ids)
+        assert_close(M.winding_number(verts, F, p)[b], M.winding_number(verts[b], F, p[b]))
+    # one point set against every shape (batch dims broadcast), and batch dims (2, 3)
+    shared = M.mesh_sdf(verts, F, p[0]).sdf
+    assert shared.shape == (3, 70)
+    assert_close(shared[2], M.mesh_sdf(verts[2], F, p[0]).sdf, atol=1e-14, rtol=0)
+    two = M.mesh_sdf(verts.expand(2, 3, -1, -1), F, p).sdf
+    assert two.shape == (2, 3, 70) and torch.equal(two[1], r.sdf)
+
+
+def test_polygon_faces_are_triangulated():
+    from torchgeo_cg.mesh.faces import triangulate_faces
+
+    # a unit cube of 6 quads, wound outward; mixed with a padded triangle row
+    V = torch.tensor([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1],
+                      [1, 1, 1], [0, 1, 1]], dtype=torch.float64)
+    quads = torch.tensor([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [2, 3, 7, 6],
+                          [1, 2, 6, 5], [0, 4, 7, 3]])
+    p = torch.tensor([[0.5, 0.5, 0.5], [0.2, 0.9, 0.5], [2.0, 0.5, 0.5], [1.5, 1.5, 1.5]],
+                     dtype=torch.float64)
+    r = M.mesh_sdf(V, quads, p, return_closest=True)
+    from torchgeo_cg.sdf.primitives import box
+
+    assert_close(r.sdf, box(p - 0.5, torch.tensor([0.5, 0.5, 0.5], dtype=torch.float64)),
+                 atol=1e-12, rtol=0)
+    tris = triangulate_faces(quads)
+    assert torch.equal(r.face_ids, M.mesh_sdf(V, tris, p, return_closest=True).face_ids)
+    assert_close(M.winding_number(V, quads, p), torch.tensor([1.0, 1, 0, 0],
+                                                              dtype=torch.float64))
+    with pytest.raises(ValueError, match="indices"):
+        M.mesh_sdf(V, torch.tensor([[0, 1, 2, 9]]), p)
+
+
+# --- numerics at every scale, empty inputs (issue 10) ---------------------------------------
+
+TET_V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
+TET_F = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+TET_P = torch.tensor([[0.1, 0.2, 0.3], [0.2, 0.2, -2.0], [0.05, 0.05, 0.05], [1.0, 1.0, 1.0]],
+                     dtype=torch.float64)
+# hand-derived: distances to the planes x = 0, z = 0, and to the slanted face x + y + z = 1
+TET_SDF = torch.tensor([-0.1, 2.0, -0.05, 2.0 / math.sqrt(3.0)], dtype=torch.float64)
+
+
+@pytest.mark.parametrize("s", [1e-15, 1e-6, 1.0, 1e6, 1e77, 1e155, 1e-150])
+@pytest.mark.parametrize("sign", ["pseudonormal", "winding"])
+def test_scale_equivariance_float64(s, sign):
+    r = M.mesh_sdf(TET_V * s, TET_F, TET_P * s, sign=sign, return_closest=True)
+    assert torch.isfinite(r.sdf).all()
+    assert_close(r.sdf / s, TET_SDF, atol=1e-12, rtol=1e-12)
+    assert torch.equal(r.face_ids, M.mesh_sdf(TET_V, TET_F, TET_P, sign=sign,
+                                              return_closest=True).face_ids)
+    w = M.winding_number(TET_V * s, TET_F, TET_P * s)
+    assert_close(w.abs(), torch.tensor([1.0, 0, 1, 0], dtype=torch.float64), atol=1e-12, rtol=0)
+
+
+def test_scale_float32():
+    for s in (1e-6, 1e-3, 1e3, 1e6):
+        r = M.mesh_sdf((TET_V * s).float(), TET_F, (TET_P * s).float()).sdf
+        assert_close(r / s, TET_SDF.float(), atol=1e-5, rtol=1e-5)
+
+
+def test_empty_inputs_give_empty_outputs():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    empty = torch.zeros(0, 3, dtype=torch.float64)
+    assert M.winding_number(V, F, empty).shape == (0,)
+    for sign in ("auto", "pseudonormal", "winding", "none"):
+        r = M.mesh_sdf(V, F, empty, sign=sign, return_closest=True)
+        assert r.sdf.shape == (0,) and r.closest_points.shape == (0, 3)
+        assert r.face_ids.shape == (0,)
+    with pytest.warns(RuntimeWarning, match="watertight"):
+        assert M.mesh_sdf(V, F[3:], empty).sdf.shape == (0,)
+    assert M.mesh_sdf(V, F, torch.zeros(4, 0, 3, dtype=torch.float64)).sdf.shape == (4, 0)
+    assert M.mesh_sdf(V.expand(0, -1, -1), F, empty).sdf.shape == (0, 0)
+    assert M.winding_number(V, F, torch.zeros(2, 0, 3, dtype=torch.float64)).shape == (2, 0)
+
+
+def test_nan_points_give_nan():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    p = torch.tensor([[0.0, 0.0, 0.0], [math.nan, 0.0, 0.0], [0.0, 0.0, 2.0]],
+                     dtype=torch.float64)
+    r = M.mesh_sdf(V, F, p).sdf
+    assert torch.isnan(r[1]) and torch.isfinite(r[[0, 2]]).all()
+    assert_close(r[[0, 2]], M.mesh_sdf(V, F, p[[0, 2]]).sdf)
+
+
+# --- progress, vmap, jacrev (issue 11) ------------------------------------------------------
+
+
+def test_progress_bar(capsys):
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    p = _points(trimesh.creation.icosphere(subdivisions=1), 50)
+    quiet = M.mesh_sdf(V, F, p, backend="torch").sdf
+    assert capsys.readouterr().err == ""
+    loud = M.mesh_sdf(V, F, p, backend="torch", progress=True).sdf
+    assert "mesh_sdf" in capsys.readouterr().err
+    assert torch.equal(quiet, loud)
+
+
+def test_vmap_and_jacrev():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    gen = torch.Generator().manual_seed(2)
+    p = 1.5 * (torch.rand(4, 9, 3, generator=gen, dtype=V.dtype) * 2 - 1)
+    verts = V * (1 + 0.2 * torch.rand(4, 1, 1, generator=gen, dtype=V.dtype))
+    direct = M.mesh_sdf(V, F, p).sdf
+    assert_close(torch.func.vmap(lambda q: M.mesh_sdf(V, F, q).sdf)(p), direct)
+    batched = torch.func.vmap(lambda v, q: M.mesh_sdf(v, F, q).sdf)(verts, p)
+    assert_close(batched, M.mesh_sdf(verts, F, p).sdf)
+    # jacrev w.r.t. the points: the gradient of a distance is the unit vector (p - q)/|p - q|
+    jac = torch.func.jacrev(lambda q: M.mesh_sdf(V, F, q).sdf)(p[0])  # (9, 9, 3)
+    r = M.mesh_sdf(V, F, p[0], return_closest=True)
+    unit = (p[0] - r.closest_points) / r.sdf[:, None]
+    assert_close(jac.diagonal(dim1=0, dim2=1).t(), unit, atol=1e-10, rtol=0)
+    assert_close(jac.sum((1, 2)) - jac.diagonal(dim1=0, dim2=1).sum(0),
+                 torch.zeros(9, dtype=V.dtype))
+    jv = torch.func.jacrev(lambda v: M.mesh_sdf(v, F, p[0]).sdf)(V)
+    vv = V.clone().requires_grad_(True)
+    M.mesh_sdf(vv, F, p[0]).sdf[3].backward()
+    assert_close(jv[3], vv.grad)
+
+
+# --- backends (issue 16) --------------------------------------------------------------------
+
+from torchgeo_cg.sdf import engines as E  # noqa: E402
+
+BACKENDS = ["torch", *E.ENGINES]
+
+
+def _backend(name):
+    if name != "torch":
+        pytest.importorskip(E.ENGINES[name])
+    return name
+
+
+def _all_face_d2(vertices, faces, points):
+    """(N, F) squared distance of every point to every face, written here (Ericson's
+    region tests, 'Real-Time Collision Detection' 5.1.5), float64."""
+    tri = vertices[faces]
+    p = points[:, None]
+    a, b, c = tri[None, :, 0], tri[None, :, 1], tri[None, :, 2]
+
+    def d2_seg(u, v):
+        t = (((p - u) * (v - u)).sum(-1) / ((v - u) ** 2).sum(-1)).clamp(0, 1)
+        return ((p - u - t[..., None] * (v - u)) ** 2).sum(-1)
+
+    n = torch.cross(b - a, c - a, dim=-1)
+    h = ((p - a) * n).sum(-1) / (n * n).sum(-1)
+    q = p - h[..., None] * n
+    s1 = (torch.cross(b - a, q - a, dim=-1) * n).sum(-1)
+    s2 = (torch.cross(c - b, q - b, dim=-1) * n).sum(-1)
+    s3 = (torch.cross(a - c, q - c, dim=-1) * n).sum(-1)
+    edges = torch.minimum(torch.minimum(d2_seg(a, b), d2_seg(b, c)), d2_seg(c, a))
+    plane = ((p - q) ** 2).sum(-1)
+    return torch.where((s1 >= 0) & (s2 >= 0) & (s3 >= 0), torch.minimum(plane, edges), edges)
+
+
+def _winding_reference(vertices, faces, points):
+    """Solid-angle sum (Van Oosterom & Strackee), written here in numpy."""
+    tri = vertices[faces].numpy()[None]
+    x = tri - points.numpy()[:, None, None]
+    a, b, c = x[:, :, 0], x[:, :, 1], x[:, :, 2]
+    la, lb, lc = (np.linalg.norm(y, axis=-1) for y in (a, b, c))
+    det = np.einsum("nfk,nfk->nf", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("nfk,nfk->nf", a, b) * lc
+           + np.einsum("nfk,nfk->nf", a, c) * lb + np.einsum("nfk,nfk->nf", b, c) * la)
+    return torch.from_numpy(2 * np.arctan2(det, den).sum(1) / (4 * np.pi))
+
+
+def _bumpy_sphere():
+    m = trimesh.creation.icosphere(subdivisions=3)
+    v = m.vertices
+    r = 1 + 0.15 * np.sin(5 * v[:, 0]) * np.sin(4 * v[:, 1]) * np.cos(3 * v[:, 2])
+    return trimesh.Trimesh(v * r[:, None], m.faces, process=False)
+
+
+REFERENCE_MESHES = {
+    "torus": lambda: trimesh.creation.torus(1.0, 0.3, major_sections=32, minor_sections=16),
+    "bumpy_sphere": _bumpy_sphere,
+    "open_sphere": lambda: trimesh.Trimesh(*(lambda m: (m.vertices, m.faces[12:]))(
+        trimesh.creation.icosphere(subdivisions=2)), process=False),
+}
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 1e6])
+@pytest.mark.parametrize("mesh", sorted(REFERENCE_MESHES))
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_backend_against_all_faces(backend, mesh, scale):
+    m = REFERENCE_MESHES[mesh]()
+    V, F = _mesh(m)
+    p = _points(m, 400, seed=5)
+    V, p = V * scale, p * scale
+    sign = "winding" if mesh == "open_sphere" else "pseudonormal"
+    r = M.mesh_sdf(V, F, p, sign=sign, return_closest=True, backend=_backend(backend))
+    d2 = _all_face_d2(V, F, p)
+    best = d2.min(1).values
+    # same face, or an equidistant one; distance within 1e-12 of the mesh size
+    chosen = d2.gather(1, r.face_ids[:, None]).squeeze(1)
+    size = float((V.amax(0) - V.amin(0)).max())
+    assert ((chosen.sqrt() - best.sqrt()).abs() <= 1e-12 * size).all()
+    assert_close(r.sdf.abs(), best.sqrt(), atol=1e-12 * size, rtol=0)
+    assert torch.equal(r.sdf < 0, _winding_reference(V, F, p) > 0.5)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_backends_agree_and_gradients_identical(backend):
+    m = _bumpy_sphere()
+    V, F = _mesh(m)
+    p = _points(m, 300, seed=7)
+    ref = M.mesh_sdf(V, F, p, return_closest=True, backend="torch")
+    r = M.mesh_sdf(V, F, p, return_closest=True, backend=_backend(backend))
+    assert_close(r.sdf, ref.sdf, atol=1e-12, rtol=0)
+    assert_close(r.closest_points, ref.closest_points, atol=1e-12, rtol=0)
+    grads = []
+    for name in ("torch", backend):
+        vv, pp = V.clone().requires_grad_(True), p.clone().requires_grad_(True)
+        M.mesh_sdf(vv, F, pp, backend=name).sdf.square().sum().backward()
+        grads.append((vv.grad, pp.grad))
+    assert_close(grads[1][0], grads[0][0], atol=1e-12, rtol=0)
+    assert_close(grads[1][1], grads[0][1], atol=1e-12, rtol=0)
+
+
+@pytest.mark.grad
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_gradcheck_with_each_backend(backend):
+    V0, F0 = _mesh(trimesh.creation.icosphere(subdivisions=0))
+    q = torch.tensor([[0.3, 0.1, 0.2], [1.5, 0.2, -0.4], [0.0, -1.2, 0.1]], dtype=torch.float64)
+    fn = lambda a, b: M.mesh_sdf(b, F0, a, backend=_backend(backend)).sdf  # noqa: E731
+    assert torch.autograd.gradcheck(fn, (q.requires_grad_(True), V0.clone().requires_grad_(True)))
+
+
+def test_backend_names_and_missing_engine(monkeypatch):
+    V, F = TET_V, TET_F
+    with pytest.raises(ValueError, match="backend"):
+        M.mesh_sdf(V, F, TET_P, backend="embree9")
+    monkeypatch.setitem(E.ENGINES, "ghost", "no_such_module_for_torchgeo_cg")
+    with pytest.raises(ImportError, match="fast"):
+        M.mesh_sdf(V, F, TET_P, backend="ghost")
+    assert "ghost" not in E.available_engines()
+    expected = E.available_engines()[0] if E.available_engines() else "torch"
+    assert E.resolve_backend("auto") == expected
+    with pytest.raises(ImportError, match="fast"):
+        M.MeshSDF(V, F, backend="ghost")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
+    import copy
+
+    backend = _backend(backend)
+    m = trimesh.creation.icosphere(subdivisions=2)
+    V, F = _mesh(m)
+    p = _points(m, 100, seed=9)
+    module = M.MeshSDF(V, F, backend=backend)
+    ref = M.mesh_sdf(V, F, p, return_closest=True, backend=backend)
+    ref2 = M.mesh_sdf(2 * V, F, p, backend=backend)
+    builds = []
+    real = E.build_search
+    monkeypatch.setattr(E, "build_search", lambda *a: builds.append(1) or real(*a))
+    first = module(p, return_closest=True)
+    second = module(p.flip(0))
+    assert len(builds) == 1  # the second query reused the structure
+    assert torch.equal(first.sdf, ref.sdf) and torch.equal(second.sdf, ref.sdf.flip(0))
+    module.vertices.mul_(2.0)  # an in-place edit rebuilds
+    assert_close(module(p).sdf, ref2.sdf, atol=1e-12, rtol=0)
+    assert len(builds) == 2
+    twin = copy.deepcopy(module)
+    assert_close(twin(p).sdf, module(p).sdf, atol=0, rtol=0)
+    fresh = M.MeshSDF(V, F, backend=backend)
+    fresh.load_state_dict(module.state_dict())
+    assert_close(fresh(p).sdf, module(p).sdf, atol=0, rtol=0)
+    assert module.to(torch.float32)(p.float()).sdf.dtype == torch.float32
+
+
+def test_without_the_extra_auto_falls_back_to_torch():
+    """A fresh process where the engine cannot be imported, as on an install without
+    ``fast``: ``auto`` is torch, an explicit engine raises ImportError naming the extra,
+    and the engine module still imports (its doctests pass)."""
+    import subprocess
+    import sys
+
+    script = """
+import sys, doctest, warnings
+sys.modules["warp"] = None  # import warp now fails, find_spec finds nothing
+import torch
+from torchgeo_cg.sdf import engine_warp, engines, mesh_sdf
+assert engines.available_engines() == [] and engines.resolve_backend("auto") == "torch"
+v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
+f = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+p = torch.tensor([[0.1, 0.2, 0.3]], dtype=torch.float64)
+assert abs(float(mesh_sdf(v, f, p).sdf[0]) + 0.1) < 1e-12
+try:
+    mesh_sdf(v, f, p, backend="warp")
+    raise SystemExit("no ImportError")
+except ImportError as e:
+    assert "fast" in str(e), e
+failed, tried = doctest.testmod(engine_warp, optionflags=doctest.ELLIPSIS)
+assert failed == 0 and tried > 0, (failed, tried)
+print("ok")
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+@pytest.mark.slow
+def test_mesh_sdf_module_under_compile_vmap_jacrev():
+    V, F = _mesh(trimesh.creation.icosphere(subdivisions=1))
+    p = torch.rand(2, 30, 3, generator=torch.Generator().manual_seed(4), dtype=V.dtype) * 2 - 1
+    module = M.MeshSDF(V, F)
+    eager = module(p).sdf
+    assert_close(torch.compile(module)(p).sdf, eager, atol=1e-14, rtol=0)
+    assert_close(torch.func.vmap(lambda q: module(q).sdf)(p), eager, atol=1e-14, rtol=0)
+    jac = torch.func.jacrev(lambda q: module(q).sdf)(p[0])
+    r = module(p[0], return_closest=True)
+    unit = (p[0] - r.closest_points) / r.sdf[:, None]
+    assert_close(jac.diagonal(dim1=0, dim2=1).t(), unit, atol=1e-10, rtol=0)

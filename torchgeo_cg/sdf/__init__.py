@@ -11,12 +11,17 @@ Layout (one topic per file):
   ``grid_interpolate``.
 - :mod:`~torchgeo_cg.sdf.level_set`: the report's ``zero_level_set``.
 - :mod:`~torchgeo_cg.sdf.gradients`: ``sdf_gradient``, ``sdf_normal``, ``eikonal_loss``.
-- :mod:`~torchgeo_cg.sdf.mesh_distance`: ``mesh_sdf`` (pseudo-normal and winding-number signs).
+- :mod:`~torchgeo_cg.sdf.mesh_distance`: ``mesh_sdf``, ``MeshSDF`` (pseudo-normal and
+  winding-number signs), exact evaluation on the closest face.
+- :mod:`~torchgeo_cg.sdf.mesh_search`: the torch backend's closest-face search.
+- :mod:`~torchgeo_cg.sdf.engines`: backends (``"auto"``, ``"torch"``, ``"warp"`` from the
+  optional extra ``fast``), ``available_engines``; :mod:`~torchgeo_cg.sdf.engine_warp`.
 - :mod:`~torchgeo_cg.sdf.sampler`: ``SDFSampler`` (DeepSDF distribution), ``.npz`` I/O.
 
 Convention: SDFs are negative inside; points are ``(*, N, 3)`` (or ``(*, N, 2)``).
 """
 
+from torchgeo_cg.sdf.engines import available_engines
 from torchgeo_cg.sdf.gradients import eikonal_loss, sdf_gradient, sdf_normal
 from torchgeo_cg.sdf.grid import (
     Volume,
@@ -29,6 +34,7 @@ from torchgeo_cg.sdf.grid import (
 )
 from torchgeo_cg.sdf.level_set import LevelSetPoints, zero_level_set
 from torchgeo_cg.sdf.mesh_distance import (
+    MeshSDF,
     MeshSDFResult,
     TriangleClosestPoint,
     closest_point_on_triangle,
@@ -100,7 +106,7 @@ __all__ = [
     "LevelSetPoints", "zero_level_set", "sdf_gradient", "sdf_normal", "eikonal_loss",
     # mesh distance
     "MeshSDFResult", "TriangleClosestPoint", "closest_point_on_triangle", "is_watertight",
-    "winding_number", "mesh_sdf",
+    "winding_number", "mesh_sdf", "MeshSDF", "available_engines",
     # sampler
     "SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples", "load_samples",
 ]

@@ -1,0 +1,205 @@
+"""Search backends of the mesh queries: the torch search or a compiled engine.
+
+A backend answers one question, "which face is closest to each point" (piecewise
+constant, no gradient); :func:`~torchgeo_cg.sdf.mesh_distance.mesh_sdf` evaluates the
+distance on that face in torch. Backends:
+
+- ``"torch"``: :mod:`~torchgeo_cg.sdf.mesh_search`, exact float64 search on the CPU
+  (always installed).
+- ``"warp"``: :mod:`~torchgeo_cg.sdf.engine_warp`, NVIDIA Warp's BVH (float32) with a
+  float64 check of the neighbouring faces; CPU or CUDA; the optional extra ``fast``.
+- ``"auto"``: the fastest installed engine (:data:`ENGINES` is ordered by speed), else
+  ``"torch"``.
+
+The search is a ``torch.library`` custom op (``torchgeo_cg::closest_faces``) with a
+batching rule, so ``mesh_sdf`` works under ``torch.func.vmap`` and ``jacrev``.
+
+Convention:
+    Vertices ``(B, V, 3)`` share triangles ``(T, 3)``; points ``(B, N, 3)``; the result is
+    ``(B, N)`` long face indices on the points' device.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+import weakref
+
+import torch
+
+from torchgeo_cg.sdf.mesh_search import (
+    build_torch_search,
+    power_of_two_scale,
+    torch_closest_faces,
+)
+
+__all__ = [
+    "ENGINES",
+    "available_engines",
+    "resolve_backend",
+    "build_search",
+    "search_faces",
+    "new_cache_key",
+]
+
+#: Engine name -> the module that must be importable, fastest first.
+ENGINES = {"warp": "warp"}
+
+#: Cached search structures: key -> (fingerprint, structure); see :func:`new_cache_key`.
+_CACHE: dict[int, tuple[tuple, object]] = {}
+_KEYS = itertools.count()
+
+
+def available_engines() -> list[str]:
+    """Installed engines, fastest first.
+
+    Convention:
+        Names as accepted by ``mesh_sdf(backend=...)``; ``"torch"`` (always there) is not
+        listed. The engines come with the optional extra ``fast``.
+
+    Returns:
+        A list of engine names, a subset of :data:`ENGINES`.
+
+    Example:
+        >>> set(available_engines()) <= set(ENGINES)
+        True
+    """
+    return [name for name, module in ENGINES.items()
+            if importlib.util.find_spec(module) is not None]
+
+
+def resolve_backend(backend: str) -> str:
+    """``"auto"`` -> the fastest installed engine or ``"torch"``; an engine name is
+    checked to be installed.
+
+    Raises:
+        ValueError: unknown name.
+        ImportError: the engine is not installed (names the extra ``fast``).
+
+    Example:
+        >>> resolve_backend("torch")
+        'torch'
+    """
+    if backend == "auto":
+        found = available_engines()
+        return found[0] if found else "torch"
+    if backend == "torch":
+        return backend
+    if backend not in ENGINES:
+        raise ValueError(f"backend: expected 'auto', 'torch' or one of {sorted(ENGINES)}, "
+                         f"got {backend!r}")
+    if importlib.util.find_spec(ENGINES[backend]) is None:
+        raise ImportError(f"backend={backend!r} needs the optional extra 'fast': "
+                          f"pip install 'torchgeo_cg[fast]' (installs {ENGINES[backend]})")
+    return backend
+
+
+def new_cache_key(owner: object) -> int:
+    """A key under which the search structure of ``owner``'s mesh is cached until ``owner``
+    is garbage collected (used by :class:`~torchgeo_cg.sdf.mesh_distance.MeshSDF`)."""
+    key = next(_KEYS)
+    weakref.finalize(owner, _CACHE.pop, key, None)
+    return key
+
+
+def _scaled(verts_bv3: torch.Tensor, points_bn3: torch.Tensor):
+    """Vertices and points divided by the mesh's power-of-two scale (exact); non-finite
+    points are searched at the origin (their distance comes out NaN anyway)."""
+    if not bool(torch.isfinite(verts_bv3).all()):
+        raise ValueError("vertices: expected finite coordinates, got NaN or inf")
+    scale = power_of_two_scale(verts_bv3)
+    points = points_bn3.to(verts_bv3.dtype) / scale
+    points = torch.where(torch.isfinite(points).all(-1, keepdim=True), points, 0.0)
+    return verts_bv3 / scale, points
+
+
+def build_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, backend: str) -> object:
+    """The search structure of a backend for scaled vertices ``(B, V, 3)``.
+
+    Example:
+        >>> s = build_search(torch.eye(3)[None], torch.tensor([[0, 1, 2]]), "torch")
+        >>> s.faces_per_mesh
+        1
+    """
+    if backend == "torch":
+        tri = verts_bv3.detach().to("cpu", torch.float64)[:, tris_t3.cpu()]
+        return build_torch_search(tri)
+    from torchgeo_cg.sdf.engine_warp import build_warp_search
+
+    return build_warp_search(verts_bv3, tris_t3)
+
+
+def _query(structure, points_bn3: torch.Tensor, backend: str, progress: bool) -> torch.Tensor:
+    if backend == "torch":
+        p = points_bn3.to("cpu", torch.float64)
+        return torch_closest_faces(structure, p, progress=progress).to(points_bn3.device)
+    from torchgeo_cg.sdf.engine_warp import warp_closest_faces
+
+    return warp_closest_faces(structure, points_bn3, progress=progress)
+
+
+def _fingerprint(verts: torch.Tensor, tris: torch.Tensor, backend: str) -> tuple:
+    return (backend, verts.data_ptr(), verts._version, tuple(verts.shape), verts.dtype,
+            verts.device, tris.data_ptr(), tris._version, tuple(tris.shape))
+
+
+@torch.library.custom_op("torchgeo_cg::closest_faces", mutates_args=())
+def _closest_faces_op(verts: torch.Tensor, tris: torch.Tensor, points: torch.Tensor,
+                      backend: str, key: int, progress: bool) -> torch.Tensor:
+    B, N = points.shape[:2]
+    if B * N == 0:
+        return torch.zeros(B, N, dtype=torch.long, device=points.device)
+    scaled_v, scaled_p = _scaled(verts, points)
+    fingerprint = _fingerprint(verts, tris, backend)
+    cached = _CACHE.get(key) if key >= 0 else None
+    if cached is not None and cached[0] == fingerprint:
+        structure = cached[1]
+    else:
+        structure = build_search(scaled_v, tris, backend)
+        if key >= 0:
+            _CACHE[key] = (fingerprint, structure)
+    return _query(structure, scaled_p, backend, progress).clone()
+
+
+@_closest_faces_op.register_fake
+def _(verts, tris, points, backend, key, progress):
+    return points.new_empty(points.shape[:2], dtype=torch.long)
+
+
+@_closest_faces_op.register_vmap
+def _(info, in_dims, verts, tris, points, backend, key, progress):
+    """Batching rule: the op is already batched over meshes, so vmapped dims join it."""
+    v_dim, t_dim, p_dim = in_dims[:3]
+    if t_dim is not None:
+        raise ValueError("mesh_sdf: faces cannot be batched under vmap (shared topology)")
+    S = info.batch_size
+    if v_dim is None:  # one mesh set for every vmapped item: fold them into the points
+        p = points.movedim(p_dim, 1)  # (B, S, N, 3)
+        B, _, N = p.shape[:3]
+        out = _closest_faces_op(verts, tris, p.reshape(B, S * N, 3), backend, key, progress)
+        return out.reshape(B, S, N).movedim(1, 0), 0
+    v = verts.movedim(v_dim, 0)
+    p = points.movedim(p_dim, 0) if p_dim is not None else points.expand(S, *points.shape)
+    B = max(v.shape[1], p.shape[1])
+    v, p = v.expand(S, B, *v.shape[2:]), p.expand(S, B, *p.shape[2:])
+    out = _closest_faces_op(v.reshape(S * B, *v.shape[2:]), tris,
+                            p.reshape(S * B, *p.shape[2:]), backend, -1, progress)
+    return out.reshape(S, B, -1), 0
+
+
+def search_faces(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: torch.Tensor,
+                 backend: str, key: int = -1, progress: bool = False) -> torch.Tensor:
+    """Closest face ``(B, N)`` long of every point, per mesh, with a resolved ``backend``.
+
+    ``key`` (:func:`new_cache_key`) reuses the structure built for the same vertices
+    (unchanged data pointer and version); ``-1`` builds it for this call only.
+
+    Example:
+        >>> v = torch.tensor([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]])
+        >>> tris = torch.tensor([[0, 1, 2], [0, 1, 3]])
+        >>> search_faces(v, tris, torch.tensor([[[0.2, 0.2, -1.0], [0.2, -1.0, 0.2]]]),
+        ...              "torch")
+        tensor([[0, 1]])
+    """
+    return _closest_faces_op(verts_bv3.detach(), tris_t3, points_bn3.detach(), backend, key,
+                             progress)
