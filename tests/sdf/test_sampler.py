@@ -163,7 +163,6 @@ def test_surface_sampling_of_polygons_is_area_weighted():
     assert stats.binomtest(k, 3000, 1 / 3).pvalue > 1e-3
 
 
-@pytest.mark.xfail(reason="needs batched mesh_sdf (i16)", strict=False)
 def test_batched_sampler_matches_per_mesh_values():
     mesh = _control_mesh()
     batch = torch.stack([mesh.verts, 0.5 * mesh.verts + 0.1])
@@ -217,3 +216,17 @@ def test_nan_variance_and_progress(capsys):
     assert "SDFSampler" in capsys.readouterr().err
     SDFSampler(sphere, seed=0).sample(100)
     assert "SDFSampler" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("backend", ["torch", "warp"])
+def test_backend_is_passed_to_mesh_sdf(backend):
+    from torchgeo_cg.sdf import available_engines
+
+    if backend != "torch" and backend not in available_engines():
+        pytest.skip(f"engine {backend!r} is not installed (extra 'fast')")
+    m = trimesh.creation.icosphere(subdivisions=2)
+    V, F = torch.tensor(m.vertices), torch.tensor(m.faces)
+    s = SDFSampler(m, seed=3, backend=backend).sample(300)
+    assert_close(s.sdf, mesh_sdf(V, F, s.points, backend="torch").sdf)
+    with pytest.raises(ValueError, match="backend"):
+        SDFSampler(m, seed=3, backend="no-such-engine")

@@ -41,7 +41,6 @@ def check_degree(degree: object, name: str = "degree") -> int:
     return degree
 
 
-_check_degree = check_degree  # the former private name, still imported by curves/fitting.py
 
 
 def bernstein_basis(t: torch.Tensor, degree: int) -> torch.Tensor:

@@ -109,9 +109,6 @@ def parse_bounds(bounds, device=None, dtype=None) -> torch.Tensor:
     return b
 
 
-_bounds = parse_bounds  # the former private name, still imported by sdf/sampler.py
-
-
 def check_spacing(spacing, like: torch.Tensor | None, name: str = "spacing") -> torch.Tensor:
     """``spacing`` as a ``(3,)`` tensor like ``like`` (cast), checked positive.
 

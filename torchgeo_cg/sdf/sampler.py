@@ -43,6 +43,7 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.mesh.faces import check_faces, triangulate_faces
+from torchgeo_cg.sdf.engines import resolve_backend
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
 __all__ = [
@@ -232,6 +233,8 @@ class SDFSampler:
         clamp: clamp the returned SDF to ``[-clamp, clamp]`` (DeepSDF uses 0.1).
         seed: seed of the sampler's own generator (``None``: nondeterministic).
         sign: sign method passed to ``mesh_sdf`` for meshes.
+        backend: search backend passed to ``mesh_sdf`` for meshes (``"auto"`` takes the
+            compiled engine of the ``fast`` extra when installed, else ``"torch"``).
         device, dtype: of the returned samples (default: of the mesh, else CPU and
             the default dtype).
 
@@ -247,7 +250,7 @@ class SDFSampler:
     def __init__(self, source, bounds=None, variances: Sequence[float] = (0.005, 0.0005),
                  uniform_fraction: float = 0.06, balanced: bool = False,
                  clamp: float | None = None, seed: int | None = None, sign: str = "auto",
-                 device=None, dtype=None):
+                 backend: str = "auto", device=None, dtype=None):
         self.vertices: torch.Tensor | None = None
         self.faces: torch.Tensor | None = None
         self.sdf_fn: Callable | None = None
@@ -268,6 +271,7 @@ class SDFSampler:
         self.balanced = bool(balanced)
         self.clamp = clamp
         self.sign = sign
+        self.backend = resolve_backend(backend)  # checked now, not at the first sample
         self.seed = seed
         self._worker: int | None = None
         self.generator = torch.Generator()
@@ -324,7 +328,8 @@ class SDFSampler:
             return values.to(self.dtype)
         verts = self.vertices.to(self.device, self.dtype)
         with torch.no_grad():
-            return mesh_sdf(verts, self.faces.to(self.device), pts, sign=self.sign).sdf
+            return mesh_sdf(verts, self.faces.to(self.device), pts, sign=self.sign,
+                            backend=self.backend).sdf
 
     def surface_points(self, n: int) -> torch.Tensor:
         """``(*, n, 3)`` float64 CPU points on the surface.
