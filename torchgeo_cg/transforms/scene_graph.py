@@ -26,6 +26,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.transforms.homogeneous import rotation, translation
 
 __all__ = ["Orbit", "FixedTransform", "SceneGraph", "WorldTransforms", "solar_system"]
@@ -94,7 +95,7 @@ class Orbit(nn.Module):
         super().__init__()
         self.spin = spin
         for name, value in (("radius", radius), ("speed", speed), ("phase", phase)):
-            value = torch.as_tensor(value, dtype=torch.get_default_dtype()).clone()
+            value = as_tensor_like(value, None, name).clone()
             if value.ndim != 0:
                 raise ValueError(f"Orbit: {name} must be a scalar, got shape {tuple(value.shape)}")
             if learnable:
