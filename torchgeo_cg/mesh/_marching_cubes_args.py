@@ -7,47 +7,23 @@ Numbers, numpy scalars/arrays and tensors are accepted alike; a wrong length rai
 
 from __future__ import annotations
 
-import numbers
 from typing import NamedTuple
 
 import numpy as np
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float
+from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.sdf.grid import Volume
 
-__all__ = ["MarchingArgs", "parse_arguments", "as_float_tensor"]
+__all__ = ["MarchingArgs", "parse_arguments"]
 
 _HALF = (torch.float16, torch.bfloat16)
 
 
-def as_float_tensor(value, name: str, like: torch.Tensor) -> torch.Tensor:
-    """A number, numpy scalar/array, sequence of numbers or float tensor -> tensor like ``like``.
-
-    Tensors keep their autograd graph (cast to ``like``'s dtype and device).
-
-    Example:
-        >>> as_float_tensor(np.float32(2.0), "iso", torch.zeros(1, dtype=torch.float64))
-        tensor(2., dtype=torch.float64)
-    """
-    if isinstance(value, torch.Tensor):
-        check_float(value, name)
-        return value.to(device=like.device, dtype=like.dtype)
-    if isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name}: expected numbers, got {value!r}")
-    if isinstance(value, (numbers.Real, np.ndarray, np.generic, list, tuple)):
-        try:
-            array = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise TypeError(f"{name}: expected numbers, got {value!r}") from err
-        return torch.as_tensor(array, device=like.device).to(like.dtype)
-    raise TypeError(f"{name}: expected a number, numbers or a float tensor, "
-                    f"got {type(value).__name__}")
-
-
 def _per_mesh(value, name: str, batch: int, like: torch.Tensor) -> torch.Tensor:
     """A scalar or ``(B,)`` value -> ``(B,)`` tensor like ``like``."""
-    out = as_float_tensor(value, name, like)
+    out = as_tensor_like(value, like, name, cast=True)
     if out.ndim > 1 or (out.ndim == 1 and out.shape[0] not in (1, batch)):
         raise ShapeError(f"{name}: expected a number or shape () or ({batch},), "
                          f"got {tuple(out.shape)}")
@@ -56,7 +32,7 @@ def _per_mesh(value, name: str, batch: int, like: torch.Tensor) -> torch.Tensor:
 
 def _per_mesh_vec(value, name: str, batch: int, like: torch.Tensor) -> torch.Tensor:
     """3 numbers or a ``(3,)`` / ``(B, 3)`` value -> ``(B, 3)`` tensor like ``like``."""
-    out = as_float_tensor(value, name, like)
+    out = as_tensor_like(value, like, name, cast=True)
     if out.ndim == 1 and out.shape[0] == 3:
         return out.unsqueeze(0).expand(batch, 3)
     if out.ndim == 2 and out.shape[1] == 3 and out.shape[0] in (1, batch):
