@@ -33,8 +33,7 @@ import torch
 
 from benchmarks.harness import Case
 from torchgeo_cg.sdf import grid_points, mesh_sdf, sample_grid, torus, winding_number
-from torchgeo_cg.sdf.mesh_search import face_table as _face_table
-from torchgeo_cg.sdf.mesh_search import pair_d2 as _pair_d2
+from torchgeo_cg.sdf.mesh_search import face_table, pair_d2
 from torchgeo_cg.sdf.sampler import sample_mesh_surface
 
 # VmHWM (peak resident set) of a fresh process; unlike ru_maxrss it is not inherited
@@ -78,14 +77,14 @@ def _deepsdf_points(vertices, faces, n, gen):
 
 def _brute_force(vertices, faces, points, block=1 << 22):
     """Exact unsigned distance over every face, and the winding-number inside mask."""
-    table = _face_table(vertices[faces].double())
+    table = face_table(vertices[faces].double())
     F = faces.shape[0]
     step = max(1, block // F)
     best = []
     for s in range(0, points.shape[0], step):
         p = points[s:s + step].double()
         pairs = p.repeat_interleave(F, 0).t().contiguous()
-        d2 = _pair_d2(table, pairs, torch.arange(F).repeat(p.shape[0]))
+        d2 = pair_d2(table, pairs, torch.arange(F).repeat(p.shape[0]))
         best.append(d2.reshape(p.shape[0], F).min(1).values.sqrt())
     inside = winding_number(vertices, faces, points) > 0.5
     return torch.cat(best), inside
@@ -221,8 +220,8 @@ def _warp_peer(Vf, Fn, Pf):
 
 def _wrong_faces(V, F, points, ids, ours_d) -> float:
     """Fraction of points whose face is farther than ours by more than rounding."""
-    table = _face_table(V[F])
-    d = _pair_d2(table, points.t().contiguous(), torch.as_tensor(ids).long().reshape(-1)).sqrt()
+    table = face_table(V[F])
+    d = pair_d2(table, points.t().contiguous(), torch.as_tensor(ids).long().reshape(-1)).sqrt()
     return float(((d - ours_d) > 1e-12).double().mean())
 
 
