@@ -30,10 +30,10 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_tensor
 from torchgeo_cg.mesh.faces import check_faces
+from torchgeo_cg.mesh.stencils import stencil_matrix
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     _check_boundary,
-    _sparse_csr,
     _SubdivisionModule,
     _topology,
 )
@@ -115,7 +115,7 @@ def loop_operator(
         side_hi = torch.where(hi_kind == 1, beta_v[topo.edge_hi_e], 0.125 * crease_hi)
 
         v_all = torch.arange(V0, device=dev)
-        matrix, matrix_t = _sparse_csr(
+        stencils = stencil_matrix(
             torch.cat([v_all, topo.edge_lo_e, topo.edge_hi_e, V0 + e_all, V0 + e_all,
                        V0 + topo.edge_c]),
             torch.cat([v_all, topo.edge_hi_e, topo.edge_lo_e, topo.edge_lo_e, topo.edge_hi_e,
@@ -135,7 +135,7 @@ def loop_operator(
             dim=1,
         )
     return SubdivisionOperator(
-        matrix, matrix_t, faces_f43.reshape(-1, 3), V0, V1, F0, E0, boundary
+        stencils, faces_f43.reshape(-1, 3), V0, V1, F0, E0, boundary, "loop"
     )
 
 
@@ -165,6 +165,7 @@ class LoopSubdivision(_SubdivisionModule):
     """
 
     _build_operator = staticmethod(loop_operator)
+    scheme = "loop"
 
 
 def loop_subdivide(

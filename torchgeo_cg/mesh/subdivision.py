@@ -37,7 +37,6 @@ Convention:
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -46,6 +45,7 @@ from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
 from torchgeo_cg.mesh.faces import check_faces
+from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
 
 __all__ = [
     "SubdivisionOperator",
@@ -63,29 +63,43 @@ class SubdivisionOperator(NamedTuple):
     """One level of subdivision, built once from the topology.
 
     Attributes:
-        matrix: ``(V1, V0)`` sparse CSR stencil matrix, ``V1 = S @ V0``.
-        matrix_t: ``(V0, V1)`` sparse CSR transpose, used by backward.
-        faces: ``(F1, 4)`` long output quads.
+        stencils: the ``(V1, V0)`` stencil matrix ``S`` (``V1 = S @ V0``) and its
+            transpose as plain CSR tensors (:class:`~torchgeo_cg.mesh.stencils.StencilMatrix`).
+        faces: ``(F1, 4)`` long output quads (Loop: ``(F1, 3)`` triangles).
         num_vertices_in: ``V0``.
-        num_vertices_out: ``V1 = V0 + F0 + E0``.
-        num_faces_in: ``F0`` (face points start at row ``V0``).
-        num_edges_in: ``E0`` (edge points start at row ``V0 + F0``).
+        num_vertices_out: ``V1 = V0 + F0 + E0`` (Loop: ``V0 + E0``).
+        num_faces_in: ``F0`` (Catmark face points start at row ``V0``).
+        num_edges_in: ``E0`` (edge points start at row ``V0 + F0``; Loop: ``V0``).
         boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+        scheme: ``"catmark"`` or ``"loop"``, the rules that built it.
+
+    The properties ``matrix`` and ``matrix_t`` give ``S`` and ``S^T`` as
+    ``torch.sparse_csr`` tensors (built on use; they share the stencils' memory).
 
     Example:
         >>> op = catmull_clark_operator([[0, 1, 2]], 3)  # rows: 3 vertex, 1 face, 3 edge points
-        >>> op.matrix.shape, op.faces.tolist()
-        (torch.Size([7, 3]), [[0, 4, 3, 5], [1, 6, 3, 4], [2, 5, 3, 6]])
+        >>> op.matrix.shape, op.faces.tolist(), op.scheme
+        (torch.Size([7, 3]), [[0, 4, 3, 5], [1, 6, 3, 4], [2, 5, 3, 6]], 'catmark')
     """
 
-    matrix: torch.Tensor
-    matrix_t: torch.Tensor
+    stencils: StencilMatrix
     faces: torch.Tensor
     num_vertices_in: int
     num_vertices_out: int
     num_faces_in: int
     num_edges_in: int
     boundary: str
+    scheme: str = "catmark"
+
+    @property
+    def matrix(self) -> torch.Tensor:
+        """``(V1, V0)`` sparse CSR stencil matrix."""
+        return self.stencils.sparse()
+
+    @property
+    def matrix_t(self) -> torch.Tensor:
+        """``(V0, V1)`` sparse CSR transpose (what backward applies)."""
+        return self.stencils.sparse_t()
 
 
 class _Topology(NamedTuple):
@@ -147,39 +161,6 @@ def _topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str) -> _Topo
         face_c, pos_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
         sharp_e, valence_v, num_faces_v, kind_v,
     )
-
-
-def _sparse_csr(rows, cols, weights, shape) -> tuple[torch.Tensor, torch.Tensor]:
-    """Sum duplicate ``(row, col)`` entries; return the CSR matrix and its CSR transpose.
-
-    One sort of the flattened keys ``row * n_cols + col`` (``torch.unique``), a
-    scatter-add of the weights, and one stable sort of the columns for the transpose.
-    """
-    n_rows, n_cols = shape
-    keep = weights != 0
-    if not bool(keep.all()):
-        rows, cols, weights = rows[keep], cols[keep], weights[keep]
-    key_s, perm = torch.sort(rows * n_cols + cols)
-    first = torch.ones_like(key_s, dtype=torch.bool)
-    first[1:] = key_s[1:] != key_s[:-1]
-    segment = torch.cumsum(first, 0) - 1  # index of the unique key of each sorted entry
-    key_u = key_s[first]
-    values_u = weights.new_zeros(key_u.numel()).index_add_(0, segment, weights[perm])
-    rows_u, cols_u = key_u // n_cols, key_u % n_cols
-    crow = rows_u.new_zeros(n_rows + 1)
-    crow[1:] = torch.cumsum(torch.bincount(rows_u, minlength=n_rows), 0)
-    order_t = torch.sort(cols_u, stable=True).indices  # rows stay sorted within a column
-    crow_t = cols_u.new_zeros(n_cols + 1)
-    crow_t[1:] = torch.cumsum(torch.bincount(cols_u, minlength=n_cols), 0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # "sparse CSR is in beta"
-        matrix = torch.sparse_csr_tensor(
-            crow, cols_u, values_u, shape, check_invariants=False
-        )
-        matrix_t = torch.sparse_csr_tensor(
-            crow_t, rows_u[order_t], values_u[order_t], (n_cols, n_rows), check_invariants=False
-        )
-    return matrix, matrix_t
 
 
 def catmull_clark_operator(
@@ -312,9 +293,7 @@ def catmull_clark_operator(
         cols.append(ou)
         vals.append(face_w_c[oc])
 
-        matrix, matrix_t = _sparse_csr(
-            torch.cat(rows), torch.cat(cols), torch.cat(vals), (V1, V0)
-        )
+        stencils = stencil_matrix(torch.cat(rows), torch.cat(cols), torch.cat(vals), (V1, V0))
         faces_q4 = torch.stack(
             [
                 topo.vert_c,
@@ -324,55 +303,7 @@ def catmull_clark_operator(
             ],
             dim=1,
         )
-    return SubdivisionOperator(matrix, matrix_t, faces_q4, V0, V1, F0, E0, boundary)
-
-
-_CHUNK_COLUMNS = 12  # dense columns per sparse matmul: keeps the gathered rows in cache
-
-
-def _spmm_batched(matrix: torch.Tensor, x_bvd: torch.Tensor) -> torch.Tensor:
-    """``(R, V)`` sparse times each ``(V, D)`` item of ``(B, V, D)`` -> contiguous ``(B, R, D)``.
-
-    Items are grouped so that each sparse matmul sees about ``_CHUNK_COLUMNS``
-    dense columns (a loop over batch chunks, not elements): one very wide
-    product thrashes the cache, many narrow ones waste the stencil reads.
-    """
-    B, V, D = x_bvd.shape
-    R = matrix.shape[0]
-    if B == 1:
-        return (matrix @ x_bvd[0]).unsqueeze(0)
-    per = max(1, _CHUNK_COLUMNS // max(D, 1))
-    out_brd = x_bvd.new_empty(B, R, D)
-    for b0 in range(0, B, per):  # loop over batch chunks
-        x2d = x_bvd[b0:b0 + per].movedim(1, 0).reshape(V, -1)  # (V, b*D)
-        out_brd[b0:b0 + per] = (matrix @ x2d).view(R, -1, D).movedim(0, 1)
-    return out_brd
-
-
-class _SparseApply(torch.autograd.Function):
-    """``S @ X`` with backward ``S^T @ dY`` from the cached transpose (no autograd on S)."""
-
-    @staticmethod
-    def forward(ctx, matrix, matrix_t, x_bvd):
-        ctx.matrix_t = matrix_t
-        return _spmm_batched(matrix, x_bvd)
-
-    @staticmethod
-    def backward(ctx, grad_brd):
-        return None, None, _spmm_batched(ctx.matrix_t, grad_brd.contiguous())
-
-
-def _apply_matrix(matrix, matrix_t, verts: torch.Tensor) -> torch.Tensor:
-    """Apply a ``(V1, V0)`` sparse matrix to ``(*, V0, D)`` verts -> ``(*, V1, D)``."""
-    batch, (V0, D) = verts.shape[:-2], verts.shape[-2:]
-    if matrix.dtype != verts.dtype or matrix.device != verts.device:
-        matrix = matrix.to(device=verts.device, dtype=verts.dtype)
-        matrix_t = matrix_t.to(device=verts.device, dtype=verts.dtype)
-    x_bvd = verts.reshape(-1, V0, D)
-    if not x_bvd.is_contiguous():
-        x_bvd = x_bvd.contiguous()
-    y_brd = _SparseApply.apply(matrix, matrix_t, x_bvd)
-    return y_brd.reshape(*batch, y_brd.shape[1], D)
+    return SubdivisionOperator(stencils, faces_q4, V0, V1, F0, E0, boundary, "catmark")
 
 
 def _check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:
@@ -387,8 +318,9 @@ def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.
     Convention:
         Rows are vertices (``verts[..., i, :]`` is vertex ``i``); ``D`` is any
         width, so positions, UVs and features refine alike. Differentiable in
-        ``verts``; backward uses ``operator.matrix_t``. The operator is cast to
-        ``verts``' dtype and device when they differ.
+        ``verts``; backward applies ``S^T`` from ``operator.stencils``. The
+        weights are cast to ``verts``' dtype and device when they differ. Works
+        under ``torch.compile(fullgraph=True)``, ``torch.func.vmap`` and ``jacrev``.
 
     Args:
         operator: from :func:`catmull_clark_operator`.
@@ -404,7 +336,7 @@ def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.
                 [1.5000, 0.0000]])
     """
     _check_verts(verts, operator.num_vertices_in)
-    return _apply_matrix(operator.matrix, operator.matrix_t, verts)
+    return apply_stencils(operator.stencils, verts)
 
 
 def catmull_clark(
@@ -458,6 +390,8 @@ def catmull_clark(
 class _SubdivisionModule(nn.Module):
     """Shared machinery: one cached operator per level, applied by sparse matmuls."""
 
+    scheme = ""  # the subclass's scheme name
+
     @staticmethod
     def _build_operator(faces, num_vertices, boundary, dtype=None) -> SubdivisionOperator:
         raise NotImplementedError
@@ -485,8 +419,8 @@ class _SubdivisionModule(nn.Module):
         self.sizes: list[tuple[int, int, int, int]] = []  # (V_in, V_out, F_in, E_in)
         for level in range(levels):  # loop over levels only
             op = self._build_operator(faces_fk, count, boundary, dtype=dtype)
-            self.register_buffer(f"matrix_{level}", op.matrix, persistent=False)
-            self.register_buffer(f"matrix_t_{level}", op.matrix_t, persistent=False)
+            for field, tensor in zip(StencilMatrix._fields, op.stencils):
+                self.register_buffer(f"{field}_{level}", tensor, persistent=False)
             self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
             self.sizes.append(
                 (op.num_vertices_in, op.num_vertices_out, op.num_faces_in, op.num_edges_in)
@@ -506,18 +440,17 @@ class _SubdivisionModule(nn.Module):
             raise IndexError(f"level: expected 0 <= level < {self.levels}, got {level}")
         v_in, v_out, f_in, e_in = self.sizes[level]
         return SubdivisionOperator(
-            getattr(self, f"matrix_{level}"),
-            getattr(self, f"matrix_t_{level}"),
-            getattr(self, f"faces_{level + 1}"),
-            v_in, v_out, f_in, e_in, self.boundary,
+            self._stencils(level), getattr(self, f"faces_{level + 1}"),
+            v_in, v_out, f_in, e_in, self.boundary, self.scheme,
         )
+
+    def _stencils(self, level: int) -> StencilMatrix:
+        return StencilMatrix(*(getattr(self, f"{f}_{level}") for f in StencilMatrix._fields))
 
     def forward(self, verts: torch.Tensor) -> torch.Tensor:
         _check_verts(verts, self.num_vertices_in)
         for level in range(self.levels):
-            verts = _apply_matrix(
-                getattr(self, f"matrix_{level}"), getattr(self, f"matrix_t_{level}"), verts
-            )
+            verts = apply_stencils(self._stencils(level), verts)
         return verts
 
     def extra_repr(self) -> str:
@@ -533,8 +466,10 @@ class CatmullClark(_SubdivisionModule):
 
     Convention:
         See the module docstring. One :class:`SubdivisionOperator` per level is
-        stored as non-persistent buffers (``matrix_{l}``, ``matrix_t_{l}``,
-        ``faces_{l}``), so ``.to(device, dtype)`` moves them.
+        stored as plain non-persistent buffers (the stencil tensors ``crow_{l}``,
+        ``col_{l}``, ``weights_{l}``, ``crow_t_{l}``, ``col_t_{l}``, ``weights_t_{l}``
+        and ``faces_{l}``), so ``.to(device, dtype)``, ``copy.deepcopy``, DDP,
+        ``torch.compile(fullgraph=True)`` and ``torch.func.vmap`` work.
 
     Args:
         faces: ``(F, K)`` long padded with ``-1``, or a list of index lists.
@@ -557,6 +492,7 @@ class CatmullClark(_SubdivisionModule):
     """
 
     _build_operator = staticmethod(catmull_clark_operator)
+    scheme = "catmark"
 
 
 def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
@@ -593,7 +529,7 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
     V1 = operator.num_vertices_out
     with torch.no_grad():
         topo = _topology(faces_q4, V1, operator.boundary)
-        dev, wdtype = faces_q4.device, operator.matrix.dtype
+        dev, wdtype = faces_q4.device, operator.stencils.weights.dtype
         n_v = topo.valence_v.to(wdtype).clamp(min=1)
         m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
         kind_v = topo.kind_v
@@ -613,11 +549,10 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
         v_c = topo.vert_c
         w_c = torch.where(smooth_v[v_c], 1.0 / (m_v[v_c] * (n_v[v_c] + 5)), 0.0)
         arange_v = torch.arange(V1, device=dev)
-        limit, limit_t = _sparse_csr(
+        limit = stencil_matrix(
             torch.cat([arange_v, v_side, v_c]),
             torch.cat([arange_v, nbr_side, diag_c]),
             torch.cat([self_v.to(wdtype), w_side.to(wdtype), w_c.to(wdtype)]),
             (V1, V1),
         )
-    refined = _apply_matrix(operator.matrix, operator.matrix_t, verts)
-    return _apply_matrix(limit, limit_t, refined)
+    return apply_stencils(limit, apply_stencils(operator.stencils, verts))
