@@ -169,8 +169,9 @@ def _(crow, col, weights, crow_t, col_t, weights_t, x_bvd):
 
 
 class _StencilApply(torch.autograd.Function):
-    """``S @ X`` through the opaque op; backward and jvp apply ``S^T`` and ``S`` through
-    this same Function, so gradients are differentiable and vmap-able."""
+    """``S @ X`` through the opaque op; backward applies ``S^T`` through this same
+    Function, so gradients are differentiable and vmap-able. (No forward-mode ``jvp``:
+    Dynamo cannot trace a Function that defines one.)"""
 
     @staticmethod
     def forward(crow, col, weights, crow_t, col_t, weights_t, x_bvd):
@@ -179,18 +180,12 @@ class _StencilApply(torch.autograd.Function):
     @staticmethod
     def setup_context(ctx, inputs, output):
         ctx.save_for_backward(*inputs[:6])
-        ctx.save_for_forward(*inputs[:6])
 
     @staticmethod
     def backward(ctx, grad_brd):
         crow, col, weights, crow_t, col_t, weights_t = ctx.saved_tensors
         grad_x = _StencilApply.apply(crow_t, col_t, weights_t, crow, col, weights, grad_brd)
         return None, None, None, None, None, None, grad_x
-
-    @staticmethod
-    def jvp(ctx, *tangents):
-        crow, col, weights, crow_t, col_t, weights_t = ctx.saved_tensors
-        return _StencilApply.apply(crow, col, weights, crow_t, col_t, weights_t, tangents[6])
 
     @staticmethod
     def vmap(info, in_dims, crow, col, weights, crow_t, col_t, weights_t, x_bvd):
