@@ -30,7 +30,7 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_tensor
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import stencil_matrix
+from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     _check_boundary,
@@ -38,7 +38,9 @@ from torchgeo_cg.mesh.subdivision import (
     _topology,
 )
 
-__all__ = ["loop_operator", "loop_subdivide", "LoopSubdivision"]
+__all__ = [
+    "loop_operator", "loop_subdivide", "LoopSubdivision", "loop_limit_stencils", "loop_beta"
+]
 
 
 def loop_operator(
@@ -105,8 +107,7 @@ def loop_operator(
         # Vertex points.
         kind_v = topo.kind_v
         n_v = w(topo.valence_v).clamp(min=1)
-        cos_v = torch.cos(2.0 * math.pi / n_v)
-        beta_v = (0.625 - (0.375 + 0.25 * cos_v) ** 2) / n_v
+        beta_v = loop_beta(n_v)
         smooth_v, crease_v = kind_v == 1, kind_v == 2
         self_v = torch.where(smooth_v, 1.0 - n_v * beta_v, 1.0 - 0.25 * w(crease_v))
         lo_kind, hi_kind = kind_v[topo.edge_lo_e], kind_v[topo.edge_hi_e]
@@ -208,3 +209,55 @@ def loop_subdivide(
         device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
     )
     return module(verts), module.faces
+
+
+def loop_beta(valence: torch.Tensor) -> torch.Tensor:
+    """Loop's neighbour weight ``beta = (5/8 - (3/8 + 1/4 cos(2 pi / n))^2) / n``.
+
+    Args:
+        valence: ``(*,)`` float vertex valences ``n >= 1``.
+
+    Returns:
+        ``(*,)`` float ``beta``.
+
+    Example:
+        >>> loop_beta(torch.tensor([3.0, 6.0]))  # 3/16 and 1/16
+        tensor([0.1875, 0.0625])
+    """
+    cos_v = torch.cos(2.0 * math.pi / valence)
+    return (0.625 - (0.375 + 0.25 * cos_v) ** 2) / valence
+
+
+def loop_limit_stencils(
+    faces_f3: torch.Tensor, num_vertices: int, boundary: str, dtype: torch.dtype
+) -> StencilMatrix:
+    """``(V, V)`` Loop limit masks of a triangle mesh (OpenSubdiv's Loop limit masks).
+
+    Smooth vertex of valence ``n``: ``(1 - n chi) V + chi sum(nbrs)`` with
+    ``chi = 1 / (n + 3 / (8 beta))``; crease/boundary vertex ``(a + 4 V + b) / 6``
+    (``a, b`` its sharp neighbours); corners and unreferenced vertices ``V``.
+
+    Example:
+        >>> ring = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 6], [0, 6, 1]]
+        >>> loop_limit_stencils(torch.tensor(ring), 7, "edge_only", torch.float64).dense()[0] * 12
+        tensor([6., 1., 1., 1., 1., 1., 1.], dtype=torch.float64)
+    """
+    V = num_vertices
+    with torch.no_grad():
+        topo = _topology(faces_f3, V, boundary)
+        n_v = topo.valence_v.to(dtype).clamp(min=1)
+        chi_v = 1.0 / (n_v + 3.0 / (8.0 * loop_beta(n_v)))
+        smooth_v, crease_v = topo.kind_v == 1, topo.kind_v == 2
+        self_v = torch.where(smooth_v, 1.0 - n_v * chi_v, 1.0 - crease_v.to(dtype) / 3.0)
+        v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
+        nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
+        sharp_side = torch.cat([topo.sharp_e, topo.sharp_e])
+        kind_side = topo.kind_v[v_side]
+        w_side = torch.where(
+            kind_side == 1, chi_v[v_side], ((kind_side == 2) & sharp_side).to(dtype) / 6.0
+        )
+        arange_v = torch.arange(V, device=faces_f3.device)
+        return stencil_matrix(
+            torch.cat([arange_v, v_side]), torch.cat([arange_v, nbr_side]),
+            torch.cat([self_v, w_side]), (V, V),
+        )

@@ -54,6 +54,7 @@ __all__ = [
     "catmull_clark",
     "CatmullClark",
     "limit_positions",
+    "catmark_limit_stencils",
 ]
 
 _BOUNDARY_MODES = ("edge_only", "edge_and_corner")
@@ -498,12 +499,14 @@ class CatmullClark(_SubdivisionModule):
 def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
     """Exact limit-surface positions of the refined vertices: ``L @ S @ verts``.
 
-    ``S`` is ``operator.matrix``; ``L`` applies the Catmull-Clark limit masks on
-    the refined all-quad mesh ``operator.faces``: smooth vertex of valence ``n``:
-    ``(n^2 V + 4 sum e_i + sum d_i) / (n (n + 5))`` (``e_i`` edge neighbours,
-    ``d_i`` the opposite corner of each incident quad, Halstead et al. 1993);
-    boundary/crease vertex: ``(a + 4 V + b) / 6``; corners and unreferenced
-    vertices: ``V``.
+    ``S`` is ``operator.stencils``; ``L`` applies the limit masks of the operator's
+    scheme on the refined mesh ``operator.faces``. Catmark (Halstead et al. 1993):
+    smooth vertex of valence ``n``: ``(n^2 V + 4 sum e_i + sum d_i) / (n (n + 5))``
+    (``e_i`` edge neighbours, ``d_i`` the opposite corner of each incident quad).
+    Loop: smooth vertex ``(1 - n chi) V + chi sum e_i``, ``chi = 1 / (n + 3 / (8 beta))``
+    with Loop's ``beta`` (OpenSubdiv's ``assignSmoothLimitMask``). Both schemes:
+    boundary/crease vertex ``(a + 4 V + b) / 6`` (the cubic B-spline limit of the
+    crease rule), corners and unreferenced vertices ``V``.
 
     Convention:
         Same classification and ``boundary`` mode as the operator. Because the
@@ -511,11 +514,16 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
         the original control vertices. Differentiable in ``verts``.
 
     Args:
-        operator: from :func:`catmull_clark_operator`.
+        operator: from :func:`catmull_clark_operator` or
+            :func:`~torchgeo_cg.mesh.loop.loop_operator`.
         verts: ``(*, V0, D)`` float control data at the operator's input level.
 
     Returns:
         ``(*, V1, D)`` limit positions of the vertices of ``operator.faces``.
+
+    Raises:
+        ValueError: the operator's scheme has no limit masks here (only
+            ``"catmark"`` and ``"loop"`` do).
 
     Example:
         >>> square = torch.tensor([[0., 0.], [1., 0.], [1., 1.], [0., 1.]])
@@ -525,11 +533,39 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
                 [0.5000, 0.0000]])
     """
     _check_verts(verts, operator.num_vertices_in)
-    faces_q4 = operator.faces
-    V1 = operator.num_vertices_out
+    wdtype = operator.stencils.weights.dtype
+    if operator.scheme == "catmark":
+        limit = catmark_limit_stencils(
+            operator.faces, operator.num_vertices_out, operator.boundary, wdtype
+        )
+    elif operator.scheme == "loop":
+        from torchgeo_cg.mesh.loop import loop_limit_stencils  # loop builds on this module
+
+        limit = loop_limit_stencils(
+            operator.faces, operator.num_vertices_out, operator.boundary, wdtype
+        )
+    else:
+        raise ValueError(
+            f"operator: limit_positions has limit masks for the 'catmark' and 'loop' "
+            f"schemes, got an operator of scheme {operator.scheme!r}"
+        )
+    return apply_stencils(limit, apply_stencils(operator.stencils, verts))
+
+
+def catmark_limit_stencils(
+    faces_q4: torch.Tensor, num_vertices: int, boundary: str, dtype: torch.dtype
+) -> StencilMatrix:
+    """``(V, V)`` Catmark limit masks of an all-quad mesh (see :func:`limit_positions`).
+
+    Example:
+        >>> catmark_limit_stencils(torch.tensor([[0, 1, 2, 3]]), 4, "edge_only",
+        ...                        torch.float64).dense()[0] * 6
+        tensor([4., 1., 0., 1.], dtype=torch.float64)
+    """
+    V1 = num_vertices
     with torch.no_grad():
-        topo = _topology(faces_q4, V1, operator.boundary)
-        dev, wdtype = faces_q4.device, operator.stencils.weights.dtype
+        topo = _topology(faces_q4, V1, boundary)
+        dev, wdtype = faces_q4.device, dtype
         n_v = topo.valence_v.to(wdtype).clamp(min=1)
         m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
         kind_v = topo.kind_v
@@ -555,4 +591,4 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
             torch.cat([self_v.to(wdtype), w_side.to(wdtype), w_c.to(wdtype)]),
             (V1, V1),
         )
-    return apply_stencils(limit, apply_stencils(operator.stencils, verts))
+    return limit
