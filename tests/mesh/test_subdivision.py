@@ -101,7 +101,7 @@ CLOSED = ["cube", "tetrahedron", "pyramid", "pentagon_prism", "hexagon_prism"]
 def test_public_surface():
     assert set(sd.__all__) == {
         "SubdivisionOperator", "catmull_clark_operator", "apply_operator", "catmull_clark",
-        "CatmullClark", "limit_positions", "catmark_limit_stencils",
+        "CatmullClark", "limit_positions", "catmark_limit_stencils", "mesh_topology",
     }
 
 

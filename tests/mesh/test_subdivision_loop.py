@@ -170,7 +170,7 @@ def test_errors():
     with pytest.raises(ValueError, match="face 1 has index 9"):
         loop_operator([[0, 1, 2], [0, 2, 9]], 4)
     with pytest.raises(ValueError, match="boundary"):
-        loop_operator([[0, 1, 2]], 3, boundary="none")
+        loop_operator([[0, 1, 2]], 3, boundary="smooth")
     with pytest.raises(ValueError, match="same device"):
         loop_subdivide(torch.zeros(3, 3), torch.tensor([[0, 1, 2]], device="meta"))
     with pytest.raises(ShapeError, match="verts"):

@@ -29,14 +29,17 @@ from collections.abc import Sequence
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_tensor
+from torchgeo_cg.mesh.creasing import child_tags, subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     _check_boundary,
+    _check_crease_method,
     _SubdivisionModule,
-    _topology,
+    mesh_topology,
 )
+from torchgeo_cg.mesh.tags import SubdivisionTags
 
 __all__ = [
     "loop_operator", "loop_subdivide", "LoopSubdivision", "loop_limit_stencils", "loop_beta"
@@ -49,6 +52,8 @@ def loop_operator(
     boundary: str = "edge_only",
     device: torch.device | str | None = None,
     dtype: torch.dtype | None = None,
+    tags: SubdivisionTags | None = None,
+    crease_method: str = "uniform",
 ) -> SubdivisionOperator:
     """Build one level of Loop subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -79,6 +84,7 @@ def loop_operator(
         tensor([0.3750, 0.1250, 0.3750, 0.1250])
     """
     _check_boundary(boundary)
+    _check_crease_method(crease_method)
     with torch.no_grad():
         faces_f3 = check_faces(faces, num_vertices)
         if faces_f3.shape[0] and (faces_f3.shape[1] != 3 or bool((faces_f3 < 0).any())):
@@ -92,36 +98,31 @@ def loop_operator(
         dev = faces_f3.device
         wdtype = torch.get_default_dtype() if dtype is None else dtype
         V0, F0 = num_vertices, faces_f3.shape[0]
-        topo = _topology(faces_f3, V0, boundary)
+        topo = mesh_topology(faces_f3, V0, boundary)
         E0 = topo.edge_lo_e.numel()
         V1 = V0 + E0
-        w = lambda x: x.to(wdtype)  # noqa: E731
+        rules = subdivision_rules(topo, V0, F0, tags, boundary, crease_method, wdtype)
         e_all = torch.arange(E0, device=dev)
-        sharp_e = topo.sharp_e
+        crease_e = rules.crease_e
 
-        # Edge points: 3/8 ends + 1/8 opposite corners (smooth), 1/2 ends (sharp).
-        end_e = torch.where(sharp_e, 0.5, 0.375).to(wdtype)
+        # Edge points: crease_e of 1/2 ends + (1 - crease_e) of 3/8 ends, 1/8 opposite.
+        end_e = 0.5 * crease_e + 0.375 * (1.0 - crease_e)
         opposite_c = topo.vert_c[topo.prev_corner_c]  # corner opposite half-edge c
-        smooth_c = ~sharp_e[topo.edge_c]
+        smooth_c = (1.0 - crease_e)[topo.edge_c]
 
-        # Vertex points.
-        kind_v = topo.kind_v
-        n_v = w(topo.valence_v).clamp(min=1)
+        # Vertex points: smooth (1 - n beta) V + beta sum, crease 3/4 V + 1/8 (a + b), corner V.
+        n_v = topo.valence_v.to(wdtype).clamp(min=1)
         beta_v = loop_beta(n_v)
-        smooth_v, crease_v = kind_v == 1, kind_v == 2
-        self_v = torch.where(smooth_v, 1.0 - n_v * beta_v, 1.0 - 0.25 * w(crease_v))
-        lo_kind, hi_kind = kind_v[topo.edge_lo_e], kind_v[topo.edge_hi_e]
-        crease_lo, crease_hi = w((lo_kind == 2) & sharp_e), w((hi_kind == 2) & sharp_e)
-        side_lo = torch.where(lo_kind == 1, beta_v[topo.edge_lo_e], 0.125 * crease_lo)
-        side_hi = torch.where(hi_kind == 1, beta_v[topo.edge_hi_e], 0.125 * crease_hi)
+        self_v = rules.smooth_v * (1.0 - n_v * beta_v) + 0.75 * rules.crease_v + rules.corner_v
+        lo_e, hi_e = topo.edge_lo_e, topo.edge_hi_e
+        side_lo = rules.smooth_v[lo_e] * beta_v[lo_e] + rules.crease_end_lo_e
+        side_hi = rules.smooth_v[hi_e] * beta_v[hi_e] + rules.crease_end_hi_e
 
         v_all = torch.arange(V0, device=dev)
         stencils = stencil_matrix(
-            torch.cat([v_all, topo.edge_lo_e, topo.edge_hi_e, V0 + e_all, V0 + e_all,
-                       V0 + topo.edge_c]),
-            torch.cat([v_all, topo.edge_hi_e, topo.edge_lo_e, topo.edge_lo_e, topo.edge_hi_e,
-                       opposite_c]),
-            torch.cat([self_v, side_lo, side_hi, end_e, end_e, 0.125 * w(smooth_c)]),
+            torch.cat([v_all, lo_e, hi_e, V0 + e_all, V0 + e_all, V0 + topo.edge_c]),
+            torch.cat([v_all, hi_e, lo_e, lo_e, hi_e, opposite_c]),
+            torch.cat([self_v, side_lo, side_hi, end_e, end_e, 0.125 * smooth_c]),
             (V1, V0),
         )
         # corners are face-major: corner 3f + k is vertex k of face f
@@ -135,8 +136,14 @@ def loop_operator(
             ],
             dim=1,
         )
+        faces_f3_all = faces_f43.reshape(-1, 3)
+        hole_child = rules.hole_f.repeat_interleave(4)
+        tags_1 = child_tags(rules, lo_e, hi_e, V0 + e_all, hole_child, tags)
+    visible = faces_f3_all if tags_1 is None or tags_1.holes.numel() == 0 else (
+        faces_f3_all[~hole_child]
+    )
     return SubdivisionOperator(
-        stencils, faces_f43.reshape(-1, 3), V0, V1, F0, E0, boundary, "loop"
+        stencils, visible, V0, V1, F0, E0, boundary, "loop", faces_f3_all, tags_1
     )
 
 
@@ -174,6 +181,8 @@ def loop_subdivide(
     faces: torch.Tensor | Sequence[Sequence[int]],
     levels: int = 1,
     boundary: str = "edge_only",
+    tags: SubdivisionTags | None = None,
+    crease_method: str = "uniform",
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Loop-subdivide ``levels`` times; convenience wrapper over :class:`LoopSubdivision`.
 
@@ -207,6 +216,7 @@ def loop_subdivide(
     module = LoopSubdivision(
         faces, verts.shape[-2], levels=levels, boundary=boundary,
         device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
+        tags=tags, crease_method=crease_method,
     )
     return module(verts), module.faces
 
@@ -244,7 +254,7 @@ def loop_limit_stencils(
     """
     V = num_vertices
     with torch.no_grad():
-        topo = _topology(faces_f3, V, boundary)
+        topo = mesh_topology(faces_f3, V, boundary)
         n_v = topo.valence_v.to(dtype).clamp(min=1)
         chi_v = 1.0 / (n_v + 3.0 / (8.0 * loop_beta(n_v)))
         smooth_v, crease_v = topo.kind_v == 1, topo.kind_v == 2

@@ -44,8 +44,10 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.mesh.creasing import CREASE_METHODS, child_tags, subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.tags import SubdivisionTags
 
 __all__ = [
     "SubdivisionOperator",
@@ -55,9 +57,10 @@ __all__ = [
     "CatmullClark",
     "limit_positions",
     "catmark_limit_stencils",
+    "mesh_topology",
 ]
 
-_BOUNDARY_MODES = ("edge_only", "edge_and_corner")
+_BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")
 
 
 class SubdivisionOperator(NamedTuple):
@@ -73,6 +76,11 @@ class SubdivisionOperator(NamedTuple):
         num_edges_in: ``E0`` (edge points start at row ``V0 + F0``; Loop: ``V0``).
         boundary: ``"edge_only"`` or ``"edge_and_corner"``.
         scheme: ``"catmark"`` or ``"loop"``, the rules that built it.
+        child_faces: every child face, holes' children included (what the next level
+            is built from); ``faces`` is this without the holes' children.
+        child_tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` of the refined
+            mesh (child creases with their decayed sharpness, corners, holes as rows
+            of ``child_faces``), or ``None`` for an untagged mesh without holes.
 
     The properties ``matrix`` and ``matrix_t`` give ``S`` and ``S^T`` as
     ``torch.sparse_csr`` tensors (built on use; they share the stencils' memory).
@@ -91,6 +99,8 @@ class SubdivisionOperator(NamedTuple):
     num_edges_in: int
     boundary: str
     scheme: str = "catmark"
+    child_faces: torch.Tensor | None = None
+    child_tags: SubdivisionTags | None = None
 
     @property
     def matrix(self) -> torch.Tensor:
@@ -121,14 +131,27 @@ class _Topology(NamedTuple):
     kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
 
 
+def _check_crease_method(crease_method: str) -> str:
+    if crease_method not in CREASE_METHODS:
+        raise ValueError(f"crease_method: expected one of {CREASE_METHODS}, got {crease_method!r}")
+    return crease_method
+
+
 def _check_boundary(boundary: str) -> str:
     if boundary not in _BOUNDARY_MODES:
         raise ValueError(f"boundary: expected one of {_BOUNDARY_MODES}, got {boundary!r}")
     return boundary
 
 
-def _topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str) -> _Topology:
-    """Vectorized corner, edge and vertex classification (sort/unique/bincount)."""
+def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "edge_only"
+                  ) -> _Topology:
+    """Corner, edge and vertex tables of ``(F, K)`` padded faces (sort/unique/bincount).
+
+    Example:
+        >>> topo = mesh_topology(torch.tensor([[0, 1, 2]]), 3)
+        >>> topo.edge_lo_e.tolist(), topo.edge_hi_e.tolist(), topo.valence_v.tolist()
+        ([0, 0, 1], [1, 2, 2], [2, 2, 2])
+    """
     V = num_vertices
     valid_fk = faces_fk >= 0
     size_f = valid_fk.sum(1)
@@ -170,6 +193,8 @@ def catmull_clark_operator(
     boundary: str = "edge_only",
     device: torch.device | str | None = None,
     dtype: torch.dtype | None = None,
+    tags: SubdivisionTags | None = None,
+    crease_method: str = "uniform",
 ) -> SubdivisionOperator:
     """Build one level of Catmull-Clark subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -207,94 +232,25 @@ def catmull_clark_operator(
                 [0.5000, 0.5000, 0.0000, 0.0000]])
     """
     _check_boundary(boundary)
+    _check_crease_method(crease_method)
     with torch.no_grad():
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
             faces_fk = faces_fk.to(device)
-        dev = faces_fk.device
         wdtype = torch.get_default_dtype() if dtype is None else dtype
         V0, F0 = num_vertices, faces_fk.shape[0]
-        topo = _topology(faces_fk, V0, boundary)
+        topo = mesh_topology(faces_fk, V0, boundary)
+        rules = subdivision_rules(topo, V0, F0, tags, boundary, crease_method, wdtype)
         E0 = topo.edge_lo_e.numel()
         V1 = V0 + F0 + E0
         row_face, row_edge = V0, V0 + F0
-        w = lambda x: x.to(wdtype)  # noqa: E731
-        face_c, edge_c, size_c, v_c = topo.face_c, topo.edge_c, topo.size_c, topo.vert_c
-        K = faces_fk.shape[1]
-        lo_side_c = v_c == topo.edge_lo_e[edge_c]  # is the corner's vertex the edge's lo end?
-        prev_edge_c = edge_c[topo.prev_corner_c]
-        lo_side_prev_c = v_c == topo.edge_lo_e[prev_edge_c]
-
-        def others(first: int, last_from_end: int):
-            """(row-corner, vertex) pairs for the face vertices at offsets
-            ``first .. size - last_from_end`` from each corner (loop over degree only)."""
-            corner, vert = [], []
-            for d in range(first, K - last_from_end + 1):
-                ok_c = d <= size_c - last_from_end
-                c_idx = torch.nonzero(ok_c).flatten()
-                u = faces_fk[face_c[c_idx], (topo.pos_c[c_idx] + d) % size_c[c_idx]]
-                corner.append(c_idx)
-                vert.append(u)
-            if not corner:
-                empty = faces_fk.new_zeros(0)
-                return empty, empty
-            return torch.cat(corner), torch.cat(vert)
-
-        rows, cols, vals = [], [], []
-
-        # Face points: mean of the face's vertices.
-        rows.append(row_face + face_c)
-        cols.append(v_c)
-        vals.append(1.0 / w(size_c))
-
-        # Edge points: sharp 1/2 (v0 + v1); smooth 1/4 (v0 + v1) + 1/4 (f0 + f1), the face
-        # points spread over their vertices: the two ends get 1/(4 size) from each face
-        # (accumulated per edge, no duplicate entries), the other vertices one entry each.
-        smooth_c = ~topo.sharp_e[edge_c]
-        end_e = torch.where(topo.sharp_e, 0.5, 0.25).to(wdtype)
-        end_e = end_e.index_add(0, edge_c, smooth_c / (4.0 * w(size_c)))
-        e_all = torch.arange(E0, device=dev)
-        rows += [row_edge + e_all, row_edge + e_all]
-        cols += [topo.edge_lo_e, topo.edge_hi_e]
-        vals += [end_e, end_e]
-        oc, ou = others(2, 1)  # offsets 2 .. size-1: every vertex but the edge's two ends
-        rows.append(row_edge + edge_c[oc])
-        cols.append(ou)
-        vals.append(smooth_c[oc] / (4.0 * w(size_c[oc])))
-
-        # Vertex points. Smooth: ((n-2) V + mean(edge nbrs) + mean(face points)) / n, the
-        # face points spread over their vertices: V itself and its two face neighbours are
-        # accumulated (self / per-edge-side weights), the remaining vertices one entry each.
-        kind_v = topo.kind_v
-        n_v = w(topo.valence_v).clamp(min=1)  # isolated vertices have kind 0 anyway
-        m_v = w(topo.num_faces_v).clamp(min=1)
-        smooth_v, crease_v = kind_v == 1, kind_v == 2
-        face_w_c = torch.where(smooth_v[v_c], 1.0 / (n_v[v_c] * m_v[v_c] * w(size_c)), 0.0)
-        self_v = torch.where(smooth_v, (n_v - 2) / n_v, 1.0 - 0.25 * w(crease_v))
-        self_v = self_v.index_add(0, v_c, face_w_c)
-        rows.append(torch.arange(V0, device=dev))
-        cols.append(torch.arange(V0, device=dev))
-        vals.append(self_v)
-        # per-edge side weights: row lo / col hi, and row hi / col lo
-        sharp_e = topo.sharp_e
-        lo_kind, hi_kind = kind_v[topo.edge_lo_e], kind_v[topo.edge_hi_e]
-        n_lo, n_hi = n_v[topo.edge_lo_e], n_v[topo.edge_hi_e]
-        crease_lo, crease_hi = w((lo_kind == 2) & sharp_e), w((hi_kind == 2) & sharp_e)
-        side_lo = torch.where(lo_kind == 1, 1.0 / (n_lo * n_lo), 0.125 * crease_lo)
-        side_hi = torch.where(hi_kind == 1, 1.0 / (n_hi * n_hi), 0.125 * crease_hi)
-        side_lo = side_lo.index_add(0, edge_c, face_w_c * lo_side_c)
-        side_hi = side_hi.index_add(0, edge_c, face_w_c * ~lo_side_c)
-        side_lo = side_lo.index_add(0, prev_edge_c, face_w_c * lo_side_prev_c)
-        side_hi = side_hi.index_add(0, prev_edge_c, face_w_c * ~lo_side_prev_c)
-        rows += [topo.edge_lo_e, topo.edge_hi_e]
-        cols += [topo.edge_hi_e, topo.edge_lo_e]
-        vals += [side_lo, side_hi]
-        oc, ou = others(2, 2)  # offsets 2 .. size-2: every vertex but V and its neighbours
-        rows.append(v_c[oc])
-        cols.append(ou)
-        vals.append(face_w_c[oc])
-
-        stencils = stencil_matrix(torch.cat(rows), torch.cat(cols), torch.cat(vals), (V1, V0))
+        entries = [
+            (row_face + topo.face_c, topo.vert_c, 1.0 / topo.size_c.to(wdtype)),  # face points
+            *_catmark_edge_entries(faces_fk, topo, rules, row_edge, wdtype),
+            *_catmark_vertex_entries(faces_fk, topo, rules, wdtype),
+        ]
+        rows, cols, vals = (torch.cat(parts) for parts in zip(*entries))
+        stencils = stencil_matrix(rows, cols, vals, (V1, V0))
         faces_q4 = torch.stack(
             [
                 topo.vert_c,
@@ -304,7 +260,77 @@ def catmull_clark_operator(
             ],
             dim=1,
         )
-    return SubdivisionOperator(stencils, faces_q4, V0, V1, F0, E0, boundary, "catmark")
+        hole_child = rules.hole_f[topo.face_c]
+        edge_point_e = row_edge + torch.arange(E0, device=faces_fk.device)
+        tags_1 = child_tags(rules, topo.edge_lo_e, topo.edge_hi_e, edge_point_e, hole_child, tags)
+    visible = faces_q4 if tags_1 is None or tags_1.holes.numel() == 0 else faces_q4[~hole_child]
+    return SubdivisionOperator(
+        stencils, visible, V0, V1, F0, E0, boundary, "catmark", faces_q4, tags_1
+    )
+
+
+def _face_offsets(faces_fk, topo, first: int, last_from_end: int):
+    """(corner, vertex) pairs for the face vertices at offsets ``first .. size -
+    last_from_end`` from each corner (a loop over the face degree only)."""
+    corner, vert = [], []
+    size_c = topo.size_c
+    for d in range(first, faces_fk.shape[1] - last_from_end + 1):
+        c_idx = torch.nonzero(d <= size_c - last_from_end).flatten()
+        corner.append(c_idx)
+        vert.append(faces_fk[topo.face_c[c_idx], (topo.pos_c[c_idx] + d) % size_c[c_idx]])
+    if not corner:
+        empty = faces_fk.new_zeros(0)
+        return empty, empty
+    return torch.cat(corner), torch.cat(vert)
+
+
+def _catmark_edge_entries(faces_fk, topo, rules, row_edge: int, wdtype):
+    """Edge points: ``crease_e`` of ``1/2 (v0 + v1)`` plus ``1 - crease_e`` of the smooth
+    ``1/4 (v0 + v1) + 1/4 (f0 + f1)``, the face points spread over their vertices (the
+    two ends accumulated per edge, the other vertices one entry each)."""
+    edge_c, size_c = topo.edge_c, topo.size_c.to(wdtype)
+    crease_e = rules.crease_e
+    smooth_c = (1.0 - crease_e)[edge_c]
+    end_e = 0.5 * crease_e + 0.25 * (1.0 - crease_e)
+    end_e = end_e.index_add(0, edge_c, smooth_c / (4.0 * size_c))
+    rows_e = row_edge + torch.arange(crease_e.numel(), device=edge_c.device)
+    oc, ou = _face_offsets(faces_fk, topo, 2, 1)  # every vertex but the edge's two ends
+    return [
+        (rows_e, topo.edge_lo_e, end_e),
+        (rows_e, topo.edge_hi_e, end_e),
+        (row_edge + edge_c[oc], ou, smooth_c[oc] / (4.0 * size_c[oc])),
+    ]
+
+
+def _catmark_vertex_entries(faces_fk, topo, rules, wdtype):
+    """Vertex points: ``smooth_v`` of ``((n-2) V + mean(edge nbrs) + mean(face points)) / n``,
+    ``crease_v`` of ``3/4 V + 1/8 (a + b)`` and ``corner_v`` of ``V``; the face points are
+    spread over their vertices (V and its two face neighbours accumulated)."""
+    v_c, edge_c = topo.vert_c, topo.edge_c
+    lo_e, hi_e = topo.edge_lo_e, topo.edge_hi_e
+    n_v = topo.valence_v.to(wdtype).clamp(min=1)
+    m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
+    smooth_v = rules.smooth_v
+    face_w_c = smooth_v[v_c] / (n_v[v_c] * m_v[v_c] * topo.size_c.to(wdtype))
+    self_v = smooth_v * (n_v - 2) / n_v + 0.75 * rules.crease_v + rules.corner_v
+    self_v = self_v.index_add(0, v_c, face_w_c)
+    side_lo = smooth_v[lo_e] / (n_v[lo_e] ** 2) + rules.crease_end_lo_e
+    side_hi = smooth_v[hi_e] / (n_v[hi_e] ** 2) + rules.crease_end_hi_e
+    lo_side_c = v_c == lo_e[edge_c]  # is the corner's vertex the edge's lo end?
+    prev_edge_c = edge_c[topo.prev_corner_c]
+    lo_side_prev_c = v_c == lo_e[prev_edge_c]
+    side_lo = side_lo.index_add(0, edge_c, face_w_c * lo_side_c)
+    side_hi = side_hi.index_add(0, edge_c, face_w_c * ~lo_side_c)
+    side_lo = side_lo.index_add(0, prev_edge_c, face_w_c * lo_side_prev_c)
+    side_hi = side_hi.index_add(0, prev_edge_c, face_w_c * ~lo_side_prev_c)
+    arange_v = torch.arange(n_v.numel(), device=v_c.device)
+    oc, ou = _face_offsets(faces_fk, topo, 2, 2)  # every vertex but V and its neighbours
+    return [
+        (arange_v, arange_v, self_v),
+        (lo_e, hi_e, side_lo),
+        (hi_e, lo_e, side_hi),
+        (v_c[oc], ou, face_w_c[oc]),
+    ]
 
 
 def _check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:
@@ -345,6 +371,8 @@ def catmull_clark(
     faces: torch.Tensor | Sequence[Sequence[int]],
     levels: int = 1,
     boundary: str = "edge_only",
+    tags: SubdivisionTags | None = None,
+    crease_method: str = "uniform",
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Subdivide ``levels`` times; convenience wrapper over :class:`CatmullClark`.
 
@@ -384,6 +412,7 @@ def catmull_clark(
     module = CatmullClark(
         faces, verts.shape[-2], levels=levels, boundary=boundary,
         device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
+        tags=tags, crease_method=crease_method,
     )
     return module(verts), module.faces
 
@@ -394,7 +423,8 @@ class _SubdivisionModule(nn.Module):
     scheme = ""  # the subclass's scheme name
 
     @staticmethod
-    def _build_operator(faces, num_vertices, boundary, dtype=None) -> SubdivisionOperator:
+    def _build_operator(faces, num_vertices, boundary, dtype=None, tags=None,
+                        crease_method="uniform") -> SubdivisionOperator:
         raise NotImplementedError
 
     def __init__(
@@ -405,12 +435,15 @@ class _SubdivisionModule(nn.Module):
         boundary: str = "edge_only",
         device: torch.device | str | None = None,
         dtype: torch.dtype | None = None,
+        tags: SubdivisionTags | None = None,
+        crease_method: str = "uniform",
     ) -> None:
         super().__init__()
         if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
             raise ValueError(f"levels: expected an int >= 0, got {levels!r}")
         _check_boundary(boundary)
-        self.levels, self.boundary = levels, boundary
+        _check_crease_method(crease_method)
+        self.levels, self.boundary, self.crease_method = levels, boundary, crease_method
         self.num_vertices_in = num_vertices
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
@@ -418,15 +451,26 @@ class _SubdivisionModule(nn.Module):
         self.register_buffer("faces_0", faces_fk, persistent=False)
         count = num_vertices
         self.sizes: list[tuple[int, int, int, int]] = []  # (V_in, V_out, F_in, E_in)
+        self._child_tag_levels: list[bool] = []
+        level_boundary = boundary
         for level in range(levels):  # loop over levels only
-            op = self._build_operator(faces_fk, count, boundary, dtype=dtype)
+            op = self._build_operator(faces_fk, count, level_boundary, dtype=dtype, tags=tags,
+                                      crease_method=crease_method)
             for field, tensor in zip(StencilMatrix._fields, op.stencils):
                 self.register_buffer(f"{field}_{level}", tensor, persistent=False)
             self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
+            self.register_buffer(f"child_faces_{level + 1}", op.child_faces, persistent=False)
+            self._child_tag_levels.append(op.child_tags is not None)
+            if op.child_tags is not None:
+                for field, tensor in zip(SubdivisionTags._fields, op.child_tags):
+                    self.register_buffer(f"tags_{field}_{level + 1}", tensor, persistent=False)
             self.sizes.append(
                 (op.num_vertices_in, op.num_vertices_out, op.num_faces_in, op.num_edges_in)
             )
-            faces_fk, count = op.faces, op.num_vertices_out
+            faces_fk, count, tags = op.child_faces, op.num_vertices_out, op.child_tags
+            # OpenSubdiv applies boundary "none" (boundary faces become holes) at the base
+            # level only; the children of those holes are holes of the next levels
+            level_boundary = "edge_only" if boundary == "none" else boundary
         self.num_vertices_out = count
 
     @property
@@ -440,9 +484,16 @@ class _SubdivisionModule(nn.Module):
         if not 0 <= level < self.levels:
             raise IndexError(f"level: expected 0 <= level < {self.levels}, got {level}")
         v_in, v_out, f_in, e_in = self.sizes[level]
+        tags = None
+        if self._child_tag_levels[level]:
+            tags = SubdivisionTags(
+                *(getattr(self, f"tags_{f}_{level + 1}") for f in SubdivisionTags._fields)
+            )
+        boundary = "edge_only" if level and self.boundary == "none" else self.boundary
         return SubdivisionOperator(
             self._stencils(level), getattr(self, f"faces_{level + 1}"),
-            v_in, v_out, f_in, e_in, self.boundary, self.scheme,
+            v_in, v_out, f_in, e_in, boundary, self.scheme,
+            getattr(self, f"child_faces_{level + 1}"), tags,
         )
 
     def _stencils(self, level: int) -> StencilMatrix:
@@ -564,7 +615,7 @@ def catmark_limit_stencils(
     """
     V1 = num_vertices
     with torch.no_grad():
-        topo = _topology(faces_q4, V1, boundary)
+        topo = mesh_topology(faces_q4, V1, boundary)
         dev, wdtype = faces_q4.device, dtype
         n_v = topo.valence_v.to(wdtype).clamp(min=1)
         m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
