@@ -494,3 +494,35 @@ def test_bad_tags_name_the_problem():
         loop_operator(OCTA_F, 6, tags=_tags_tensor({"creases": {(0, 2): -1.0}}))
     with pytest.raises(ValueError, match="crease_method"):
         CatmullClark(CUBE_F, 8, crease_method="linear")
+
+
+@pytest.mark.parametrize("scheme", ["catmark", "loop"])
+def test_limit_positions_with_sharp_tags(scheme):
+    """Infinitely sharp closed crease loops and corners: the limit is invariant under
+    refinement (the crease/corner masks apply), and semi-sharp tags are refused until they
+    decay. (Darts, one sharp edge, get OpenSubdiv's smooth limit mask, which is not exact,
+    so they are left out here.)"""
+    from torchgeo_cg.mesh import apply_operator, limit_positions
+
+    if scheme == "catmark":
+        loop = [(0, 1), (1, 3), (3, 2), (2, 0)]  # around face 0
+        cls, faces, verts = CatmullClark, CUBE_F, CUBE_V
+    else:
+        loop = [(0, 2), (2, 1), (1, 3), (3, 0)]  # the equator
+        cls, faces, verts = LoopSubdivision, OCTA_F, OCTA_V
+    crease = dict.fromkeys(loop, INF)
+    tags = _tags_tensor({"creases": crease, "corners": {5 if scheme == "loop" else 7: INF}})
+    module = cls(faces, verts.shape[0], levels=2, dtype=torch.float64, tags=tags)
+    op0, op1 = module.operator(0), module.operator(1)
+    first = limit_positions(op0, verts)
+    second = limit_positions(op1, apply_operator(op0, verts))
+    assert_close(second[: op0.num_vertices_out], first, rtol=1e-12, atol=1e-12)
+    corner = 5 if scheme == "loop" else 7
+    assert_close(first[corner], verts[corner])
+    a, b = loop[0]
+    prev = loop[-1][0]  # the crease neighbours of a are b and prev: the B-spline limit
+    assert_close(first[a], (verts[prev] + 4 * verts[a] + verts[b]) / 6)
+    semi = cls(faces, verts.shape[0], levels=1, dtype=torch.float64,
+               tags=_tags_tensor({"creases": {(a, b): 2.5}}))
+    with pytest.raises(ValueError, match="semi-sharp"):
+        limit_positions(semi.operator(0), verts)

@@ -43,6 +43,8 @@ __all__ = [
     "decrement_sharpness",
     "subdivision_rules",
     "vertex_rule",
+    "limit_rules",
+    "child_tags",
 ]
 
 CREASE_METHODS = ("uniform", "chaikin")
@@ -342,3 +344,35 @@ def child_tags(
         creases, sharpness.to(real), corners, rules.child_corner_v[corners].to(real),
         torch.nonzero(hole_child).flatten(),
     )
+
+
+def limit_rules(topo, num_vertices, num_faces, tags, boundary, dtype):
+    """``(rule_v (V,) long, sharp_e (E,) bool)`` for limit masks of an already refined mesh.
+
+    Raises:
+        ValueError: a semi-sharp crease or corner remains (its limit is not given by a
+            mask at this level: refine until the sharpness has decayed).
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision import mesh_topology
+        >>> quad = torch.tensor([[0, 1, 2, 3]])
+        >>> limit_rules(mesh_topology(quad, 4), 4, 1, None, "edge_and_corner", torch.float64)[0]
+        tensor([2, 2, 2, 2])
+    """
+    if boundary == "none":
+        boundary = "edge_only"
+    _, _, sharp_e, sharp_v, _ = _effective_sharpness(
+        topo, tags, num_vertices, num_faces, boundary, dtype
+    )
+    semi = ((sharp_e > 0) & (sharp_e < INFINITELY_SHARP)).any() | (
+        (sharp_v > 0) & (sharp_v < INFINITELY_SHARP)).any()
+    if bool(semi):
+        raise ValueError(
+            "operator: limit positions need infinitely sharp or smooth tags, but semi-sharp "
+            "creases or corners remain after this level; subdivide until they decay "
+            "(ceil of the largest finite sharpness levels)"
+        )
+    ends = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
+    sharp2 = torch.cat([sharp_e > 0, sharp_e > 0])
+    rule_v = vertex_rule(sharp_v, torch.bincount(ends[sharp2], minlength=num_vertices))
+    return rule_v, sharp_e > 0

@@ -29,7 +29,7 @@ from collections.abc import Sequence
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_tensor
-from torchgeo_cg.mesh.creasing import child_tags, subdivision_rules
+from torchgeo_cg.mesh.creasing import child_tags, limit_rules, subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision import (
@@ -239,7 +239,11 @@ def loop_beta(valence: torch.Tensor) -> torch.Tensor:
 
 
 def loop_limit_stencils(
-    faces_f3: torch.Tensor, num_vertices: int, boundary: str, dtype: torch.dtype
+    faces_f3: torch.Tensor,
+    num_vertices: int,
+    boundary: str,
+    dtype: torch.dtype,
+    tags: SubdivisionTags | None = None,
 ) -> StencilMatrix:
     """``(V, V)`` Loop limit masks of a triangle mesh (OpenSubdiv's Loop limit masks).
 
@@ -257,14 +261,15 @@ def loop_limit_stencils(
         topo = mesh_topology(faces_f3, V, boundary)
         n_v = topo.valence_v.to(dtype).clamp(min=1)
         chi_v = 1.0 / (n_v + 3.0 / (8.0 * loop_beta(n_v)))
-        smooth_v, crease_v = topo.kind_v == 1, topo.kind_v == 2
+        rule_v, sharp_e = limit_rules(topo, V, faces_f3.shape[0], tags, boundary, dtype)
+        smooth_v, crease_v = rule_v == 0, rule_v == 1
         self_v = torch.where(smooth_v, 1.0 - n_v * chi_v, 1.0 - crease_v.to(dtype) / 3.0)
         v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
         nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
-        sharp_side = torch.cat([topo.sharp_e, topo.sharp_e])
-        kind_side = topo.kind_v[v_side]
+        sharp_side = torch.cat([sharp_e, sharp_e])
+        rule_side = rule_v[v_side]
         w_side = torch.where(
-            kind_side == 1, chi_v[v_side], ((kind_side == 2) & sharp_side).to(dtype) / 6.0
+            rule_side == 0, chi_v[v_side], ((rule_side == 1) & sharp_side).to(dtype) / 6.0
         )
         arange_v = torch.arange(V, device=faces_f3.device)
         return stencil_matrix(

@@ -44,7 +44,12 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
-from torchgeo_cg.mesh.creasing import CREASE_METHODS, child_tags, subdivision_rules
+from torchgeo_cg.mesh.creasing import (
+    CREASE_METHODS,
+    child_tags,
+    limit_rules,
+    subdivision_rules,
+)
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
 from torchgeo_cg.mesh.tags import SubdivisionTags
@@ -585,16 +590,14 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
     """
     _check_verts(verts, operator.num_vertices_in)
     wdtype = operator.stencils.weights.dtype
+    faces = operator.faces if operator.child_faces is None else operator.child_faces
+    args = (faces, operator.num_vertices_out, operator.boundary, wdtype, operator.child_tags)
     if operator.scheme == "catmark":
-        limit = catmark_limit_stencils(
-            operator.faces, operator.num_vertices_out, operator.boundary, wdtype
-        )
+        limit = catmark_limit_stencils(*args)
     elif operator.scheme == "loop":
         from torchgeo_cg.mesh.loop import loop_limit_stencils  # loop builds on this module
 
-        limit = loop_limit_stencils(
-            operator.faces, operator.num_vertices_out, operator.boundary, wdtype
-        )
+        limit = loop_limit_stencils(*args)
     else:
         raise ValueError(
             f"operator: limit_positions has limit masks for the 'catmark' and 'loop' "
@@ -604,7 +607,11 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
 
 
 def catmark_limit_stencils(
-    faces_q4: torch.Tensor, num_vertices: int, boundary: str, dtype: torch.dtype
+    faces_q4: torch.Tensor,
+    num_vertices: int,
+    boundary: str,
+    dtype: torch.dtype,
+    tags: SubdivisionTags | None = None,
 ) -> StencilMatrix:
     """``(V, V)`` Catmark limit masks of an all-quad mesh (see :func:`limit_positions`).
 
@@ -619,12 +626,13 @@ def catmark_limit_stencils(
         dev, wdtype = faces_q4.device, dtype
         n_v = topo.valence_v.to(wdtype).clamp(min=1)
         m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
-        kind_v = topo.kind_v
+        rule_v, sharp_e = limit_rules(topo, V1, faces_q4.shape[0], tags, boundary, wdtype)
+        kind_v = rule_v + 1  # 1 smooth, 2 crease, 3 corner
         smooth_v, crease_v = kind_v == 1, kind_v == 2
         self_v = torch.where(smooth_v, n_v / (n_v + 5), 1.0 - crease_v.to(wdtype) / 3.0)
         v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
         nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
-        sharp_side = torch.cat([topo.sharp_e, topo.sharp_e])
+        sharp_side = torch.cat([sharp_e, sharp_e])
         kind_side = kind_v[v_side]
         w_side = torch.where(
             kind_side == 1,
