@@ -10,7 +10,9 @@ Convention:
       ``(v2, e20, e12)``, ``(e01, e12, e20)``.
     - New vertex order: the ``V0`` vertex points (old vertex ``i`` stays ``i``),
       then the ``E0`` edge points, edges sorted by ``(min, max)``. ``V1 = V0 + E0``.
-    - Rules: an edge with exactly two faces is smooth, any other is sharp.
+    - Rules (untagged): an edge with exactly two consistently wound faces is smooth,
+      any other is sharp; non-manifold vertices are corners (OpenSubdiv). Tags,
+      holes and ``crease_method`` as in :mod:`torchgeo_cg.mesh.subdivision`.
       Smooth edge point ``3/8 (a + b) + 1/8 (c + d)`` (``c, d`` the opposite
       corners); sharp edge point ``1/2 (a + b)``. Vertex with ``n`` edges and ``s``
       sharp ones: ``s <= 1``: ``(1 - n beta) V + beta sum(nbrs)``,
@@ -64,9 +66,14 @@ def loop_operator(
     Args:
         faces: ``(F, 3)`` long triangles, or a list of index triples.
         num_vertices: ``V0``.
-        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
         device: device of the operator (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Returns:
         :class:`~torchgeo_cg.mesh.subdivision.SubdivisionOperator` with ``matrix``
@@ -82,6 +89,11 @@ def loop_operator(
         (torch.Size([9, 4]), torch.Size([8, 3]))
         >>> op.matrix.to_dense()[5]  # the shared edge (0, 2): 3/8, 3/8 and 1/8, 1/8
         tensor([0.3750, 0.1250, 0.3750, 0.1250])
+        >>> from torchgeo_cg.mesh.tags import SubdivisionTags
+        >>> sharp = SubdivisionTags.empty()._replace(
+        ...     creases=torch.tensor([[0, 2]]), crease_sharpness=torch.tensor([0.5]))
+        >>> loop_operator([[0, 1, 2], [0, 2, 3]], 4, tags=sharp).matrix.to_dense()[5]
+        tensor([0.4375, 0.0625, 0.4375, 0.0625])
     """
     _check_boundary(boundary)
     _check_crease_method(crease_method)
@@ -158,9 +170,14 @@ class LoopSubdivision(_SubdivisionModule):
         faces: ``(F, 3)`` long triangles, or a list of index triples.
         num_vertices: ``V``.
         levels: number of steps, ``>= 0`` (default 1).
-        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Shape:
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
@@ -193,7 +210,12 @@ def loop_subdivide(
         verts: ``(*, V, D)`` float, a batch of shapes sharing ``faces``.
         faces: ``(F, 3)`` long triangles on the device of ``verts``, or a list.
         levels: number of steps, ``>= 0``.
-        boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None`` (see
+            :func:`loop_operator`); carried from level to level.
+        crease_method: ``"uniform"`` (default) or ``"chaikin"``.
 
     Returns:
         ``(verts (*, V_L, D), faces (4^L F, 3) long)``.

@@ -18,9 +18,10 @@ Convention:
       vertex keeps its index at every level.
     - Output face ``sum(size[:f]) + p`` is the quad at corner ``p`` of face ``f``:
       ``(vertex_point[v_p], edge_point[v_p, v_p+1], face_point[f], edge_point[v_p-1, v_p])``.
-    - Rules (OpenSubdiv Catmark, Halstead et al. 1993): an edge with exactly two
-      faces is *smooth*; any other edge (boundary: 1 face, non-manifold: 3+) is
-      *sharp*. Face point: mean of its vertices. Smooth edge point:
+    - Rules (OpenSubdiv Catmark, Halstead et al. 1993), untagged: an edge with exactly
+      two consistently wound faces is *smooth*; any other edge (boundary: 1 face,
+      non-manifold: 3+ faces or inconsistent winding) is *sharp*. Face point: mean of
+      its vertices. Smooth edge point:
       ``1/4 (v0 + v1) + 1/4 (f0 + f1)``; sharp edge point: ``1/2 (v0 + v1)``.
       Vertex with ``s`` sharp edges out of ``n`` edges and ``m`` faces:
       ``s <= 1`` (smooth, or a dart): ``((n - 2) V + mean(edge nbrs) + mean(face points)) / n``,
@@ -30,6 +31,13 @@ Convention:
       A *corner* is a boundary vertex of valence 2 (one face): it is kept with
       ``boundary="edge_and_corner"`` and smoothed by the boundary rule with
       ``boundary="edge_only"`` (OpenSubdiv ``VTX_BOUNDARY_EDGE_ONLY``, the default).
+      Non-manifold vertices (several face fans) are corners, except along an
+      interior non-manifold crease (OpenSubdiv).
+    - Tags (:class:`~torchgeo_cg.mesh.tags.SubdivisionTags`): creases and corners
+      with OpenSubdiv's semi-sharp rules (:mod:`torchgeo_cg.mesh.creasing`), decayed
+      from level to level by ``crease_method``; holes keep their vertices and rules
+      but have no child faces (``operator.faces`` omits them, ``operator.child_faces``
+      and ``operator.child_tags`` carry everything to the next level).
     - Unreferenced vertices pass through unchanged (their row of ``S`` is ``e_i``).
     - Every row of ``S`` sums to 1, so ``S`` commutes with rotations and
       translations applied to the (row-per-vertex) positions.
@@ -79,7 +87,9 @@ class SubdivisionOperator(NamedTuple):
         num_vertices_out: ``V1 = V0 + F0 + E0`` (Loop: ``V0 + E0``).
         num_faces_in: ``F0`` (Catmark face points start at row ``V0``).
         num_edges_in: ``E0`` (edge points start at row ``V0 + F0``; Loop: ``V0``).
-        boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
         scheme: ``"catmark"`` or ``"loop"``, the rules that built it.
         child_faces: every child face, holes' children included (what the next level
             is built from); ``faces`` is this without the holes' children.
@@ -213,10 +223,14 @@ def catmull_clark_operator(
         faces: ``(F0, K)`` long padded with ``-1``, or a list of index lists;
             triangles, quads and n-gons may be mixed.
         num_vertices: ``V0`` (vertices not used by any face pass through).
-        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"`` (keep
-            valence-2 boundary vertices fixed).
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
         device: device of the operator (default: that of ``faces``, CPU for lists).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Returns:
         :class:`SubdivisionOperator` with ``matrix`` ``(V1, V0)``, ``matrix_t``
@@ -228,6 +242,7 @@ def catmull_clark_operator(
             names the face index).
 
     Example:
+        >>> from torchgeo_cg.mesh.tags import SubdivisionTags
         >>> quad = [[0, 1, 2, 3]]
         >>> op = catmull_clark_operator(quad, 4)
         >>> op.num_vertices_out, op.faces.shape
@@ -235,6 +250,10 @@ def catmull_clark_operator(
         >>> op.matrix.to_dense()[4:6]  # the face point, then the edge point of (0, 1)
         tensor([[0.2500, 0.2500, 0.2500, 0.2500],
                 [0.5000, 0.5000, 0.0000, 0.0000]])
+        >>> hole = SubdivisionTags.empty()._replace(holes=torch.tensor([0]))
+        >>> holed = catmull_clark_operator(quad, 4, tags=hole)
+        >>> holed.faces.shape, holed.child_faces.shape, holed.child_tags.holes.tolist()
+        (torch.Size([0, 4]), torch.Size([4, 4]), [0, 1, 2, 3])
     """
     _check_boundary(boundary)
     _check_crease_method(crease_method)
@@ -389,7 +408,12 @@ def catmull_clark(
         faces: ``(F, K)`` long padded with ``-1`` (same device as ``verts``), or
             a list of index lists.
         levels: number of subdivision steps, ``>= 0``.
-        boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None`` (see
+            :func:`catmull_clark_operator`); carried from level to level.
+        crease_method: ``"uniform"`` (default) or ``"chaikin"``.
 
     Returns:
         ``(verts (*, V_L, D), faces (F_L, 4) long)``; ``levels = 0`` returns the
@@ -532,9 +556,14 @@ class CatmullClark(_SubdivisionModule):
         faces: ``(F, K)`` long padded with ``-1``, or a list of index lists.
         num_vertices: ``V``.
         levels: number of subdivision steps, ``>= 0`` (default 1).
-        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Shape:
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
