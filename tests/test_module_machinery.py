@@ -48,6 +48,7 @@ from torchgeo_cg.mesh import (
     CatmullClark,
     LoopSubdivision,
     MarchingCubes,
+    SubdivisionTags,
     apply_operator,
     catmull_clark,
     loop_subdivide,
@@ -132,6 +133,12 @@ _OCTA_F = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3,
            [0, 3, 5]]
 
 
+_CUBE_TAGS = SubdivisionTags(  # a semi-sharp crease, a corner and a hole ride along
+    torch.tensor([[0, 1]]), torch.tensor([2.5]), torch.tensor([7]), torch.tensor([1.5]),
+    torch.tensor([1]),
+)
+
+
 def _cube_sample(seed: int) -> torch.Tensor:
     return _CUBE_V + 0.1 * _rand(8, 3)(seed)
 
@@ -181,7 +188,7 @@ SPECS: dict[str, Spec] = {
         tensor_of=lambda out: out.verts,
     ),
     "torchgeo_cg.mesh.subdivision.CatmullClark": Spec(
-        lambda: CatmullClark(_CUBE_F, 8, levels=1), _cube_sample
+        lambda: CatmullClark(_CUBE_F, 8, levels=1, tags=_CUBE_TAGS), _cube_sample
     ),
     "torchgeo_cg.mesh.loop.LoopSubdivision": Spec(
         lambda: LoopSubdivision(_OCTA_F, 6, levels=1), _rand(6, 3)
@@ -433,8 +440,8 @@ def test_subdivision_double_backward():
 def test_catmull_clark_compiles_fullgraph():
     """Issue 11: fullgraph failed with "Attempted to wrap sparse Tensor" (eager backend
     keeps this fast; the default backend runs in the slow compile test)."""
-    cc = CatmullClark(_CUBE_F, 8, levels=2)
-    loop = LoopSubdivision(_OCTA_F, 6, levels=2)
+    cc = CatmullClark(_CUBE_F, 8, levels=2, tags=_CUBE_TAGS)
+    loop = LoopSubdivision(_OCTA_F, 6, levels=2, boundary="none")
     for module, x in ((cc, _cube_sample(0)), (loop, _rand(2, 6, 3)(0))):
         compiled = torch.compile(module, fullgraph=True, backend="aot_eager")
         torch.testing.assert_close(compiled(x), module(x), rtol=0, atol=0)
