@@ -147,7 +147,7 @@ def _blend(a, b, wa):
     return out
 
 
-def reference_level(verts_count, faces, tags, boundary, method, scheme):
+def reference_level(verts_count, faces, tags, boundary, method, scheme, triangle_rule="catmark"):
     """One level: dense ``(V1, V0)`` matrix, child faces (all), visible faces, child tags."""
     V = verts_count
     F = len(faces)
@@ -170,10 +170,14 @@ def reference_level(verts_count, faces, tags, boundary, method, scheme):
         a, b = e
         if len(edge_faces[e]) == 2:
             if scheme == "catmark":
-                smooth = {a: 0.25, b: 0.25}
+                tri = [len(faces[f]) == 3 for f, _ in edge_faces[e]]
+                fw = 0.25
+                if triangle_rule == "smooth" and any(tri):  # TRI_SUB_SMOOTH
+                    fw = 0.5 * sum(0.47 if t else 0.25 for t in tri)
+                smooth = {a: 0.5 * (1 - 2 * fw), b: 0.5 * (1 - 2 * fw)}
                 for f, _ in edge_faces[e]:
                     for u, x in face_point(f).items():
-                        smooth[u] = smooth.get(u, 0.0) + 0.25 * x
+                        smooth[u] = smooth.get(u, 0.0) + fw * x
             else:
                 smooth = {a: 0.375, b: 0.375}
                 for f, _ in edge_faces[e]:
@@ -259,12 +263,12 @@ def reference_level(verts_count, faces, tags, boundary, method, scheme):
     return S, child_faces, visible, child
 
 
-def reference_levels(V, faces, tags, boundary, method, scheme, levels):
+def reference_levels(V, faces, tags, boundary, method, scheme, levels, triangle_rule="catmark"):
     out = []
     for level in range(levels):
         S, child_faces, visible, tags = reference_level(
             V, faces, tags, boundary if level == 0 else
-            ("edge_only" if boundary == "none" else boundary), method, scheme)
+            ("edge_only" if boundary == "none" else boundary), method, scheme, triangle_rule)
         out.append((S, visible))
         V, faces = S.shape[0], child_faces
     return out
@@ -282,10 +286,11 @@ def _tags_tensor(tags, dtype=torch.float64):
     )
 
 
-def _check_against_reference(module_cls, V, faces, tags, boundary, method, scheme, levels):
+def _check_against_reference(module_cls, V, faces, tags, boundary, method, scheme, levels,
+                             **options):
     module = module_cls(faces, V, levels=levels, boundary=boundary, dtype=torch.float64,
-                        tags=_tags_tensor(tags), crease_method=method)
-    expected = reference_levels(V, faces, tags, boundary, method, scheme, levels)
+                        tags=_tags_tensor(tags), crease_method=method, **options)
+    expected = reference_levels(V, faces, tags, boundary, method, scheme, levels, **options)
     for level, (S, visible) in enumerate(expected):
         op = module.operator(level)
         assert_close(op.matrix.to_dense(), torch.from_numpy(S), rtol=0, atol=1e-13)
@@ -526,3 +531,23 @@ def test_limit_positions_with_sharp_tags(scheme):
                tags=_tags_tensor({"creases": {(a, b): 2.5}}))
     with pytest.raises(ValueError, match="semi-sharp"):
         limit_positions(semi.operator(0), verts)
+
+
+@pytest.mark.parametrize("triangle_rule", ["catmark", "smooth"])
+def test_triangle_rule_matches_reference(triangle_rule):
+    """A pyramid (four triangles on a quad) plus a triangle pair: OpenSubdiv's
+    ``TRI_SUB_SMOOTH`` reweights smooth edges next to triangles (0.47 per triangle)."""
+    faces = [[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4], [0, 3, 2, 1]]
+    tags = {"creases": {(0, 1): 1.5}}
+    module = _check_against_reference(CatmullClark, 5, faces, tags, "edge_only", "uniform",
+                                      "catmark", 2, triangle_rule=triangle_rule)
+    s = module.operator(0).matrix.to_dense()
+    # edge (1, 4) between two triangles: hand-derived weights of its edge point
+    row = s[5 + 5 + sorted({(0, 1), (1, 4), (1, 2), (2, 4), (2, 3), (3, 4), (0, 3), (0, 4)})
+            .index((1, 4))]
+    fw = 0.47 if triangle_rule == "smooth" else 0.25
+    end = 0.5 * (1 - 2 * fw) + 2 * fw / 3  # its own weight plus a third of each face point
+    assert_close(row[1], torch.tensor(end, dtype=torch.float64))
+    assert_close(row[0], torch.tensor(fw / 3, dtype=torch.float64))  # opposite corners
+    with pytest.raises(ValueError, match="triangle_rule"):
+        catmull_clark_operator(faces, 5, triangle_rule="loop")

@@ -74,6 +74,7 @@ __all__ = [
 ]
 
 _BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")
+TRIANGLE_RULES = ("catmark", "smooth")
 
 
 class SubdivisionOperator(NamedTuple):
@@ -146,6 +147,12 @@ class _Topology(NamedTuple):
     kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
 
 
+def _check_triangle_rule(triangle_rule: str) -> str:
+    if triangle_rule not in TRIANGLE_RULES:
+        raise ValueError(f"triangle_rule: expected one of {TRIANGLE_RULES}, got {triangle_rule!r}")
+    return triangle_rule
+
+
 def _check_crease_method(crease_method: str) -> str:
     if crease_method not in CREASE_METHODS:
         raise ValueError(f"crease_method: expected one of {CREASE_METHODS}, got {crease_method!r}")
@@ -210,6 +217,7 @@ def catmull_clark_operator(
     dtype: torch.dtype | None = None,
     tags: SubdivisionTags | None = None,
     crease_method: str = "uniform",
+    triangle_rule: str = "catmark",
 ) -> SubdivisionOperator:
     """Build one level of Catmull-Clark subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -231,6 +239,8 @@ def catmull_clark_operator(
         tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
             or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
+        triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (OpenSubdiv's
+            ``TRI_SUB_SMOOTH`` edge weights next to triangles).
 
     Returns:
         :class:`SubdivisionOperator` with ``matrix`` ``(V1, V0)``, ``matrix_t``
@@ -257,6 +267,7 @@ def catmull_clark_operator(
     """
     _check_boundary(boundary)
     _check_crease_method(crease_method)
+    _check_triangle_rule(triangle_rule)
     with torch.no_grad():
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
@@ -270,7 +281,7 @@ def catmull_clark_operator(
         row_face, row_edge = V0, V0 + F0
         entries = [
             (row_face + topo.face_c, topo.vert_c, 1.0 / topo.size_c.to(wdtype)),  # face points
-            *_catmark_edge_entries(faces_fk, topo, rules, row_edge, wdtype),
+            *_catmark_edge_entries(faces_fk, topo, rules, row_edge, wdtype, triangle_rule),
             *_catmark_vertex_entries(faces_fk, topo, rules, wdtype),
         ]
         rows, cols, vals = (torch.cat(parts) for parts in zip(*entries))
@@ -308,21 +319,27 @@ def _face_offsets(faces_fk, topo, first: int, last_from_end: int):
     return torch.cat(corner), torch.cat(vert)
 
 
-def _catmark_edge_entries(faces_fk, topo, rules, row_edge: int, wdtype):
+def _catmark_edge_entries(faces_fk, topo, rules, row_edge: int, wdtype, triangle_rule):
     """Edge points: ``crease_e`` of ``1/2 (v0 + v1)`` plus ``1 - crease_e`` of the smooth
-    ``1/4 (v0 + v1) + 1/4 (f0 + f1)``, the face points spread over their vertices (the
-    two ends accumulated per edge, the other vertices one entry each)."""
+    ``(1/2 - w) (v0 + v1) + w (f0 + f1)``, the face points spread over their vertices (the
+    two ends accumulated per edge, the other vertices one entry each). ``w = 1/4``, or
+    with ``triangle_rule="smooth"`` (OpenSubdiv ``TRI_SUB_SMOOTH``) the mean over the two
+    faces of ``0.47`` for a triangle and ``1/4`` for any other face."""
     edge_c, size_c = topo.edge_c, topo.size_c.to(wdtype)
     crease_e = rules.crease_e
-    smooth_c = (1.0 - crease_e)[edge_c]
-    end_e = 0.5 * crease_e + 0.25 * (1.0 - crease_e)
-    end_e = end_e.index_add(0, edge_c, smooth_c / (4.0 * size_c))
+    face_w_e = torch.full_like(crease_e, 0.25)
+    if triangle_rule == "smooth":
+        tris_e = torch.zeros_like(crease_e).index_add_(0, edge_c, (topo.size_c == 3).to(wdtype))
+        face_w_e = face_w_e + (0.47 - 0.25) / 2 * tris_e  # only 2-face (smooth) edges matter
+    smooth_c = ((1.0 - crease_e) * face_w_e)[edge_c]
+    end_e = 0.5 * crease_e + (0.5 - face_w_e) * (1.0 - crease_e)
+    end_e = end_e.index_add(0, edge_c, smooth_c / size_c)
     rows_e = row_edge + torch.arange(crease_e.numel(), device=edge_c.device)
     oc, ou = _face_offsets(faces_fk, topo, 2, 1)  # every vertex but the edge's two ends
     return [
         (rows_e, topo.edge_lo_e, end_e),
         (rows_e, topo.edge_hi_e, end_e),
-        (row_edge + edge_c[oc], ou, smooth_c[oc] / (4.0 * size_c[oc])),
+        (row_edge + edge_c[oc], ou, smooth_c[oc] / size_c[oc]),
     ]
 
 
@@ -397,6 +414,7 @@ def catmull_clark(
     boundary: str = "edge_only",
     tags: SubdivisionTags | None = None,
     crease_method: str = "uniform",
+    triangle_rule: str = "catmark",
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Subdivide ``levels`` times; convenience wrapper over :class:`CatmullClark`.
 
@@ -414,6 +432,7 @@ def catmull_clark(
         tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None`` (see
             :func:`catmull_clark_operator`); carried from level to level.
         crease_method: ``"uniform"`` (default) or ``"chaikin"``.
+        triangle_rule: ``"catmark"`` (default) or ``"smooth"``.
 
     Returns:
         ``(verts (*, V_L, D), faces (F_L, 4) long)``; ``levels = 0`` returns the
@@ -441,7 +460,7 @@ def catmull_clark(
     module = CatmullClark(
         faces, verts.shape[-2], levels=levels, boundary=boundary,
         device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
-        tags=tags, crease_method=crease_method,
+        tags=tags, crease_method=crease_method, triangle_rule=triangle_rule,
     )
     return module(verts), module.faces
 
@@ -466,6 +485,7 @@ class _SubdivisionModule(nn.Module):
         dtype: torch.dtype | None = None,
         tags: SubdivisionTags | None = None,
         crease_method: str = "uniform",
+        **options: str,
     ) -> None:
         super().__init__()
         if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
@@ -484,7 +504,7 @@ class _SubdivisionModule(nn.Module):
         level_boundary = boundary
         for level in range(levels):  # loop over levels only
             op = self._build_operator(faces_fk, count, level_boundary, dtype=dtype, tags=tags,
-                                      crease_method=crease_method)
+                                      crease_method=crease_method, **options)
             for field, tensor in zip(StencilMatrix._fields, op.stencils):
                 self.register_buffer(f"{field}_{level}", tensor, persistent=False)
             self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
@@ -564,6 +584,8 @@ class CatmullClark(_SubdivisionModule):
         tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
             or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
+        triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (OpenSubdiv's
+            ``TRI_SUB_SMOOTH`` edge weights next to triangles).
 
     Shape:
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
@@ -579,6 +601,23 @@ class CatmullClark(_SubdivisionModule):
 
     _build_operator = staticmethod(catmull_clark_operator)
     scheme = "catmark"
+
+    def __init__(
+        self,
+        faces: torch.Tensor | Sequence[Sequence[int]],
+        num_vertices: int,
+        levels: int = 1,
+        boundary: str = "edge_only",
+        device: torch.device | str | None = None,
+        dtype: torch.dtype | None = None,
+        tags: SubdivisionTags | None = None,
+        crease_method: str = "uniform",
+        triangle_rule: str = "catmark",
+    ) -> None:
+        _check_triangle_rule(triangle_rule)
+        super().__init__(faces, num_vertices, levels, boundary, device, dtype, tags,
+                         crease_method, triangle_rule=triangle_rule)
+        self.triangle_rule = triangle_rule
 
 
 def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
