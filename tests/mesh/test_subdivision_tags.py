@@ -551,3 +551,29 @@ def test_triangle_rule_matches_reference(triangle_rule):
     assert_close(row[0], torch.tensor(fw / 3, dtype=torch.float64))  # opposite corners
     with pytest.raises(ValueError, match="triangle_rule"):
         catmull_clark_operator(faces, 5, triangle_rule="loop")
+
+
+def test_bilinear_operator_stays_on_the_control_polygons():
+    from torchgeo_cg.mesh import bilinear_operator, limit_positions
+
+    faces = [[0, 1, 4], [1, 2, 5, 4], [2, 3, 5]]
+    g = torch.Generator().manual_seed(0)
+    verts = torch.rand(6, 3, generator=g, dtype=torch.float64)
+    op = bilinear_operator(faces, 6, dtype=torch.float64)
+    out = op.matrix.to_dense() @ verts
+    assert op.scheme == "bilinear"
+    assert_close(out[:6], verts)  # vertex points stay
+    for f, face in enumerate(faces):  # face points: centroids, written by hand
+        assert_close(out[6 + f], verts[face].mean(0))
+    edges = sorted({(min(f[i], f[(i + 1) % len(f)]), max(f[i], f[(i + 1) % len(f)]))
+                    for f in faces for i in range(len(f))})
+    for e, (a, b) in enumerate(edges):  # edge points: midpoints
+        assert_close(out[9 + e], (verts[a] + verts[b]) / 2)
+    # same topology as Catmull-Clark, and holes drop their children
+    cc = catmull_clark_operator(faces, 6)
+    assert op.faces.tolist() == cc.faces.tolist()
+    holed = bilinear_operator(faces, 6, tags=_tags_tensor({"holes": [1]}))
+    assert holed.faces.shape[0] == cc.faces.shape[0] - 4
+    assert holed.child_tags.holes.tolist() == [3, 4, 5, 6]
+    with pytest.raises(ValueError, match="scheme 'bilinear'"):
+        limit_positions(op, verts)

@@ -1,5 +1,6 @@
-"""torchgeo_cg.mesh: marching cubes, Catmull-Clark and Loop subdivision operators, mesh I/O."""
+"""torchgeo_cg.mesh: marching cubes, Catmull-Clark, Loop and bilinear subdivision, mesh I/O."""
 
+from torchgeo_cg.mesh.bilinear import bilinear_operator
 from torchgeo_cg.mesh.faces import (
     check_faces,
     face_sizes,
@@ -32,4 +33,4 @@ __all__ += [
     "limit_positions",
 ]
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
-__all__ += ["SubdivisionTags", "INFINITELY_SHARP"]
+__all__ += ["SubdivisionTags", "INFINITELY_SHARP", "bilinear_operator"]
