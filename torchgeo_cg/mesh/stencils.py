@@ -145,6 +145,14 @@ def _spmm_batched(matrix: Tensor, x_bvd: Tensor) -> Tensor:
     return out_brd
 
 
+def _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd: Tensor) -> Tensor:
+    """``(R, C)`` stencils times ``(B, C, D)`` data -> ``(B, R, D)`` (weights in x's dtype)."""
+    if x_bvd.shape[1] == 0 or crow.numel() == 1 or x_bvd.shape[0] * x_bvd.shape[2] == 0:
+        return x_bvd.new_zeros(x_bvd.shape[0], crow.numel() - 1, x_bvd.shape[2])
+    matrix = _csr(crow, col, weights, crow_t.numel() - 1)
+    return _spmm_batched(matrix, x_bvd.contiguous())
+
+
 @torch.library.custom_op("torchgeo_cg::stencil_matmul", mutates_args=())
 def _stencil_matmul(
     crow: Tensor,
@@ -155,12 +163,8 @@ def _stencil_matmul(
     weights_t: Tensor,
     x_bvd: Tensor,
 ) -> Tensor:
-    """``(R, C)`` stencils times ``(B, C, D)`` data -> ``(B, R, D)`` (weights in x's dtype)."""
-    if x_bvd.shape[1] == 0 or crow.numel() == 1 or x_bvd.shape[0] * x_bvd.shape[2] == 0:
-        out = x_bvd.new_zeros(x_bvd.shape[0], crow.numel() - 1, x_bvd.shape[2])
-        return out
-    matrix = _csr(crow, col, weights, crow_t.numel() - 1)
-    return _spmm_batched(matrix, x_bvd.contiguous())
+    """The opaque op that ``torch.compile`` sees (sparse tensors never enter a graph)."""
+    return _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd)
 
 
 @_stencil_matmul.register_fake
@@ -175,7 +179,9 @@ class _StencilApply(torch.autograd.Function):
 
     @staticmethod
     def forward(crow, col, weights, crow_t, col_t, weights_t, x_bvd):
-        return _stencil_matmul(crow, col, weights, crow_t, col_t, weights_t, x_bvd)
+        if torch.compiler.is_compiling():  # opaque to Dynamo
+            return _stencil_matmul(crow, col, weights, crow_t, col_t, weights_t, x_bvd)
+        return _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd)  # no dispatch cost
 
     @staticmethod
     def setup_context(ctx, inputs, output):
@@ -184,7 +190,12 @@ class _StencilApply(torch.autograd.Function):
     @staticmethod
     def backward(ctx, grad_brd):
         crow, col, weights, crow_t, col_t, weights_t = ctx.saved_tensors
-        grad_x = _StencilApply.apply(crow_t, col_t, weights_t, crow, col, weights, grad_brd)
+        plain = not (torch.is_grad_enabled() or torch.compiler.is_compiling()
+                     or torch._C._are_functorch_transforms_active())
+        if plain:  # no double backward, no transform: skip the Function's bookkeeping
+            grad_x = _stencil_matmul_eager(crow_t, col_t, weights_t, crow, grad_brd)
+        else:
+            grad_x = _StencilApply.apply(crow_t, col_t, weights_t, crow, col, weights, grad_brd)
         return None, None, None, None, None, None, grad_x
 
     @staticmethod
@@ -223,11 +234,8 @@ def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
     """
     batch, (C, D) = x.shape[:-2], x.shape[-2:]
     parts = list(stencils)
-    for i in (2, 5):
-        if parts[i].dtype != x.dtype or parts[i].device != x.device:
-            parts[i] = parts[i].to(device=x.device, dtype=x.dtype)
-    for i in (0, 1, 3, 4):
-        if parts[i].device != x.device:
-            parts[i] = parts[i].to(x.device)
+    if parts[2].dtype != x.dtype or parts[2].device != x.device:
+        parts = [p.to(x.device) for p in parts]
+        parts[2], parts[5] = parts[2].to(x.dtype), parts[5].to(x.dtype)
     y_brd = _StencilApply.apply(*parts, x.reshape(math.prod(batch), C, D))
     return y_brd.reshape(*batch, y_brd.shape[1], D)
