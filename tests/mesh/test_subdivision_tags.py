@@ -11,6 +11,8 @@ import math
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.mesh import (
@@ -577,3 +579,26 @@ def test_bilinear_operator_stays_on_the_control_polygons():
     assert holed.child_tags.holes.tolist() == [3, 4, 5, 6]
     with pytest.raises(ValueError, match="scheme 'bilinear'"):
         limit_positions(op, verts)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    sharp=st.lists(st.sampled_from([0.0, 0.3, 1.0, 1.7, 2.3, INF]), min_size=12, max_size=12),
+    corners=st.lists(st.sampled_from([0.0, 0.5, 1.5, INF]), min_size=8, max_size=8),
+    method=st.sampled_from(["uniform", "chaikin"]),
+    scheme=st.sampled_from(["catmark", "loop"]),
+)
+def test_random_tags_match_reference_and_rows_sum_to_one(sharp, corners, method, scheme):
+    """Any mix of crease/corner sharpness on the 12 edges of the cube (Catmark) or the
+    octahedron (Loop) and on their vertices."""
+    faces, cls = (CUBE_F, CatmullClark) if scheme == "catmark" else (OCTA_F, LoopSubdivision)
+    k = len(faces[0])
+    edges = sorted({(min(f[i], f[(i + 1) % k]), max(f[i], f[(i + 1) % k]))
+                    for f in faces for i in range(k)})
+    V = 8 if scheme == "catmark" else 6
+    tags = {"creases": dict(zip(edges, sharp)), "corners": dict(enumerate(corners[:V]))}
+    module = _check_against_reference(cls, V, faces, tags, "edge_only", method, scheme, 2)
+    for level in range(2):
+        s = module.operator(level).matrix.to_dense()
+        assert_close(s.sum(1), torch.ones(s.shape[0], dtype=torch.float64))
+        assert bool((s >= 0).all())
