@@ -9,6 +9,7 @@ from torchgeo_cg.mesh.faces import (
     unpad_faces,
 )
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
+from torchgeo_cg.mesh.limit import LimitFrames, limit_frames
 from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
 from torchgeo_cg.mesh.subdivision import (
@@ -34,3 +35,4 @@ __all__ += [
 ]
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 __all__ += ["SubdivisionTags", "INFINITELY_SHARP", "bilinear_operator"]
+__all__ += ["limit_frames", "LimitFrames"]
