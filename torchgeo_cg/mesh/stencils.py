@@ -75,12 +75,19 @@ class StencilMatrix(NamedTuple):
         return self.sparse().to_dense()
 
 
+_CSR_WARNING_SEEN = False
+
+
 def _csr(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int) -> Tensor:
+    global _CSR_WARNING_SEEN
+    shape = (crow.numel() - 1, num_cols)
+    if _CSR_WARNING_SEEN:  # torch warns once per process: no filter needed afterwards
+        return torch.sparse_csr_tensor(crow, col, weights, shape, check_invariants=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # "sparse CSR is in beta"
-        return torch.sparse_csr_tensor(
-            crow, col, weights, (crow.numel() - 1, num_cols), check_invariants=False
-        )
+        matrix = torch.sparse_csr_tensor(crow, col, weights, shape, check_invariants=False)
+    _CSR_WARNING_SEEN = True
+    return matrix
 
 
 def stencil_matrix(
@@ -190,9 +197,7 @@ class _StencilApply(torch.autograd.Function):
     @staticmethod
     def backward(ctx, grad_brd):
         crow, col, weights, crow_t, col_t, weights_t = ctx.saved_tensors
-        plain = not (torch.is_grad_enabled() or torch.compiler.is_compiling()
-                     or torch._C._are_functorch_transforms_active())
-        if plain:  # no double backward, no transform: skip the Function's bookkeeping
+        if not torch.is_grad_enabled() and _plain_eager():  # no double backward, no transform
             grad_x = _stencil_matmul_eager(crow_t, col_t, weights_t, crow, grad_brd)
         else:
             grad_x = _StencilApply.apply(crow_t, col_t, weights_t, crow, col, weights, grad_brd)
@@ -208,6 +213,25 @@ class _StencilApply(torch.autograd.Function):
         out = _StencilApply.apply(crow, col, weights, crow_t, col_t, weights_t,
                                   x_nbvd.reshape(N * B, V, D))
         return out.reshape(N, B, -1, D), 0
+
+
+class _StencilApplyEager(torch.autograd.Function):
+    """The plain-eager twin of :class:`_StencilApply` (no ``setup_context``, so no
+    per-call signature binding); used when no transform is active and nothing compiles.
+    Its backward goes through :class:`_StencilApply`, so double backward still works."""
+
+    @staticmethod
+    def forward(ctx, crow, col, weights, crow_t, col_t, weights_t, x_bvd):
+        ctx.save_for_backward(crow, col, weights, crow_t, col_t, weights_t)
+        return _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd)
+
+    @staticmethod
+    def backward(ctx, grad_brd):
+        return _StencilApply.backward(ctx, grad_brd)
+
+
+def _plain_eager() -> bool:
+    return not (torch.compiler.is_compiling() or torch._C._are_functorch_transforms_active())
 
 
 def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
@@ -237,5 +261,6 @@ def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
     if parts[2].dtype != x.dtype or parts[2].device != x.device:
         parts = [p.to(x.device) for p in parts]
         parts[2], parts[5] = parts[2].to(x.dtype), parts[5].to(x.dtype)
-    y_brd = _StencilApply.apply(*parts, x.reshape(math.prod(batch), C, D))
+    function = _StencilApplyEager if _plain_eager() else _StencilApply
+    y_brd = function.apply(*parts, x.reshape(math.prod(batch), C, D))
     return y_brd.reshape(*batch, y_brd.shape[1], D)
