@@ -101,7 +101,7 @@ CLOSED = ["cube", "tetrahedron", "pyramid", "pentagon_prism", "hexagon_prism"]
 def test_public_surface():
     assert set(sd.__all__) == {
         "SubdivisionOperator", "catmull_clark_operator", "apply_operator", "catmull_clark",
-        "CatmullClark", "limit_positions",
+        "CatmullClark", "limit_positions", "catmark_limit_stencils", "mesh_topology",
     }
 
 
@@ -425,3 +425,23 @@ def test_icosphere_counts_match_euler():
     assert op.num_vertices_out - e1 + op.faces.shape[0] == 2
     assert math.isclose(float(op.matrix.to_dense().sum()), op.num_vertices_out, rel_tol=1e-5)
     assert unpad_faces(op.faces[:1])[0][0] == int(ico.faces[0, 0])
+
+
+@pytest.mark.parametrize("levels", [1, 2])
+def test_empty_in_empty_out(levels):
+    """Issue 10: no vertices (and no faces) in gives no vertices and no faces out."""
+    from torchgeo_cg.mesh import loop_subdivide
+
+    for fn, k in ((catmull_clark, 4), (loop_subdivide, 3)):
+        for faces in (torch.zeros(0, k, dtype=torch.long), []):
+            verts, faces_out = fn(torch.zeros(0, 3), faces, levels=levels)
+            assert verts.shape == (0, 3) and faces_out.shape == (0, k)
+            assert faces_out.dtype == torch.long
+        batch, _ = fn(torch.zeros(2, 0, 3, dtype=torch.float64), [], levels=levels)
+        assert batch.shape == (2, 0, 3) and batch.dtype == torch.float64
+        # vertices without faces pass through, batch of zero shapes stays empty
+        lone = torch.arange(12.0).reshape(4, 3)
+        verts, faces_out = fn(lone, torch.zeros(0, k, dtype=torch.long), levels=levels)
+        assert torch.equal(verts, lone) and faces_out.shape == (0, k)
+        none, _ = fn(torch.zeros(0, 3, 2), [[0, 1, 2]], levels=levels)
+        assert none.shape[0] == 0 and none.shape[-1] == 2

@@ -17,6 +17,7 @@ from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.mesh import loop as loop_mod
 from torchgeo_cg.mesh.io import to_trimesh
 from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
+from torchgeo_cg.mesh.subdivision import apply_operator, limit_positions
 
 
 def reference_loop(verts, faces, boundary="edge_only"):
@@ -87,7 +88,9 @@ MESHES = {"grid": tri_grid, "fin": tri_fin, "icosphere": ico}
 
 
 def test_public_surface():
-    assert set(loop_mod.__all__) == {"loop_operator", "loop_subdivide", "LoopSubdivision"}
+    assert set(loop_mod.__all__) == {
+        "loop_operator", "loop_subdivide", "LoopSubdivision", "loop_limit_stencils", "loop_beta"
+    }
 
 
 @pytest.mark.parametrize("name", list(MESHES))
@@ -167,10 +170,111 @@ def test_errors():
     with pytest.raises(ValueError, match="face 1 has index 9"):
         loop_operator([[0, 1, 2], [0, 2, 9]], 4)
     with pytest.raises(ValueError, match="boundary"):
-        loop_operator([[0, 1, 2]], 3, boundary="none")
+        loop_operator([[0, 1, 2]], 3, boundary="smooth")
     with pytest.raises(ValueError, match="same device"):
         loop_subdivide(torch.zeros(3, 3), torch.tensor([[0, 1, 2]], device="meta"))
     with pytest.raises(ShapeError, match="verts"):
         loop_subdivide(torch.zeros(3), [[0, 1, 2]])
     with pytest.raises(TypeError, match="verts"):
         loop_subdivide([[0.0, 0, 0]] * 3, [[0, 1, 2]])
+
+
+# ---------------------------------------------------------------- limit positions (issue 14a)
+
+
+def _octahedron():
+    verts = torch.tensor([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+                         dtype=torch.float64)
+    faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5],
+             [0, 3, 5]]
+    return verts, faces
+
+
+def _one_ring(faces, v):
+    """Neighbours of interior vertex ``v`` in cyclic order (walk the fan, plain Python)."""
+    nxt = {}
+    for f in faces:
+        for k in range(3):
+            if f[k] == v:
+                nxt[f[(k + 1) % 3]] = f[(k + 2) % 3]
+    ring = [next(iter(nxt))]
+    while len(ring) < len(nxt):
+        ring.append(nxt[ring[-1]])
+    return ring
+
+
+def _reference_loop_limit(verts, faces, v):
+    """Limit of interior vertex ``v``: the local subdivision matrix ``A`` (1-ring to 1-ring,
+    written from Loop's rules) raised to a high power, applied to the 1-ring."""
+    ring = _one_ring(faces, v)
+    n = len(ring)
+    beta = (5 / 8 - (3 / 8 + 1 / 4 * math.cos(2 * math.pi / n)) ** 2) / n
+    a = torch.zeros(n + 1, n + 1, dtype=torch.float64)
+    a[0, 0], a[0, 1:] = 1 - n * beta, beta
+    for i in range(n):  # the child of edge (v, ring[i]): 3/8, 3/8 and the two opposite
+        a[1 + i, 0] = a[1 + i, 1 + i] = 3 / 8
+        a[1 + i, 1 + (i - 1) % n] += 1 / 8
+        a[1 + i, 1 + (i + 1) % n] += 1 / 8
+    mask = torch.linalg.matrix_power(a, 200)[0]
+    return mask @ verts[[v] + ring]
+
+
+@pytest.mark.parametrize("name", ["tetrahedron", "octahedron", "icosahedron", "icosphere1"])
+def test_loop_limit_positions_match_local_matrix_power(name):
+    if name == "octahedron":
+        verts, faces = _octahedron()
+    else:
+        mesh = {
+            "icosphere1": lambda: trimesh.creation.icosphere(subdivisions=1),
+            "icosahedron": trimesh.creation.icosahedron,
+            "tetrahedron": lambda: trimesh.Trimesh(
+                [[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]],
+                [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]], process=False),
+        }[name]()
+        verts = torch.from_numpy(np.asarray(mesh.vertices)).double()
+        faces = np.asarray(mesh.faces).tolist()
+    g = torch.Generator().manual_seed(0)
+    verts = verts + 0.1 * torch.randn(verts.shape, generator=g, dtype=torch.float64)
+    op = loop_operator(faces, len(verts), dtype=torch.float64)
+    limit = limit_positions(op, verts)
+    expected = torch.stack([_reference_loop_limit(verts, faces, v) for v in range(len(verts))])
+    assert_close(limit[: len(verts)], expected, rtol=1e-12, atol=1e-12)
+
+
+def test_loop_limit_is_invariant_under_refinement():
+    mesh = trimesh.creation.icosahedron()
+    verts = torch.from_numpy(np.asarray(mesh.vertices)).double()
+    loop2 = LoopSubdivision(torch.from_numpy(mesh.faces).long(), len(verts), levels=2,
+                            dtype=torch.float64)
+    op0, op1 = loop2.operator(0), loop2.operator(1)
+    first = limit_positions(op0, verts)
+    second = limit_positions(op1, apply_operator(op0, verts))
+    assert_close(second[: op0.num_vertices_out], first, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("boundary", ["edge_only", "edge_and_corner"])
+def test_loop_limit_on_the_boundary_is_the_cubic_bspline(boundary):
+    verts = torch.tensor([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]], dtype=torch.float64)
+    op = loop_operator([[0, 1, 2], [0, 2, 3]], 4, boundary=boundary, dtype=torch.float64)
+    limit = limit_positions(op, verts)
+    # vertex 0 has valence 3 (neighbours 1, 2, 3), boundary neighbours 1 and 3
+    assert_close(limit[0], (verts[1] + 4 * verts[0] + verts[3]) / 6)
+    if boundary == "edge_and_corner":  # valence-2 vertex 1 is a corner: kept
+        assert_close(limit[1], verts[1])
+    else:  # the cubic B-spline of the boundary polygon 0-1-2-3
+        assert_close(limit[1], (verts[0] + 4 * verts[1] + verts[2]) / 6)
+
+
+def test_limit_positions_differ_by_scheme_and_refuse_others():
+    """Issue 14: a Loop operator got Catmull-Clark masks; it now records its scheme."""
+    verts, faces = _octahedron()
+    op = loop_operator(faces, 6, dtype=torch.float64)
+    assert op.scheme == "loop"
+    limit = limit_positions(op, verts)
+    assert_close(limit[4], _reference_loop_limit(verts, faces, 4))
+    # by hand: valence 4, beta = (5/8 - (3/8)^2) / 4, chi = 1 / (4 + 3 / (8 beta)); the
+    # four neighbours sum to 0, so the apex (0, 0, 1) goes to (0, 0, 1 - 4 chi)
+    chi = 1 / (4 + 3 / (8 * (5 / 8 - 9 / 64) / 4))
+    assert_close(limit[4], torch.tensor([0.0, 0.0, 1 - 4 * chi], dtype=torch.float64))
+    with pytest.raises(ValueError, match="scheme 'bilinear'"):
+        limit_positions(op._replace(scheme="bilinear"), verts)

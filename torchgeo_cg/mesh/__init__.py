@@ -1,5 +1,6 @@
-"""torchgeo_cg.mesh: marching cubes, Catmull-Clark and Loop subdivision operators, mesh I/O."""
+"""torchgeo_cg.mesh: marching cubes, Catmull-Clark, Loop and bilinear subdivision, mesh I/O."""
 
+from torchgeo_cg.mesh.bilinear import bilinear_operator
 from torchgeo_cg.mesh.faces import (
     check_faces,
     face_sizes,
@@ -8,6 +9,7 @@ from torchgeo_cg.mesh.faces import (
     unpad_faces,
 )
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
+from torchgeo_cg.mesh.limit import LimitFrames, limit_frames
 from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
 from torchgeo_cg.mesh.regularizers import (
@@ -40,7 +42,8 @@ __all__ += [
     "limit_positions",
 ]
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
-__all__ += ["SubdivisionTags", "INFINITELY_SHARP"]
+__all__ += ["SubdivisionTags", "INFINITELY_SHARP", "bilinear_operator"]
+__all__ += ["limit_frames", "LimitFrames"]
 __all__ += [
     "MeshEdges",
     "mesh_edges",

@@ -10,7 +10,9 @@ Convention:
       ``(v2, e20, e12)``, ``(e01, e12, e20)``.
     - New vertex order: the ``V0`` vertex points (old vertex ``i`` stays ``i``),
       then the ``E0`` edge points, edges sorted by ``(min, max)``. ``V1 = V0 + E0``.
-    - Rules: an edge with exactly two faces is smooth, any other is sharp.
+    - Rules (untagged): an edge with exactly two consistently wound faces is smooth,
+      any other is sharp; non-manifold vertices are corners (OpenSubdiv). Tags,
+      holes and ``crease_method`` as in :mod:`torchgeo_cg.mesh.subdivision`.
       Smooth edge point ``3/8 (a + b) + 1/8 (c + d)`` (``c, d`` the opposite
       corners); sharp edge point ``1/2 (a + b)``. Vertex with ``n`` edges and ``s``
       sharp ones: ``s <= 1``: ``(1 - n beta) V + beta sum(nbrs)``,
@@ -29,16 +31,21 @@ from collections.abc import Sequence
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_tensor
+from torchgeo_cg.mesh.creasing import child_tags, limit_rules, subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces
+from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     _check_boundary,
-    _sparse_csr,
+    _check_crease_method,
     _SubdivisionModule,
-    _topology,
+    mesh_topology,
 )
+from torchgeo_cg.mesh.tags import SubdivisionTags
 
-__all__ = ["loop_operator", "loop_subdivide", "LoopSubdivision"]
+__all__ = [
+    "loop_operator", "loop_subdivide", "LoopSubdivision", "loop_limit_stencils", "loop_beta"
+]
 
 
 def loop_operator(
@@ -47,6 +54,8 @@ def loop_operator(
     boundary: str = "edge_only",
     device: torch.device | str | None = None,
     dtype: torch.dtype | None = None,
+    tags: SubdivisionTags | None = None,
+    crease_method: str = "uniform",
 ) -> SubdivisionOperator:
     """Build one level of Loop subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -57,9 +66,14 @@ def loop_operator(
     Args:
         faces: ``(F, 3)`` long triangles, or a list of index triples.
         num_vertices: ``V0``.
-        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
         device: device of the operator (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Returns:
         :class:`~torchgeo_cg.mesh.subdivision.SubdivisionOperator` with ``matrix``
@@ -75,8 +89,14 @@ def loop_operator(
         (torch.Size([9, 4]), torch.Size([8, 3]))
         >>> op.matrix.to_dense()[5]  # the shared edge (0, 2): 3/8, 3/8 and 1/8, 1/8
         tensor([0.3750, 0.1250, 0.3750, 0.1250])
+        >>> from torchgeo_cg.mesh.tags import SubdivisionTags
+        >>> sharp = SubdivisionTags.empty()._replace(
+        ...     creases=torch.tensor([[0, 2]]), crease_sharpness=torch.tensor([0.5]))
+        >>> loop_operator([[0, 1, 2], [0, 2, 3]], 4, tags=sharp).matrix.to_dense()[5]
+        tensor([0.4375, 0.0625, 0.4375, 0.0625])
     """
     _check_boundary(boundary)
+    _check_crease_method(crease_method)
     with torch.no_grad():
         faces_f3 = check_faces(faces, num_vertices)
         if faces_f3.shape[0] and (faces_f3.shape[1] != 3 or bool((faces_f3 < 0).any())):
@@ -90,37 +110,31 @@ def loop_operator(
         dev = faces_f3.device
         wdtype = torch.get_default_dtype() if dtype is None else dtype
         V0, F0 = num_vertices, faces_f3.shape[0]
-        topo = _topology(faces_f3, V0, boundary)
+        topo = mesh_topology(faces_f3, V0, boundary)
         E0 = topo.edge_lo_e.numel()
         V1 = V0 + E0
-        w = lambda x: x.to(wdtype)  # noqa: E731
+        rules = subdivision_rules(topo, V0, F0, tags, boundary, crease_method, wdtype)
         e_all = torch.arange(E0, device=dev)
-        sharp_e = topo.sharp_e
+        crease_e = rules.crease_e
 
-        # Edge points: 3/8 ends + 1/8 opposite corners (smooth), 1/2 ends (sharp).
-        end_e = torch.where(sharp_e, 0.5, 0.375).to(wdtype)
+        # Edge points: crease_e of 1/2 ends + (1 - crease_e) of 3/8 ends, 1/8 opposite.
+        end_e = 0.5 * crease_e + 0.375 * (1.0 - crease_e)
         opposite_c = topo.vert_c[topo.prev_corner_c]  # corner opposite half-edge c
-        smooth_c = ~sharp_e[topo.edge_c]
+        smooth_c = (1.0 - crease_e)[topo.edge_c]
 
-        # Vertex points.
-        kind_v = topo.kind_v
-        n_v = w(topo.valence_v).clamp(min=1)
-        cos_v = torch.cos(2.0 * math.pi / n_v)
-        beta_v = (0.625 - (0.375 + 0.25 * cos_v) ** 2) / n_v
-        smooth_v, crease_v = kind_v == 1, kind_v == 2
-        self_v = torch.where(smooth_v, 1.0 - n_v * beta_v, 1.0 - 0.25 * w(crease_v))
-        lo_kind, hi_kind = kind_v[topo.edge_lo_e], kind_v[topo.edge_hi_e]
-        crease_lo, crease_hi = w((lo_kind == 2) & sharp_e), w((hi_kind == 2) & sharp_e)
-        side_lo = torch.where(lo_kind == 1, beta_v[topo.edge_lo_e], 0.125 * crease_lo)
-        side_hi = torch.where(hi_kind == 1, beta_v[topo.edge_hi_e], 0.125 * crease_hi)
+        # Vertex points: smooth (1 - n beta) V + beta sum, crease 3/4 V + 1/8 (a + b), corner V.
+        n_v = topo.valence_v.to(wdtype).clamp(min=1)
+        beta_v = loop_beta(n_v)
+        self_v = rules.smooth_v * (1.0 - n_v * beta_v) + 0.75 * rules.crease_v + rules.corner_v
+        lo_e, hi_e = topo.edge_lo_e, topo.edge_hi_e
+        side_lo = rules.smooth_v[lo_e] * beta_v[lo_e] + rules.crease_end_lo_e
+        side_hi = rules.smooth_v[hi_e] * beta_v[hi_e] + rules.crease_end_hi_e
 
         v_all = torch.arange(V0, device=dev)
-        matrix, matrix_t = _sparse_csr(
-            torch.cat([v_all, topo.edge_lo_e, topo.edge_hi_e, V0 + e_all, V0 + e_all,
-                       V0 + topo.edge_c]),
-            torch.cat([v_all, topo.edge_hi_e, topo.edge_lo_e, topo.edge_lo_e, topo.edge_hi_e,
-                       opposite_c]),
-            torch.cat([self_v, side_lo, side_hi, end_e, end_e, 0.125 * w(smooth_c)]),
+        stencils = stencil_matrix(
+            torch.cat([v_all, lo_e, hi_e, V0 + e_all, V0 + e_all, V0 + topo.edge_c]),
+            torch.cat([v_all, hi_e, lo_e, lo_e, hi_e, opposite_c]),
+            torch.cat([self_v, side_lo, side_hi, end_e, end_e, 0.125 * smooth_c]),
             (V1, V0),
         )
         # corners are face-major: corner 3f + k is vertex k of face f
@@ -134,8 +148,14 @@ def loop_operator(
             ],
             dim=1,
         )
+        faces_f3_all = faces_f43.reshape(-1, 3)
+        hole_child = rules.hole_f.repeat_interleave(4)
+        tags_1 = child_tags(rules, lo_e, hi_e, V0 + e_all, hole_child, tags)
+    visible = faces_f3_all if tags_1 is None or tags_1.holes.numel() == 0 else (
+        faces_f3_all[~hole_child]
+    )
     return SubdivisionOperator(
-        matrix, matrix_t, faces_f43.reshape(-1, 3), V0, V1, F0, E0, boundary
+        stencils, visible, V0, V1, F0, E0, boundary, "loop", faces_f3_all, tags_1
     )
 
 
@@ -150,9 +170,14 @@ class LoopSubdivision(_SubdivisionModule):
         faces: ``(F, 3)`` long triangles, or a list of index triples.
         num_vertices: ``V``.
         levels: number of steps, ``>= 0`` (default 1).
-        boundary: ``"edge_only"`` (default) or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Shape:
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
@@ -165,6 +190,7 @@ class LoopSubdivision(_SubdivisionModule):
     """
 
     _build_operator = staticmethod(loop_operator)
+    scheme = "loop"
 
 
 def loop_subdivide(
@@ -172,6 +198,8 @@ def loop_subdivide(
     faces: torch.Tensor | Sequence[Sequence[int]],
     levels: int = 1,
     boundary: str = "edge_only",
+    tags: SubdivisionTags | None = None,
+    crease_method: str = "uniform",
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Loop-subdivide ``levels`` times; convenience wrapper over :class:`LoopSubdivision`.
 
@@ -182,7 +210,12 @@ def loop_subdivide(
         verts: ``(*, V, D)`` float, a batch of shapes sharing ``faces``.
         faces: ``(F, 3)`` long triangles on the device of ``verts``, or a list.
         levels: number of steps, ``>= 0``.
-        boundary: ``"edge_only"`` or ``"edge_and_corner"``.
+        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
+            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
+            become holes).
+        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None`` (see
+            :func:`loop_operator`); carried from level to level.
+        crease_method: ``"uniform"`` (default) or ``"chaikin"``.
 
     Returns:
         ``(verts (*, V_L, D), faces (4^L F, 3) long)``.
@@ -205,5 +238,63 @@ def loop_subdivide(
     module = LoopSubdivision(
         faces, verts.shape[-2], levels=levels, boundary=boundary,
         device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
+        tags=tags, crease_method=crease_method,
     )
     return module(verts), module.faces
+
+
+def loop_beta(valence: torch.Tensor) -> torch.Tensor:
+    """Loop's neighbour weight ``beta = (5/8 - (3/8 + 1/4 cos(2 pi / n))^2) / n``.
+
+    Args:
+        valence: ``(*,)`` float vertex valences ``n >= 1``.
+
+    Returns:
+        ``(*,)`` float ``beta``.
+
+    Example:
+        >>> loop_beta(torch.tensor([3.0, 6.0]))  # 3/16 and 1/16
+        tensor([0.1875, 0.0625])
+    """
+    cos_v = torch.cos(2.0 * math.pi / valence)
+    return (0.625 - (0.375 + 0.25 * cos_v) ** 2) / valence
+
+
+def loop_limit_stencils(
+    faces_f3: torch.Tensor,
+    num_vertices: int,
+    boundary: str,
+    dtype: torch.dtype,
+    tags: SubdivisionTags | None = None,
+) -> StencilMatrix:
+    """``(V, V)`` Loop limit masks of a triangle mesh (OpenSubdiv's Loop limit masks).
+
+    Smooth vertex of valence ``n``: ``(1 - n chi) V + chi sum(nbrs)`` with
+    ``chi = 1 / (n + 3 / (8 beta))``; crease/boundary vertex ``(a + 4 V + b) / 6``
+    (``a, b`` its sharp neighbours); corners and unreferenced vertices ``V``.
+
+    Example:
+        >>> ring = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 6], [0, 6, 1]]
+        >>> loop_limit_stencils(torch.tensor(ring), 7, "edge_only", torch.float64).dense()[0] * 12
+        tensor([6., 1., 1., 1., 1., 1., 1.], dtype=torch.float64)
+    """
+    V = num_vertices
+    with torch.no_grad():
+        topo = mesh_topology(faces_f3, V, boundary)
+        n_v = topo.valence_v.to(dtype).clamp(min=1)
+        chi_v = 1.0 / (n_v + 3.0 / (8.0 * loop_beta(n_v)))
+        rule_v, sharp_e = limit_rules(topo, V, faces_f3.shape[0], tags, boundary, dtype)
+        smooth_v, crease_v = rule_v == 0, rule_v == 1
+        self_v = torch.where(smooth_v, 1.0 - n_v * chi_v, 1.0 - crease_v.to(dtype) / 3.0)
+        v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
+        nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
+        sharp_side = torch.cat([sharp_e, sharp_e])
+        rule_side = rule_v[v_side]
+        w_side = torch.where(
+            rule_side == 0, chi_v[v_side], ((rule_side == 1) & sharp_side).to(dtype) / 6.0
+        )
+        arange_v = torch.arange(V, device=faces_f3.device)
+        return stencil_matrix(
+            torch.cat([arange_v, v_side]), torch.cat([arange_v, nbr_side]),
+            torch.cat([self_v, w_side]), (V, V),
+        )
