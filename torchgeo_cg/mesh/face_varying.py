@@ -164,6 +164,8 @@ def _mode_corners(vm: ValueMesh, uv_topo, uv_sharp_e, pos_boundary_v, interpolat
     on_seam = _per_end(uv_topo.edge_lo_e, uv_topo.edge_hi_e, uv_topo.sharp_e, T2) > 0
     if interpolation == "boundaries":
         return on_seam
+    if interpolation == "corners_only":  # the value mesh's "edge_and_corner" pins them
+        return torch.zeros_like(on_seam)
     count_v = torch.bincount(vert[used], minlength=V)
     count = count_v[vert]
     pinned = (count >= 3) & used
