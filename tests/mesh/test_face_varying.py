@@ -320,11 +320,15 @@ def test_no_seam_equals_vertex_operator(mode, scheme):
 
 def test_no_seam_open_grid_boundary_modes():
     """Open mesh, no seam: "none" is the position operator with edge_only, "corners_only"
-    pins the mesh corners like edge_and_corner (OpenSubdiv sharpens fvar corners)."""
+    pins the mesh corners like edge_and_corner (OpenSubdiv sharpens fvar corners), and
+    geometric corners pinned by boundary="edge_and_corner" stay pinned in "none"."""
     faces, V = open_grid(3)
-    for mode, boundary in (("none", "edge_only"), ("corners_only", "edge_and_corner")):
+    cases = (("none", "edge_only", "edge_only"), ("corners_only", "edge_only", "edge_and_corner"),
+             ("none", "edge_and_corner", "edge_and_corner"))
+    for mode, geometry, boundary in cases:
         pos = catmull_clark_operator(faces, V, boundary=boundary, dtype=torch.float64)
-        fv = face_varying_operator(faces, faces, V, V, interpolation=mode, dtype=torch.float64)
+        fv = face_varying_operator(faces, faces, V, V, interpolation=mode, boundary=geometry,
+                                   dtype=torch.float64)
         torch.testing.assert_close(fv.stencils.dense(), pos.stencils.dense(), rtol=0, atol=0)
 
 
@@ -390,6 +394,24 @@ def test_child_faces_line_up_with_positions():
     assert fv.faces.shape == pos.faces.shape == (40, 4)
     pairs = torch.stack([fv.faces.flatten(), pos.faces.flatten()], 1).unique(dim=0)
     assert pairs[:, 0].unique().numel() == pairs.shape[0]  # value -> one vertex
+
+
+@pytest.mark.parametrize("boundary", ["none", "edge_and_corner"])
+def test_levels_line_up_with_position_module(boundary):
+    """Across 2 levels, with boundary "none" (boundary faces become holes) and with a
+    semi-sharp crease decaying: same faces kept, each child value on one child vertex."""
+    from torchgeo_cg.mesh import CatmullClark
+
+    faces, V = open_grid(4)
+    seams = {frozenset((6, 7)), frozenset((7, 8)), frozenset((7, 12))}
+    uv_faces, T = seam_values(faces, seams)
+    tags = SubdivisionTags.empty()._replace(creases=torch.tensor([[11, 12]]),
+                                            crease_sharpness=torch.tensor([1.5]))
+    cc = CatmullClark(faces, V, levels=2, boundary=boundary, tags=tags)
+    fv = FaceVaryingSubdivision(faces, uv_faces, V, T, levels=2, boundary=boundary, tags=tags)
+    assert fv.faces.shape == cc.faces.shape and fv.faces.shape[0] > 0
+    pairs = torch.stack([fv.faces.flatten(), cc.faces.flatten()], 1).unique(dim=0)
+    assert pairs[:, 0].unique().numel() == pairs.shape[0]
 
 
 def test_uv_index_shared_by_two_vertices_is_split():
