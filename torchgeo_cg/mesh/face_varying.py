@@ -209,6 +209,16 @@ def face_varying_tags(
 
     Returns:
         ``(value-mesh tags, value-mesh boundary mode)``.
+
+    Example:
+        >>> faces = torch.tensor([[0, 1, 4, 3], [1, 2, 5, 4]])  # no seam: values = vertices
+        >>> vm = value_mesh(faces, torch.tensor([[0, 1, 2, 3], [1, 4, 5, 2]]), 6, 6)
+        >>> crease = SubdivisionTags.empty(torch.float64)._replace(
+        ...     creases=torch.tensor([[1, 4]]), crease_sharpness=torch.tensor([2.0]).double())
+        >>> uv_tags, mode = face_varying_tags(faces, 6, vm, "boundaries", "edge_only", crease,
+        ...                                   "uniform", torch.float64)
+        >>> uv_tags.creases.tolist(), uv_tags.corners.tolist(), mode  # value 1-2 is edge 1-4
+        ([[1, 2], [2, 1]], [0, 1, 2, 3, 4, 5], 'edge_and_corner')
     """
     V, F, T2 = num_vertices, faces_fk.shape[0], vm.num_values
     dev = faces_fk.device
