@@ -1,6 +1,12 @@
 """torchgeo_cg.mesh: marching cubes, Catmull-Clark, Loop and bilinear subdivision, mesh I/O."""
 
 from torchgeo_cg.mesh.bilinear import bilinear_operator
+from torchgeo_cg.mesh.face_varying import (
+    FVAR_INTERPOLATIONS,
+    FaceVaryingSubdivision,
+    face_varying_operator,
+    face_varying_subdivide,
+)
 from torchgeo_cg.mesh.faces import (
     check_faces,
     face_sizes,
@@ -51,4 +57,10 @@ __all__ += [
     "laplacian_smoothing_loss",
     "normal_consistency_loss",
     "edge_length_loss",
+]
+__all__ += [
+    "FVAR_INTERPOLATIONS",
+    "face_varying_operator",
+    "FaceVaryingSubdivision",
+    "face_varying_subdivide",
 ]
