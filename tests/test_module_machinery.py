@@ -46,6 +46,7 @@ import torchgeo_cg
 from torchgeo_cg.curves import BezierCurve, HermiteCurve, HermiteSpline, PchipInterpolator
 from torchgeo_cg.mesh import (
     CatmullClark,
+    FaceVaryingSubdivision,
     LoopSubdivision,
     MarchingCubes,
     SubdivisionTags,
@@ -53,6 +54,7 @@ from torchgeo_cg.mesh import (
     catmull_clark,
     loop_subdivide,
 )
+from torchgeo_cg.points import ChamferDistance
 from torchgeo_cg.sdf import (
     Annulus,
     Box,
@@ -61,6 +63,7 @@ from torchgeo_cg.sdf import (
     Difference,
     Gyroid,
     Intersection,
+    MeshSDF,
     Plane,
     Product,
     Rectangle,
@@ -117,6 +120,7 @@ class Spec(NamedTuple):
     batched: bool = True
     differentiable: bool = True
     tensor_of: Callable[[object], torch.Tensor] = lambda out: out
+    call: Callable[[nn.Module, torch.Tensor], object] = lambda module, x: module(x)
 
 
 def _rand(*shape: int, lo: float = -1.0, hi: float = 1.0) -> Callable[[int], torch.Tensor]:
@@ -161,6 +165,8 @@ def _rotation_y() -> torch.Tensor:
     return torch.tensor([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
+_TETRA_V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+_TETRA_F = torch.tensor([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
 _P3 = _rand(5, 3)
 _P2 = _rand(5, 2)
 _T = _rand(5, lo=0.0, hi=1.0)
@@ -189,6 +195,17 @@ SPECS: dict[str, Spec] = {
     ),
     "torchgeo_cg.mesh.subdivision.CatmullClark": Spec(
         lambda: CatmullClark(_CUBE_F, 8, levels=1, tags=_CUBE_TAGS), _cube_sample
+    ),
+    "torchgeo_cg.mesh.face_varying.FaceVaryingSubdivision": Spec(
+        lambda: FaceVaryingSubdivision(_CUBE_F, [[4 * f + k for k in range(4)] for f in range(6)],
+                                       8, 24, levels=1, tags=_CUBE_TAGS), _rand(24, 2)
+    ),
+    "torchgeo_cg.sdf.mesh_distance.MeshSDF": Spec(
+        lambda: MeshSDF(_TETRA_V, _TETRA_F), _P3, tensor_of=lambda out: out.sdf
+    ),
+    "torchgeo_cg.points.chamfer.ChamferDistance": Spec(  # two clouds stacked on dim 0
+        ChamferDistance, _rand(2, 6, 3), batched=False,  # data-dependent search: no vmap
+        call=lambda module, x: module(x[0], x[1]), tensor_of=lambda out: out.loss,
     ),
     "torchgeo_cg.mesh.loop.LoopSubdivision": Spec(
         lambda: LoopSubdivision(_OCTA_F, 6, levels=1), _rand(6, 3)
@@ -265,7 +282,7 @@ _ALL = sorted(SPECS)
 
 
 def _out(spec: Spec, module: nn.Module, x: torch.Tensor) -> torch.Tensor:
-    return spec.tensor_of(module(x))
+    return spec.tensor_of(spec.call(module, x))
 
 
 def _move_parameters(module: nn.Module, seed: int = 7, scale: float = 0.01) -> None:
@@ -481,7 +498,7 @@ class _Trainable(nn.Module):
         self.scale = nn.Parameter(torch.ones(()))  # trains even when x cannot
 
     def forward(self) -> torch.Tensor:
-        out = self.spec.tensor_of(self.module(self.x))
+        out = _out(self.spec, self.module, self.x)
         return (self.scale * out).square().mean()
 
 
@@ -553,20 +570,12 @@ def test_ddp_two_processes_gloo(name, ddp_results):
 
 # ----------------------------------------------------------------------------- mesh_sdf
 
-_MESH_SDF_XFAIL = (
-    "i16 (sdf/mesh_distance.py): mesh_sdf's closest-face search calls .numpy() for "
-    "scipy's cKDTree (_closest_faces), which functorch's wrapped tensors refuse: "
-    "'Cannot access data pointer of Tensor that doesn't have storage'"
-)
-
-
 def _tetrahedron() -> tuple[torch.Tensor, torch.Tensor]:
     verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
     faces = torch.tensor([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     return verts, faces
 
 
-@pytest.mark.xfail(reason=_MESH_SDF_XFAIL, strict=True)
 def test_mesh_sdf_under_vmap():
     from torchgeo_cg.sdf import mesh_sdf
 
@@ -577,7 +586,6 @@ def test_mesh_sdf_under_vmap():
     torch.testing.assert_close(vmapped, looped)
 
 
-@pytest.mark.xfail(reason=_MESH_SDF_XFAIL, strict=True)
 @pytest.mark.parametrize("wrt", ["points", "vertices"])
 def test_mesh_sdf_under_jacrev(wrt):
     from torchgeo_cg.sdf import mesh_sdf

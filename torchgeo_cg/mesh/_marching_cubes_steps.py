@@ -291,14 +291,25 @@ class EdgeFraction(torch.autograd.Function):
     edge of finite samples) divides by one instead.
     """
 
+    generate_vmap_rule = True  # with setup_context: works under vmap / jacrev / grad
+
     @staticmethod
-    def forward(ctx, f1, f2, iso, delta: float):
+    def _fraction(f1, f2, iso):
+        """``(t, den)``: the unclamped fraction and its denominator (1 where ``f1 == f2``)."""
         den = f2 - f1
         den = torch.where(den == 0, torch.ones_like(den), den)
-        t = (iso - f1) / den
-        ctx.save_for_backward(t, den)
-        ctx.delta = delta
+        return (iso - f1) / den, den
+
+    @staticmethod
+    def forward(f1, f2, iso, delta: float):
+        t, _ = EdgeFraction._fraction(f1, f2, iso)
         return t.clamp(delta, 1.0 - delta)
+
+    @staticmethod
+    def setup_context(ctx, inputs, output) -> None:
+        f1, f2, iso, delta = inputs
+        ctx.save_for_backward(*EdgeFraction._fraction(f1, f2, iso))
+        ctx.delta = delta
 
     @staticmethod
     def backward(ctx, grad):
