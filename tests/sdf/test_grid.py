@@ -139,3 +139,12 @@ def test_bad_input():
     with pytest.raises(ShapeError, match="points"):
         G.grid_interpolate(torch.zeros(2, 3, 3, 3), torch.zeros(3, 1, 3), torch.zeros(3),
                            torch.ones(3))
+
+
+def test_sample_grid_progress_bar(capsys):
+    quiet = G.sample_grid(sphere, 9, (-1.0, 1.0), chunk=81)
+    shown = G.sample_grid(sphere, 9, (-1.0, 1.0), chunk=81, progress=True)  # one slab a chunk
+    assert torch.equal(quiet.values, shown.values)
+    err = capsys.readouterr().err
+    assert "sample_grid" in err and "9/9" in err
+    assert "sample_grid" not in capsys.readouterr().err  # nothing more, and off by default

@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 import torch
 import torch.nn.functional as F
+from tqdm.auto import tqdm
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
@@ -256,6 +257,7 @@ def sample_grid(
     device=None,
     dtype=None,
     grad: bool = False,
+    progress: bool = False,
 ) -> Volume:
     """Evaluate ``sdf_fn`` on the grid, a few x-slabs at a time, in bounded memory.
 
@@ -277,6 +279,8 @@ def sample_grid(
             tensor, else the default dtype on the CPU).
         grad: keep the autograd graph (memory then grows with the grid); by default the
             evaluation runs under ``torch.no_grad()``.
+        progress: show a tqdm bar over the x-slab chunks (off by default, as in
+            ``fit_transform(progress=...)``).
 
     Returns:
         :class:`Volume` with ``values (X, Y, Z)`` or ``(B, X, Y, Z)``, ``origin (3,)``,
@@ -301,8 +305,9 @@ def sample_grid(
     out: torch.Tensor | None = None
     ctx = torch.enable_grad() if grad else torch.no_grad()
     pieces = []
+    starts = tqdm(range(0, X, slabs), disable=not progress, desc="sample_grid", unit="chunk")
     with ctx:
-        for i0 in range(0, X, slabs):
+        for i0 in starts:  # loop over chunks of slabs, not over points
             i1 = min(X, i0 + slabs)
             n = i1 - i0
             pts = torch.empty(n, Y, Z, 3, device=b.device, dtype=b.dtype)
