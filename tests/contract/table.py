@@ -556,7 +556,6 @@ PENDING: dict[str, tuple[str, str]] = {
                  "loop_subdivide", "LoopSubdivision", "SubdivisionTags")},
     **{f"viz.{n}": ("i11pkg", "figures: no numeric contract")
        for n in ("GalleryFigure", "build_gallery", "figure", "registered_figures")},
-    "cli.main": ("i11pkg", "the command line: tested by tests/cli"),
     "cli.CommandError": ("i11pkg", "the command line's one-line error: tested by tests/cli"),
     **{f"mesh.{n}": ("i11sub", "mesh/bilinear.py, limit.py, face_varying.py: issue 14")
        for n in ("bilinear_operator", "limit_frames", "LimitFrames", "face_varying_operator",
