@@ -93,8 +93,8 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.bilinear": ["bilinear_operator"],
     "torchgeo_cg.mesh.creasing": [
-        "CREASE_METHODS", "SubdivisionRules", "child_tags", "decrement_sharpness",
-        "limit_rules", "subdivision_rules", "vertex_rule"
+        "CREASE_METHODS", "SubdivisionRules", "child_tags", "component_labels",
+        "decrement_sharpness", "limit_rules", "subdivision_rules", "vertex_rule"
     ],
     "torchgeo_cg.mesh.data": [],
     "torchgeo_cg.mesh.data.make_rabbit": ["cube_sphere", "extrude", "main", "make_rabbit"],

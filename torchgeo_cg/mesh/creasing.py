@@ -45,6 +45,7 @@ __all__ = [
     "vertex_rule",
     "limit_rules",
     "child_tags",
+    "component_labels",
 ]
 
 CREASE_METHODS = ("uniform", "chaikin")
@@ -109,6 +110,27 @@ def vertex_rule(vertex_sharpness: torch.Tensor, sharp_edge_count: torch.Tensor) 
     return torch.where(vertex_sharpness > 0, CORNER, rule)
 
 
+
+def component_labels(num_nodes: int, src: torch.Tensor, dst: torch.Tensor) -> torch.Tensor:
+    """``(num_nodes,)`` connected-component label of each node of the undirected graph with
+    edges ``src[i] -- dst[i]``: the smallest node id of its component.
+
+    Min-label propagation with pointer jumping: a loop over rounds (about the log of the
+    component diameter), not over nodes or edges.
+
+    Example:
+        >>> component_labels(5, torch.tensor([0, 3]), torch.tensor([2, 4]))
+        tensor([0, 1, 0, 3, 3])
+    """
+    label = torch.arange(num_nodes, device=src.device)
+    while True:  # loop over propagation rounds
+        m = torch.minimum(label[src], label[dst])
+        new = label.scatter_reduce(0, src, m, "amin").scatter_reduce(0, dst, m, "amin")
+        new = new[new]
+        if torch.equal(new, label):
+            return label
+        label = new
+
 def _fan_count(topo, num_vertices: int, manifold_e: torch.Tensor) -> torch.Tensor:
     """``(V,)`` number of face fans around each vertex (connected corners through
     manifold, consistently wound edges), by min-label propagation with pointer jumping
@@ -124,14 +146,7 @@ def _fan_count(topo, num_vertices: int, manifold_e: torch.Tensor) -> torch.Tenso
     h2 = order[starts[keep] + 1]
     src = torch.cat([h1, next_corner_c[h1]])
     dst = torch.cat([next_corner_c[h2], h2])
-    label = torch.arange(C, device=dev)
-    while True:  # loop over propagation iterations
-        m = torch.minimum(label[src], label[dst])
-        new = label.scatter_reduce(0, src, m, "amin").scatter_reduce(0, dst, m, "amin")
-        new = new[new]
-        if torch.equal(new, label):
-            break
-        label = new
+    label = component_labels(C, src, dst)
     roots = label == torch.arange(C, device=dev)
     return torch.bincount(topo.vert_c[roots], minlength=num_vertices)
 

@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh.creasing import limit_rules
+from torchgeo_cg.mesh.creasing import component_labels, limit_rules
 from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
@@ -68,14 +68,7 @@ def _fan_order(topo, V):
     pred = torch.where(twin >= 0, next_corner[twin.clamp(min=0)], -1)  # previous CCW corner
     nxt = twin[topo.prev_corner_c]  # next corner counter-clockwise, -1 past a boundary
     src, dst = arange_c[nxt >= 0], nxt[nxt >= 0]
-    label = arange_c.clone()  # fan label: the smallest corner of the fan
-    while True:  # loop over propagation rounds
-        m = torch.minimum(label[src], label[dst])
-        new = label.scatter_reduce(0, src, m, "amin").scatter_reduce(0, dst, m, "amin")
-        new = new[new]
-        if torch.equal(new, label):
-            break
-        label = new
+    label = component_labels(C, src, dst)  # fan label: the smallest corner of the fan
     open_label = torch.zeros(C, dtype=torch.bool, device=dev)
     open_label[label[twin < 0]] = True
     start = (twin < 0) | (~open_label[label] & (label == arange_c))
