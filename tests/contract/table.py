@@ -1,25 +1,17 @@
 """The API contract as data: every public callable, a generator of valid inputs and its scaling law.
 
-Each :class:`Entry` says how to call one public callable on tensors (``call``), how
-to generate valid tensor inputs (``args``: name, shape, generator, scaling law) and
-how its output scales when every length in the inputs is multiplied by ``s``
-(``out``). ``test_contract.py`` turns every entry into the generated tests.
+This module holds the entries of the numeric core (core, homogeneous transforms,
+curves, SDF primitives, operators and grids) and gathers the areas' tables
+(``table_<area>.py``: ``ENTRIES``, ``PENDING``, ``EXEMPT`` each) into :data:`TABLE`,
+:data:`PENDING` and :data:`EXEMPT`. The vocabulary (``Arg``, ``Entry``, laws,
+generators) is in ``spec.py``.
 
-Scaling laws (``LAWS``): ``"length"`` x s, ``"unitless"`` x 1, ``"inv_length"`` / s,
-``"area"`` x s^2, ``"area2"`` x s^4, ``"matrix"`` conjugation ``S M S^-1`` of a
-homogeneous 3x3 (translation x s, perspective row / s), ``"h8"`` the 8 free
-entries of a homography (same conjugation), ``"index"`` (integers, unchanged) and
-``None`` (not compared).
-
-Names not in the table are in :data:`PENDING` (owned by another area, with the
-reason) or :data:`EXEMPT` (result types, exceptions and validators: no geometry).
-The completeness test fails for any public name in none of the three.
+Names not in the table are in :data:`PENDING` (not yet under contract, with the
+reason) or :data:`EXEMPT` (result types, exceptions, validators and figures: no
+geometry). The completeness test fails for any public name in none of the three.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import torch
 
@@ -27,155 +19,19 @@ import torchgeo_cg.core as core
 import torchgeo_cg.curves as C
 import torchgeo_cg.sdf as S
 import torchgeo_cg.transforms as T
+from tests.contract import (
+    table_estimation,
+    table_fitting,
+    table_meshes,
+    table_queries,
+    table_subdivision,
+)
+from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
 from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-
-@dataclass(frozen=True)
-class Arg:
-    """One tensor input: its name (as in error messages), shape, generator and law."""
-
-    name: str
-    shape: tuple[int, ...]
-    gen: str = "normal"
-    law: str | None = "length"
-
-
-@dataclass
-class Entry:
-    """One public callable under contract.
-
-    Attributes:
-        name: ``"<subpackage>.<public name>"`` (a suffix ``[...]`` marks a variant).
-        call: ``call(*tensors)`` calls the public callable with the tensors of ``args``.
-        args: the tensor inputs; ``args[0]`` is the primary one (NaN, empty, int tests).
-        out: output law, or a tuple of laws for a NamedTuple/tuple result.
-        empty: ``(arg index, dim)`` set to size 0 for the empty-input test; ``None``
-            skips it (e.g. a closed-form matrix builder without a point dimension).
-        empty_scalar: the result of empty input is a scalar 0 (a reduction).
-        bad: wrong shapes for ``args[bad_arg]``: each must raise ``ShapeError`` naming it.
-        mixed: ``"raise"`` (TypeError naming both), ``"promote"`` (result float64),
-            ``("follow", i)`` (result has the dtype of ``args[i]``) or ``None`` (n/a).
-        low: float16/bfloat16 policy: ``"compute32"`` (same dtype out, close to the
-            float32 result) or ``"reject"`` (TypeError).
-        nan: ``"propagate"`` (NaN in the primary gives NaN out) or ``"raise"``
-            (ValueError: the argument must be finite, e.g. strictly increasing knots).
-        int_ok: integer tensors are valid for ``args[0]`` (e.g. grid indices).
-        rtol: relative tolerance of the scale test in float64 (float32: 1e-4 x ``rtol32``).
-    """
-
-    name: str
-    call: Callable
-    args: tuple[Arg, ...]
-    out: str | tuple | None = "length"
-    empty: tuple[int, int] | None = (0, -2)
-    empty_scalar: bool = False
-    bad: tuple[tuple[int, ...], ...] = ()
-    bad_arg: int = 0
-    mixed: object = "raise"
-    low: str = "compute32"
-    nan: str = "propagate"
-    int_ok: bool = False
-    rtol: float = 1e-9
-    rtol32: float = 1.0
-    extra: dict = field(default_factory=dict)
-
-
-# ----------------------------------------------------------------------------- laws
-
-
-def _conjugate(m: torch.Tensor, s: float) -> torch.Tensor:
-    out = m.clone()
-    out[..., :2, 2] = out[..., :2, 2] * s
-    out[..., 2, :2] = out[..., 2, :2] / s
-    return out
-
-
-def _h8(h: torch.Tensor, s: float) -> torch.Tensor:
-    out = h.clone()
-    out[..., [2, 5]] = out[..., [2, 5]] * s
-    out[..., [6, 7]] = out[..., [6, 7]] / s
-    return out
-
-
-LAWS: dict[str, Callable[[torch.Tensor, float], torch.Tensor]] = {
-    "length": lambda x, s: x * s,
-    "unitless": lambda x, s: x,
-    "index": lambda x, s: x,
-    "inv_length": lambda x, s: x / s,
-    "area": lambda x, s: x * (s * s),
-    "area2": lambda x, s: x * (s * s) * (s * s),
-    "matrix": _conjugate,
-    "h8": _h8,
-}
-
-
-def apply_law(law, value, s: float):
-    """Scale ``value`` (a tensor or a tuple of tensors) by ``law`` (or a tuple of laws)."""
-    if law is None:
-        return value
-    if isinstance(law, tuple):
-        return tuple(apply_law(w, v, s) for w, v in zip(law, value))
-    return LAWS[law](value, s)
-
-
-# ----------------------------------------------------------------------------- inputs
-
-
-def _rotation(shape, g, dtype):
-    d = shape[-1]
-    q, r = torch.linalg.qr(torch.randn(shape, generator=g, dtype=torch.float64))
-    q = q * torch.sign(torch.diagonal(r, dim1=-2, dim2=-1))[..., None, :]
-    flip = torch.linalg.det(q) < 0
-    q[..., :, 0] = torch.where(flip[..., None], -q[..., :, 0], q[..., :, 0])
-    return q.to(dtype) if d else q
-
-
-def _homography(shape, g, dtype):
-    m = torch.eye(3, dtype=torch.float64).expand(*shape).clone()
-    m = m + 0.2 * torch.randn(shape, generator=g, dtype=torch.float64)
-    m[..., 2, :2] = 0.02 * torch.randn(*shape[:-2], 2, generator=g, dtype=torch.float64)
-    m[..., 2, 2] = 1.0
-    m[..., :2, 2] = 3 * torch.randn(*shape[:-2], 2, generator=g, dtype=torch.float64)
-    return m
-
-
-def _affine(shape, g, dtype):
-    m = _homography(shape, g, dtype)
-    m[..., 2, :2] = 0.0
-    return m
-
-
-GENERATORS: dict[str, Callable] = {
-    "normal": lambda shape, g, dt: torch.randn(shape, generator=g, dtype=torch.float64),
-    "positive": lambda shape, g, dt: 0.5 + torch.rand(shape, generator=g, dtype=torch.float64),
-    "small_positive": lambda shape, g, dt: 0.1
-    + 0.2 * torch.rand(shape, generator=g, dtype=torch.float64),
-    "t01": lambda shape, g, dt: torch.rand(shape, generator=g, dtype=torch.float64),
-    "angle": lambda shape, g, dt: 170 * (2 * torch.rand(shape, generator=g,
-                                                        dtype=torch.float64) - 1),
-    "increasing": lambda shape, g, dt: (0.2 + torch.rand(shape, generator=g,
-                                                         dtype=torch.float64)).cumsum(-1),
-    "inside": lambda shape, g, dt: 0.05 + 0.9 * torch.rand(shape, generator=g,
-                                                           dtype=torch.float64),
-    "rotation": _rotation,
-    "bounds": lambda shape, g, dt: torch.randn(3, generator=g, dtype=torch.float64)
-    + torch.tensor([[0.0], [1.0]], dtype=torch.float64)
-    * (0.5 + torch.rand(3, generator=g, dtype=torch.float64)),
-    "homography": _homography,
-    "affine": _affine,
-    "index": lambda shape, g, dt: torch.randint(0, 4, shape, generator=g).double(),
-    "unit_vector": lambda shape, g, dt: torch.nn.functional.normalize(
-        torch.randn(shape, generator=g, dtype=torch.float64), dim=-1),
-}
-
-
-def generate(entry: Entry, seed: int) -> list[torch.Tensor]:
-    """float64 inputs for ``entry`` from ``seed`` (callers cast them)."""
-    g = torch.Generator().manual_seed(seed)
-    return [GENERATORS[a.gen](a.shape, g, torch.float64) for a in entry.args]
-
+AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -214,7 +70,7 @@ EMPTY4 = ((0, 0), (1, 0), (2, 0), (3, 0))
 
 # ----------------------------------------------------------------------------- the table
 
-TABLE: list[Entry] = [
+CORE_TABLE: list[Entry] = [
     # --- core numerics
     Entry("core.hypot", lambda a, b, c: core.hypot(a, b, c),
           (Arg("components[0]", (5,)), Arg("components[1]", (5,)), Arg("components[2]", (5,))),
@@ -525,55 +381,17 @@ TABLE: list[Entry] = [
           out="unitless", empty_scalar=True, bad=((6,),)),
 ]
 
-#: Public names covered by other areas' issues (name -> (owner, reason)).
-PENDING: dict[str, tuple[str, str]] = {
-    **{f"curves.{n}": ("i15", "curves/fitting.py: fitting glue, issue 15")
-       for n in ("BezierFit", "fit_bezier", "fit_parameters")},
-    **{f"curves.{n}": ("i13", "curves/marching_squares.py: issue 13")
-       for n in ("MarchingSquaresResult", "marching_squares")},
-    **{f"sdf.{n}": ("i16", "sdf/mesh_distance.py: mesh queries, issue 16")
-       for n in ("MeshSDFResult", "TriangleClosestPoint", "closest_point_on_triangle",
-                 "is_watertight", "winding_number", "mesh_sdf")},
-    **{f"sdf.{n}": ("i15", "sdf/sampler.py: learning glue, issue 15")
-       for n in ("SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples",
-                 "load_samples")},
-    **{f"transforms.{n}": ("i12", "transforms/estimation.py, fitting.py: issue 12")
-       for n in ("FitResult", "HartleyNormalization", "HomographyFit", "HomographyModel",
-                 "find_affine", "find_euclidean", "find_homography_dlt", "find_similarity",
-                 "find_translation", "fit_transform", "hartley_normalize",
-                 "matrix_to_parameters", "parameters_to_matrix", "reprojection_error")},
-    **{f"transforms.{n}": ("i11pkg", "transforms/scene_graph.py, report_shapes.py: issue 11")
-       for n in ("FixedTransform", "Orbit", "SceneGraph", "WorldTransforms", "solar_system",
-                 "ReportShapes", "ShapeFit", "fit_report_shapes", "report_shapes")},
-    **{f"mesh.{n}": ("i13", "mesh/marching_cubes.py: issue 13")
-       for n in ("marching_cubes", "MarchingCubes", "MarchingCubesResult")},
-    **{f"mesh.{n}": ("i14io", "mesh/io.py: issue 14 (files, not geometry)")
-       for n in ("Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh")},
-    **{f"mesh.{n}": ("i11sub", "mesh/subdivision.py, loop.py, faces.py, tags.py: issue 11")
-       for n in ("pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces",
-                 "SubdivisionOperator", "catmull_clark_operator", "apply_operator",
-                 "catmull_clark", "CatmullClark", "limit_positions", "loop_operator",
-                 "loop_subdivide", "LoopSubdivision", "SubdivisionTags")},
-    **{f"viz.{n}": ("i11pkg", "figures: no numeric contract")
-       for n in ("GalleryFigure", "build_gallery", "figure", "registered_figures")},
-    "cli.CommandError": ("i11pkg", "the command line's one-line error: tested by tests/cli"),
-    **{f"mesh.{n}": ("i11sub", "mesh/bilinear.py, limit.py, face_varying.py: issue 14")
-       for n in ("bilinear_operator", "limit_frames", "LimitFrames", "face_varying_operator",
-                 "face_varying_subdivide", "FaceVaryingSubdivision")},
-    **{f"mesh.{n}": ("i15", "mesh/regularizers.py: learning glue, issue 15")
-       for n in ("MeshEdges", "mesh_edges", "mesh_laplacian", "laplacian_smoothing_loss",
-                 "normal_consistency_loss", "edge_length_loss")},
-    **{f"points.{n}": ("i15", "points/: learning glue, issue 15")
-       for n in ("knn", "KNNResult", "chamfer_distance", "ChamferResult", "ChamferDistance")},
-    **{f"sdf.{n}": ("i16", "sdf/engines.py, mesh_distance.py: mesh queries, issue 16")
-       for n in ("MeshSDF", "available_engines")},
-    **{f"transforms.{n}": ("i12", "transforms/ransac.py, registration.py: issue 12")
-       for n in ("find_transform_ransac", "RobustFit", "register_images",
-                 "RegistrationResult", "warp_image", "WarpedImage")},
-}
+TABLE: list[Entry] = CORE_TABLE + [e for area in AREAS for e in area.ENTRIES]
+
+#: Public names not yet under contract (name -> (owner, reason)).
+PENDING: dict[str, tuple[str, str]] = {k: v for area in AREAS for k, v in area.PENDING.items()}
 
 #: Public names with no geometry to put under contract (name -> reason).
 EXEMPT: dict[str, str] = {
+    **{k: v for area in AREAS for k, v in area.EXEMPT.items()},
+    **{f"viz.{n}": "figures: pictures, no numeric contract (tests/viz)"
+       for n in ("GalleryFigure", "build_gallery", "figure", "registered_figures")},
+    "cli.CommandError": "the command line's one-line error (tests/cli)",
     "ShapeError": "exception type",
     "core.ShapeError": "exception type",
     "core.as_tensor_like": "coercion helper (tests/core/test_coerce.py)",
