@@ -229,7 +229,8 @@ def test_batched_vertices_match_a_loop():
     assert shared.shape == (3, 70)
     assert_close(shared[2], M.mesh_sdf(verts[2], F, p[0]).sdf, atol=1e-14, rtol=0)
     two = M.mesh_sdf(verts.expand(2, 3, -1, -1), F, p).sdf
-    assert two.shape == (2, 3, 70) and torch.equal(two[1], r.sdf)
+    assert two.shape == (2, 3, 70)
+    assert_close(two[1], r.sdf, atol=1e-14, rtol=0)
 
 
 def test_polygon_faces_are_triangulated():
@@ -422,6 +423,12 @@ def test_backend_against_all_faces(backend, mesh, scale):
     assert ((chosen.sqrt() - best.sqrt()).abs() <= 1e-12 * size).all()
     assert_close(r.sdf.abs(), best.sqrt(), atol=1e-12 * size, rtol=0)
     assert torch.equal(r.sdf < 0, _winding_reference(V, F, p) > 0.5)
+    # without closest points or gradients an engine answers alone (its kernel evaluates)
+    plain = M.mesh_sdf(V, F, p, sign=sign, backend=backend).sdf
+    assert_close(plain.abs(), best.sqrt(), atol=1e-12 * size, rtol=0)
+    assert torch.equal(plain < 0, r.sdf < 0)
+    unsigned = M.mesh_sdf(V, F, p, sign="none", backend=backend).sdf
+    assert_close(unsigned, best.sqrt(), atol=1e-12 * size, rtol=0)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -482,7 +489,8 @@ def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
     first = module(p, return_closest=True)
     second = module(p.flip(0))
     assert len(builds) == 1  # the second query reused the structure
-    assert torch.equal(first.sdf, ref.sdf) and torch.equal(second.sdf, ref.sdf.flip(0))
+    assert torch.equal(first.sdf, ref.sdf)
+    assert_close(second.sdf, ref.sdf.flip(0), atol=1e-14, rtol=0)  # an engine's own float64
     module.vertices.mul_(2.0)  # an in-place edit rebuilds
     assert_close(module(p).sdf, ref2.sdf, atol=1e-12, rtol=0)
     assert len(builds) == 2
@@ -537,3 +545,36 @@ def test_mesh_sdf_module_under_compile_vmap_jacrev():
     r = module(p[0], return_closest=True)
     unit = (p[0] - r.closest_points) / r.sdf[:, None]
     assert_close(jac.diagonal(dim1=0, dim2=1).t(), unit, atol=1e-10, rtol=0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_points_beyond_float32_range(backend):
+    """An engine searches in float32: points beyond its range are moved along their own
+    direction before the search; the float64 answer still matches the torch backend."""
+    p = torch.tensor([[1e200, 3e199, -2e199], [0.2, -1e300, 0.1], [0.1, 0.2, 0.3]],
+                     dtype=torch.float64)
+    got = M.mesh_sdf(TET_V, TET_F, p, backend=_backend(backend)).sdf
+    want = M.mesh_sdf(TET_V, TET_F, p, backend="torch").sdf
+    assert torch.isfinite(got).all()
+    assert_close(got, want, rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_repeated_calls_reuse_only_an_identical_mesh(backend, monkeypatch):
+    """Plain ``mesh_sdf`` calls keep an engine's structure for exactly the last mesh: a
+    second call on the same mesh does not rebuild, an in-place edit (same storage) does."""
+    backend = _backend(backend)
+    m = trimesh.creation.icosphere(subdivisions=2)
+    V, F = _mesh(m)
+    p = _points(m, 50, seed=3)
+    want2 = M.mesh_sdf(2 * V, F, p, backend="torch").sdf
+    builds = []
+    real = E.build_search
+    monkeypatch.setattr(E, "build_search", lambda *a: builds.append(1) or real(*a))
+    first = M.mesh_sdf(V, F, p, backend=backend).sdf
+    again = M.mesh_sdf(V, F, p, backend=backend).sdf
+    assert torch.equal(first, again)
+    reused = len(builds)
+    V.mul_(2.0)
+    assert_close(M.mesh_sdf(V, F, p, backend=backend).sdf, want2, atol=1e-12, rtol=0)
+    assert reused == (1 if backend != "torch" else 2) and len(builds) == reused + 1

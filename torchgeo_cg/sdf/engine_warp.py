@@ -29,7 +29,8 @@ try:
 except ImportError:  # the optional extra "fast" is not installed
     wp = None
 
-__all__ = ["WarpSearch", "morton_order", "face_rings", "build_warp_search", "warp_closest_faces"]
+__all__ = ["WarpSearch", "WarpAnswer", "morton_order", "face_rings", "build_warp_search",
+           "warp_closest_faces"]
 
 if wp is not None:  # kernels exist only with the optional extra
     # Warp's info banner and kernel-load lines would print on every import; warnings stay
@@ -39,37 +40,110 @@ if wp is not None:  # kernels exist only with the optional extra
     wp.set_module_options({"enable_backward": False})  # the search needs no adjoint kernels
 
     @wp.func
-    def _segment_d2(w: wp.vec3d, e: wp.vec3d) -> wp.float64:
-        """Squared distance from ``w`` to the segment ``[0, e]`` (zero length safe)."""
-        ee = wp.dot(e, e)
+    def _dot3(u: wp.vec3d, v: wp.vec3d) -> wp.float64:
+        """``u . v`` summed left to right, as the torch evaluation does."""
+        return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+    @wp.func
+    def _segment(p: wp.vec3d, u: wp.vec3d, v: wp.vec3d):
+        """Closest point of segment ``uv`` to ``p``: ``(squared distance, t in [0, 1],
+        point)``, zero length safe (the torch evaluation's formula)."""
+        ab = v - u
+        den = _dot3(ab, ab)
         t = wp.float64(0.0)
-        if ee > wp.float64(0.0):
-            t = wp.clamp(wp.dot(w, e) / ee, wp.float64(0.0), wp.float64(1.0))
-        d = w - t * e
-        return wp.dot(d, d)
+        if den > wp.float64(0.0):
+            t = wp.clamp(_dot3(p - u, ab) / den, wp.float64(0.0), wp.float64(1.0))
+        q = wp.vec3d(u[0] + t * ab[0], u[1] + t * ab[1], u[2] + t * ab[2])
+        d = p - q
+        return _dot3(d, d), t, q
+
+
+    @wp.func
+    def _closest_on_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
+        """Squared distance, closest point and feature code (0 face, 1-3 edges ab, bc,
+        ca, 4-6 vertices a, b, c) of triangle ``abc`` to ``p``, with the operations of
+        :func:`~torchgeo_cg.sdf.mesh_distance.closest_point_on_triangle`: the plane
+        projection when it falls inside the (non-degenerate) triangle, else the nearest
+        edge point, the face first and then the edges in order on ties."""
+        e0 = b - a
+        e1 = c - a
+        w = p - a
+        d00 = _dot3(e0, e0)
+        d01 = _dot3(e0, e1)
+        d11 = _dot3(e1, e1)
+        dot0 = _dot3(w, e0)
+        dot1 = _dot3(w, e1)
+        den = d00 * d11 - d01 * d01
+        best = wp.float64(wp.inf)
+        q = a
+        code = wp.int32(0)
+        t_best = wp.float64(0.0)
+        if den > wp.float64(1.0e-12) * d00 * d11:
+            bv = (d11 * dot0 - d01 * dot1) / den
+            bw = (d00 * dot1 - d01 * dot0) / den
+            if bv >= wp.float64(0.0) and bw >= wp.float64(0.0) and bv + bw <= wp.float64(1.0):
+                q = wp.vec3d(a[0] + bv * e0[0] + bw * e1[0], a[1] + bv * e0[1] + bw * e1[1],
+                             a[2] + bv * e0[2] + bw * e1[2])
+                d = p - q
+                best = _dot3(d, d)
+        d2, t, qe = _segment(p, a, b)
+        if d2 < best:
+            best = d2
+            t_best = t
+            q = qe
+            code = 1
+        d2, t, qe = _segment(p, b, c)
+        if d2 < best:
+            best = d2
+            t_best = t
+            q = qe
+            code = 2
+        d2, t, qe = _segment(p, c, a)
+        if d2 < best:
+            best = d2
+            t_best = t
+            q = qe
+            code = 3
+        feature = code
+        if code > 0 and t_best <= wp.float64(0.0):
+            feature = 3 + code  # the edge's start vertex: a, b, c
+        if code > 0 and t_best >= wp.float64(1.0):
+            feature = 4 + code % 3  # its end vertex: b, c, a
+        return best, q, feature
 
 
     @wp.func
     def _triangle_d2(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.float64:
-        """Squared point-triangle distance: the plane projection when it falls inside the
-        (non-degenerate) triangle, else the closest of the three edges."""
+        """Squared point-triangle distance only (the neighbour check's comparison): the
+        plane projection when it falls inside the triangle, else the nearest edge."""
         e0 = b - a
         e1 = c - a
         w = p - a
-        d00 = wp.dot(e0, e0)
-        d01 = wp.dot(e0, e1)
-        d11 = wp.dot(e1, e1)
-        dot0 = wp.dot(w, e0)
-        dot1 = wp.dot(w, e1)
+        d00 = _dot3(e0, e0)
+        d01 = _dot3(e0, e1)
+        d11 = _dot3(e1, e1)
+        dot0 = _dot3(w, e0)
+        dot1 = _dot3(w, e1)
         den = d00 * d11 - d01 * d01
         if den > wp.float64(1.0e-12) * d00 * d11:
             bv = (d11 * dot0 - d01 * dot1) / den
             bw = (d00 * dot1 - d01 * dot0) / den
             if bv >= wp.float64(0.0) and bw >= wp.float64(0.0) and bv + bw <= wp.float64(1.0):
-                q = w - bv * e0 - bw * e1
-                return wp.dot(q, q)
-        best = wp.min(_segment_d2(w, e0), _segment_d2(w, e1))
-        return wp.min(best, _segment_d2(p - b, c - b))
+                d = w - bv * e0 - bw * e1
+                return _dot3(d, d)
+        return wp.min(wp.min(_segment_d2(w, e0), _segment_d2(w, e1)), _segment_d2(p - b, c - b))
+
+
+    @wp.func
+    def _segment_d2(w: wp.vec3d, e: wp.vec3d) -> wp.float64:
+        """Squared distance from ``w`` to the segment ``[0, e]`` (zero length safe)."""
+        ee = _dot3(e, e)
+        t = wp.float64(0.0)
+        if ee > wp.float64(0.0):
+            t = wp.clamp(_dot3(w, e) / ee, wp.float64(0.0), wp.float64(1.0))
+        d = w - t * e
+        return _dot3(d, d)
 
 
     @wp.kernel
@@ -77,46 +151,86 @@ if wp is not None:  # kernels exist only with the optional extra
         mesh_ids: wp.array(dtype=wp.uint64),
         points32: wp.array(dtype=wp.vec3),
         points64: wp.array(dtype=wp.vec3d),
-        verts64: wp.array(dtype=wp.vec3d),
-        tris: wp.array(dtype=wp.int32, ndim=2),
+        corners: wp.array(dtype=wp.vec3d),
         ring_start: wp.array(dtype=wp.int32),
         ring_faces: wp.array(dtype=wp.int32),
+        normals: wp.array(dtype=wp.vec3d),
         first: int,
         points_per_mesh: int,
-        num_vertices: int,
-        out: wp.array(dtype=wp.int32),
+        faces_per_mesh: int,
+        mode: int,
+        out_face: wp.array(dtype=wp.int32),
+        out_sdf: wp.array(dtype=wp.float64),
     ):
         i = wp.tid() + first
         item = i // points_per_mesh
         query = wp.mesh_query_point_no_sign(mesh_ids[item], points32[i], 1.0e30)
         best = query.face
         p = points64[i]
-        base = item * num_vertices
-        best_d2 = _triangle_d2(p, verts64[base + tris[best, 0]], verts64[base + tris[best, 1]],
-                               verts64[base + tris[best, 2]])
+        base = 3 * item * faces_per_mesh
+        best_d2 = _triangle_d2(p, corners[base + 3 * best], corners[base + 3 * best + 1],
+                               corners[base + 3 * best + 2])
         f0 = best
         for j in range(ring_start[f0], ring_start[f0 + 1]):  # float64 check of the 1-ring
             g = ring_faces[j]
-            d2 = _triangle_d2(p, verts64[base + tris[g, 0]], verts64[base + tris[g, 1]],
-                              verts64[base + tris[g, 2]])
+            d2 = _triangle_d2(p, corners[base + 3 * g], corners[base + 3 * g + 1],
+                              corners[base + 3 * g + 2])
             if d2 < best_d2 or (d2 == best_d2 and g < best):
                 best_d2 = d2
                 best = g
-        out[i] = best
+        out_face[i] = best
+        if mode > 0:  # the distance (and sign) on that face, evaluated here in float64
+            k = base + 3 * best
+            d2, q, feature = _closest_on_triangle(p, corners[k], corners[k + 1],
+                                                  corners[k + 2])
+            dist = wp.sqrt(d2)
+            if mode == 2:
+                n = normals[7 * (item * faces_per_mesh + best) + feature]
+                if _dot3(p - q, n) < wp.float64(0.0):
+                    dist = -dist
+            out_sdf[i] = dist
 
 
-class WarpSearch(NamedTuple):
+class WarpSearch:
     """Warp BVHs of ``B`` meshes sharing ``(T, 3)`` triangles, with the float64 data of the
-    neighbour check. Torch tensors are kept alive: the Warp arrays alias them."""
+    neighbour check and of the evaluation. Torch tensors are kept alive: the Warp arrays
+    alias them.
 
-    meshes: list
-    mesh_ids: object  # wp.array of uint64
-    verts32: torch.Tensor  # (B V, 3) float32
-    verts64: torch.Tensor  # (B V, 3) float64
-    tris: torch.Tensor  # (T, 3) int32
-    ring_start: torch.Tensor  # (T + 1,) int32 CSR: the other faces sharing a vertex
-    ring_faces: torch.Tensor  # (nnz,) int32
-    num_vertices: int
+    Attributes:
+        meshes: the ``wp.Mesh`` of every batch item; ``mesh_ids`` their ids (``wp.array``).
+        verts32: ``(B V, 3)`` float32 vertices the BVHs are built on.
+        corners: ``(B T 3, 3)`` float64 triangle corners.
+        tris: ``(T, 3)`` long triangles.
+        ring_start, ring_faces: int32 CSR, the other faces sharing a vertex with each face.
+        num_vertices: ``V``.
+    """
+
+    def __init__(self, meshes, mesh_ids, verts32, corners, tris, ring_start, ring_faces,
+                 num_vertices):
+        self.meshes, self.mesh_ids, self.verts32 = meshes, mesh_ids, verts32
+        self.corners, self.tris, self.num_vertices = corners, tris, num_vertices
+        self.ring_start, self.ring_faces = ring_start, ring_faces
+        self._normals = None
+
+    def normals(self) -> torch.Tensor:
+        """``(B T 7, 3)`` float64 feature pseudo-normals (face, 3 edges, 3 vertices) of
+        :func:`~torchgeo_cg.sdf.mesh_distance.pseudo_normals`, computed on first use."""
+        if self._normals is None:
+            from torchgeo_cg.sdf.mesh_distance import pseudo_normals
+
+            tri = self.corners.reshape(-1, self.tris.shape[0], 3, 3)
+            self._normals = pseudo_normals(tri, self.tris, self.num_vertices).reshape(
+                -1, 3).contiguous()
+        return self._normals
+
+
+class WarpAnswer(NamedTuple):
+    """What the kernel returns per point: the closest face (``(B, N)`` long) and, when
+    asked for, the distance on it in float64, in the scaled units (``(B, N)``; signed
+    with the pseudo-normals, or unsigned), else ``None``."""
+
+    face_ids: torch.Tensor
+    sdf: torch.Tensor | None
 
 
 def _spread_bits(x: torch.Tensor) -> torch.Tensor:
@@ -139,8 +253,8 @@ def morton_order(points_n3: torch.Tensor) -> torch.Tensor:
     """
     lo, hi = points_n3.amin(0), points_n3.amax(0)
     span = torch.where(hi > lo, hi - lo, torch.ones_like(hi))
-    q = ((points_n3 - lo) / span * 1023).long()
-    key = _spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << 1) | (_spread_bits(q[:, 2]) << 2)
+    x, y, z = ((points_n3 - lo) / span * 1023).int().t().contiguous()  # 30-bit keys: int32
+    key = _spread_bits(x) | (_spread_bits(y) << 1) | (_spread_bits(z) << 2)
     return torch.argsort(key)
 
 
@@ -172,7 +286,8 @@ def face_rings(tris_t3: torch.Tensor, num_vertices: int) -> tuple[torch.Tensor, 
 
 
 def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSearch:
-    """One Warp BVH per mesh, plus the vertex-to-face table of the float64 check.
+    """One Warp BVH per mesh, plus the float64 corners and the vertex-to-face table of the
+    float64 check.
 
     Args:
         verts_bv3: ``(B, V, 3)`` scaled vertices (any float dtype), CPU or CUDA.
@@ -200,32 +315,39 @@ def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSea
     B, V = verts_bv3.shape[:2]
     device = wp.device_from_torch(verts_bv3.device)
     verts32 = verts_bv3.detach().reshape(B * V, 3).float().contiguous()
-    verts64 = verts_bv3.detach().reshape(B * V, 3).double().contiguous()
-    tris = tris_t3.to(device=verts_bv3.device, dtype=torch.int32).contiguous()
-    ring_start, ring_faces = face_rings(tris_t3.to(verts_bv3.device), V)
-    indices = wp.from_torch(tris.reshape(-1), dtype=wp.int32)
+    tris = tris_t3.to(verts_bv3.device)
+    corners = verts_bv3.detach().double()[:, tris].reshape(-1, 3).contiguous()
+    ring_start, ring_faces = face_rings(tris, V)
+    indices = wp.from_torch(tris.to(torch.int32).reshape(-1).contiguous(), dtype=wp.int32)
     meshes = [wp.Mesh(points=wp.from_torch(verts32[b * V:(b + 1) * V], dtype=wp.vec3),
                       indices=indices) for b in range(B)]  # Warp builds one BVH per call
     ids = wp.array([m.id for m in meshes], dtype=wp.uint64, device=device)
-    return WarpSearch(meshes, ids, verts32, verts64, tris, ring_start, ring_faces, V)
+    return WarpSearch(meshes, ids, verts32, corners, tris, ring_start, ring_faces, V)
 
 
-def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, block: int = 1 << 16,
-                       progress: bool = False) -> torch.Tensor:
-    """Closest face of every point, per mesh: ``(B, N)`` long, on the points' device.
+def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, mode: int = 0,
+                       block: int = 1 << 16, progress: bool = False) -> WarpAnswer:
+    """Closest face of every point, per mesh, and optionally its distance in float64.
 
     Args:
         search: :func:`build_warp_search` of the ``B`` meshes (same device as the points).
-        points_bn3: ``(B, N, 3)`` scaled finite points.
+        points_bn3: ``(B, N, 3)`` scaled finite points, far ones pulled in
+            (:func:`~torchgeo_cg.sdf.mesh_search.pull_in_far_points`).
+        mode: ``0`` faces only, ``1`` also the unsigned distance, ``2`` also the distance
+            signed by the pseudo-normal of the closest feature (negative inside).
         block: points per launch (for the progress bar).
         progress: show a tqdm progress bar over the launches.
+
+    Returns:
+        :class:`WarpAnswer` ``(face_ids (B, N) long, sdf (B, N) float64 | None)`` on the
+        points' device.
 
     Example:
         >>> v = torch.tensor([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]])
         >>> tris = torch.tensor([[0, 1, 2], [0, 1, 3]])
         >>> p = torch.tensor([[[0.2, 0.2, -1.0], [0.2, -1.0, 0.2]]])
         >>> if wp is not None:
-        ...     print(warp_closest_faces(build_warp_search(v, tris), p))
+        ...     print(warp_closest_faces(build_warp_search(v, tris), p).face_ids)
         ... else:  # without the extra, the same answer from the torch search
         ...     from torchgeo_cg.sdf.engines import search_faces
         ...     print(search_faces(v, tris, p, "torch"))
@@ -234,21 +356,27 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, block: int 
     B, N = points_bn3.shape[:2]
     device = wp.device_from_torch(points_bn3.device)
     order = morton_order(points_bn3.detach().reshape(B * N, 3))
-    item = torch.div(order, N, rounding_mode="floor")
-    order = order[torch.argsort(item, stable=True)]  # rows of mesh b stay rows of mesh b
+    if B > 1:  # rows of mesh b stay rows of mesh b
+        order = order[torch.argsort(torch.div(order, N, rounding_mode="floor"), stable=True)]
     p64 = points_bn3.detach().reshape(B * N, 3).double()[order].contiguous()
-    p32 = p64.float()
-    out = torch.empty(B * N, dtype=torch.int32, device=points_bn3.device)
-    args = [search.mesh_ids, wp.from_torch(p32, dtype=wp.vec3),
-            wp.from_torch(p64, dtype=wp.vec3d), wp.from_torch(search.verts64, dtype=wp.vec3d),
-            wp.from_torch(search.tris, dtype=wp.int32), wp.from_torch(search.ring_start),
-            wp.from_torch(search.ring_faces)]
-    out_wp = wp.from_torch(out)
+    face = torch.empty(B * N, dtype=torch.int32, device=points_bn3.device)
+    sdf = torch.empty(B * N if mode else 0, dtype=torch.float64, device=points_bn3.device)
+    normals = search.normals() if mode == 2 else search.corners[:0]
+    args = [search.mesh_ids, wp.from_torch(p64.float(), dtype=wp.vec3),
+            wp.from_torch(p64, dtype=wp.vec3d), wp.from_torch(search.corners, dtype=wp.vec3d),
+            wp.from_torch(search.ring_start), wp.from_torch(search.ring_faces),
+            wp.from_torch(normals, dtype=wp.vec3d)]
+    outs = [wp.from_torch(face), wp.from_torch(sdf)]
+    T = search.tris.shape[0]
     for s in tqdm(range(0, B * N, block), disable=not progress, desc="mesh_sdf search",
                   unit="block"):
         wp.launch(_closest_face_kernel, dim=min(block, B * N - s), device=device,
-                  inputs=[*args, s, N, search.num_vertices, out_wp])
+                  inputs=[*args, s, N, T, mode, *outs])
     wp.synchronize_device(device)
-    faces = torch.empty_like(out, dtype=torch.long)
-    faces[order] = out.long()
-    return faces.reshape(B, N)
+    face_ids = torch.empty_like(face, dtype=torch.long)
+    face_ids[order] = face.long()
+    if not mode:
+        return WarpAnswer(face_ids.reshape(B, N), None)
+    out = torch.empty_like(sdf)
+    out[order] = sdf
+    return WarpAnswer(face_ids.reshape(B, N), out.reshape(B, N))

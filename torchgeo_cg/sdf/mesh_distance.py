@@ -45,9 +45,9 @@ from torchgeo_cg.core.check import (
     check_shape,
     check_tensor,
 )
-from torchgeo_cg.core.numerics import safe_sqrt
+from torchgeo_cg.core.numerics import hypot
 from torchgeo_cg.mesh.faces import triangulate_faces
-from torchgeo_cg.sdf.mesh_search import power_of_two_scale
+from torchgeo_cg.sdf.mesh_search import far_radius, power_of_two_scale, pull_in_far_points
 
 __all__ = [
     "FEATURES",
@@ -59,6 +59,7 @@ __all__ = [
     "pseudo_normals",
     "resolve_sign",
     "evaluate_sdf",
+    "search_and_evaluate",
     "TriangleClosestPoint",
     "closest_point_on_triangle",
     "is_watertight",
@@ -464,9 +465,10 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
     scale = power_of_two_scale(verts_bv3).to(dtype)  # (B, 1, 1)
     vn, pn = verts_bv3.to(dtype) / scale, points_bn3 / scale
     tri = gather_triangles(vn, tris_t3, face_ids_bn)  # (B, N, 3, 3)
-    cp = closest_point_on_triangle(pn, tri[..., 0, :], tri[..., 1, :], tri[..., 2, :])
+    near = pull_in_far_points(pn)  # squared distances stay finite; measured from pn below
+    cp = closest_point_on_triangle(near, tri[..., 0, :], tri[..., 1, :], tri[..., 2, :])
     diff = pn - cp.points
-    dist = safe_sqrt((diff * diff).sum(-1), eps=0.0)  # guarded only at exactly 0
+    dist = hypot(*diff.unbind(-1))  # overflow-safe; zero gradient at exactly 0
     if sign == "pseudonormal":
         with torch.no_grad():
             if normals_bt73 is None:
@@ -550,7 +552,7 @@ def mesh_sdf(
         >>> r.sdf, r.face_ids
         (tensor([-0.1000,  2.0000]), tensor([3, 0]))
     """
-    from torchgeo_cg.sdf.engines import resolve_backend, search_faces
+    from torchgeo_cg.sdf.engines import resolve_backend
 
     tris = check_mesh(vertices, faces)
     check_float(points, "points")
@@ -558,10 +560,50 @@ def mesh_sdf(
     sign = resolve_sign(sign, tris, vertices.shape[-2])
     engine = resolve_backend(backend)
     verts_bv3, points_bn3, lead = batch_mesh_points(vertices, points)
-    face_ids = search_faces(verts_bv3, tris, points_bn3, engine, progress=progress)
-    sdf, closest = evaluate_sdf(verts_bv3, tris, points_bn3, face_ids, sign)
+    sdf, closest, face_ids = search_and_evaluate(verts_bv3, tris, points_bn3, engine, sign,
+                                                 return_closest, -1, progress)
     return MeshSDFResult(sdf.reshape(lead), closest.reshape(*lead, 3) if return_closest else None,
                          face_ids.reshape(lead) if return_closest else None)
+
+
+def _has_far_points(verts_bv3: torch.Tensor, points_bn3: torch.Tensor) -> bool:
+    """Points beyond :func:`~torchgeo_cg.sdf.mesh_search.far_radius` of the mesh (relative
+    to its size): the search pulls them in, so the engine's kernel would measure from the
+    pulled-in point; they take the torch evaluation, which measures from the point itself
+    (rare; a cheap check)."""
+    if points_bn3.numel() == 0:
+        return False
+    scale = power_of_two_scale(verts_bv3.detach()).to(torch.float64)
+    top = (points_bn3.detach().abs().amax(-1) / scale[..., 0]).nan_to_num(0.0)
+    try:
+        return bool((top > far_radius(torch.float64)).any())
+    except RuntimeError:  # no data-dependent branch possible (vmap): the torch path
+        return True
+
+
+def search_and_evaluate(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
+                        points_bn3: torch.Tensor, engine: str, sign: str,
+                        return_closest: bool, key: int, progress: bool):
+    """The closest face of every point, then the signed distance on it: ``(sdf (B, N),
+    closest (B, N, 3) | None, face_ids (B, N))``.
+
+    With an engine, a query that needs no gradient and no closest points (and signs by
+    pseudo-normals or not at all) is answered by the engine's kernel alone, which
+    evaluates the same formulas as :func:`evaluate_sdf` in float64; otherwise the
+    distance is evaluated in torch from the face found, where gradients flow.
+    """
+    from torchgeo_cg.sdf.engines import engine_sdf, search_faces
+
+    needs_grad = torch.is_grad_enabled() and (verts_bv3.requires_grad
+                                              or points_bn3.requires_grad)
+    if (engine != "torch" and sign in ("pseudonormal", "none") and not return_closest
+            and not needs_grad and not _has_far_points(verts_bv3, points_bn3)):
+        face_ids, sdf = engine_sdf(verts_bv3, tris_t3, points_bn3, engine,
+                                   sign == "pseudonormal", key, progress)
+        return sdf, None, face_ids
+    face_ids = search_faces(verts_bv3, tris_t3, points_bn3, engine, key, progress)
+    sdf, closest = evaluate_sdf(verts_bv3, tris_t3, points_bn3, face_ids, sign)
+    return sdf, closest, face_ids
 
 
 class MeshSDF(nn.Module):
@@ -613,7 +655,7 @@ class MeshSDF(nn.Module):
     def forward(self, points: torch.Tensor, return_closest: bool = False,
                 progress: bool = False) -> MeshSDFResult:
         """Signed distances of ``points (*, N, 3)``: :class:`MeshSDFResult`."""
-        from torchgeo_cg.sdf.engines import resolve_backend, search_faces
+        from torchgeo_cg.sdf.engines import resolve_backend
 
         check_float(points, "points")
         check_shape(points, ["*", "N", "3"], "points")
@@ -621,8 +663,8 @@ class MeshSDF(nn.Module):
         verts_bv3, points_bn3, lead = batch_mesh_points(self.vertices, points)
         same_meshes = verts_bv3.shape[0] == self.vertices.shape[:-2].numel()
         key = self._cache_key() if same_meshes else -1  # broadcast copies are not cached
-        face_ids = search_faces(verts_bv3, self.faces, points_bn3, engine, key, progress)
-        sdf, closest = evaluate_sdf(verts_bv3, self.faces, points_bn3, face_ids, self.sign)
+        sdf, closest, face_ids = search_and_evaluate(verts_bv3, self.faces, points_bn3, engine,
+                                                     self.sign, return_closest, key, progress)
         return MeshSDFResult(sdf.reshape(lead),
                              closest.reshape(*lead, 3) if return_closest else None,
                              face_ids.reshape(lead) if return_closest else None)

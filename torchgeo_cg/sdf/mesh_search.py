@@ -39,6 +39,8 @@ import torch
 
 __all__ = [
     "power_of_two_scale",
+    "far_radius",
+    "pull_in_far_points",
     "face_table",
     "pair_d2",
     "FaceGrid",
@@ -68,6 +70,43 @@ def power_of_two_scale(x_bk3: torch.Tensor) -> torch.Tensor:
     _, exponent = torch.frexp(big)  # big = m * 2**e with m in [0.5, 1)
     return torch.where(big > 0, torch.ldexp(torch.ones_like(big), exponent),
                        torch.ones_like(big))
+
+
+def far_radius(dtype: torch.dtype) -> float:
+    """The radius beyond which a scaled point (mesh inside ``[-1, 1]``) is "far":
+    ``1 / (256 eps)`` of ``dtype`` (2**44 in float64, 2**15 in float32). There the
+    rounding of a distance reaches 1/256 of the mesh, so which feature is closest cannot
+    be resolved any further, while squared distances are far from overflowing.
+
+    Example:
+        >>> far_radius(torch.float64) == 2.0**44, far_radius(torch.float32) == 2.0**15
+        (True, True)
+    """
+    return 1.0 / (256.0 * torch.finfo(dtype).eps)
+
+
+def pull_in_far_points(points_bn3: torch.Tensor) -> torch.Tensor:
+    """Scaled points with a coordinate beyond :func:`far_radius`, moved along their own
+    direction to that radius (the others unchanged; no copy when none is far).
+
+    Seen from so far, the closest feature of a mesh inside ``[-1, 1]`` is the same up to
+    rounding, and squared distances to it can neither overflow nor drown the differences
+    between faces; the distance itself is then measured from the original point.
+
+    Example:
+        >>> pull_in_far_points(torch.tensor([[[1e30, 0.0, 0.0], [1.0, 2.0, 3.0]]]))
+        tensor([[[3.2768e+04, 0.0000e+00, 0.0000e+00],
+                 [1.0000e+00, 2.0000e+00, 3.0000e+00]]])
+    """
+    radius = far_radius(points_bn3.dtype)
+    top = points_bn3.detach().abs().amax(-1, keepdim=True)
+    far = top > radius
+    try:
+        if not bool(far.any()):
+            return points_bn3
+    except RuntimeError:  # no data-dependent branch possible (vmap): always select
+        pass
+    return torch.where(far, points_bn3 * (radius / torch.where(far, top, 1.0)), points_bn3)
 
 
 def face_table(tri_f33: torch.Tensor) -> torch.Tensor:
