@@ -161,11 +161,12 @@ INVENTORY: dict[str, list[str]] = {
         "world_to_index", "zero_level_set"
     ],
     "torchgeo_cg.sdf.engine_warp": [
-        "WarpSearch", "build_warp_search", "face_rings", "morton_order", "warp_closest_faces"
+        "WarpAnswer", "WarpSearch", "build_warp_search", "face_rings", "morton_order",
+        "warp_closest_faces"
     ],
     "torchgeo_cg.sdf.engines": [
-        "ENGINES", "available_engines", "build_search", "new_cache_key", "resolve_backend",
-        "search_faces"
+        "ENGINES", "available_engines", "build_search", "engine_sdf", "new_cache_key",
+        "resolve_backend", "search_faces"
     ],
     "torchgeo_cg.sdf.gradients": ["eikonal_loss", "sdf_gradient", "sdf_normal"],
     "torchgeo_cg.sdf.grid": [
@@ -176,11 +177,12 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.sdf.mesh_distance": [
         "FEATURES", "MeshSDF", "MeshSDFResult", "TriangleClosestPoint", "batch_mesh_points",
         "check_mesh", "closest_point_on_triangle", "evaluate_sdf", "gather_triangles",
-        "is_watertight", "mesh_sdf", "pseudo_normals", "resolve_sign", "winding_number"
+        "is_watertight", "mesh_sdf", "pseudo_normals", "resolve_sign", "search_and_evaluate",
+        "winding_number"
     ],
     "torchgeo_cg.sdf.mesh_search": [
-        "FaceGrid", "TorchSearch", "build_torch_search", "face_table", "pair_d2",
-        "power_of_two_scale", "torch_closest_faces"
+        "FaceGrid", "TorchSearch", "build_torch_search", "face_table", "far_radius", "pair_d2",
+        "power_of_two_scale", "pull_in_far_points", "torch_closest_faces"
     ],
     "torchgeo_cg.sdf.operators": [
         "Difference", "Intersection", "Product", "Rotate", "Scale", "SmoothIntersection",
