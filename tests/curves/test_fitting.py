@@ -164,3 +164,58 @@ def test_fit_parameters_nan_point_gives_nan(parametrization):
     # coincident samples (total length exactly 0) still fall back to uniform
     flat = fit_parameters(torch.ones(4, 2, dtype=torch.float64), parametrization)
     torch.testing.assert_close(flat, torch.linspace(0, 1, 4, dtype=torch.float64))
+
+
+# --- contract regressions (issue 10) -----------------------------------------------------
+
+
+def test_nan_point_gives_nan_stroke_and_leaves_the_others():
+    """A NaN point crashed the solver (lstsq 'illegal value'); now its stroke is NaN and
+    the other strokes equal their own fits."""
+    rng = np.random.default_rng(1)
+    points = torch.tensor(rng.standard_normal((3, 7, 2)))
+    clean = fit_bezier(points, 2)
+    points[1, 3, 0] = float("nan")
+    for extra in ({}, {"correct_parameters": True, "max_iterations": 3},
+                  {"lengths": torch.tensor([7, 6, 5])}):
+        fit = fit_bezier(points, 2, **extra)
+        alone = fit_bezier(points[[0, 2]], 2, **{k: v[[0, 2]] if k == "lengths" else v
+                                                 for k, v in extra.items()})
+        assert fit.control_points[1].isnan().all() and fit.rms[1].isnan()
+        assert fit.t[1].isnan().any()  # chord parameters: NaN stays NaN (was uniform)
+        assert_close(fit.control_points[[0, 2]], alone.control_points)
+    assert_close(fit_bezier(points[[0, 2]], 2).control_points, clean.control_points[[0, 2]])
+
+
+def test_nan_weight_gives_nan_and_padded_nan_is_ignored():
+    points = torch.tensor(np.random.default_rng(2).standard_normal((2, 6, 2)))
+    weights = torch.ones(2, 6, dtype=torch.float64)
+    weights[0, 2] = float("nan")
+    fit = fit_bezier(points, 2, weights=weights)
+    assert fit.control_points[0].isnan().all() and fit.rms[0].isnan()
+    assert_close(fit.control_points[1], fit_bezier(points[1], 2).control_points)
+    padded = points.clone()
+    padded[1, 4:] = float("nan")  # rows beyond lengths[1] = 4 are padding
+    weights[0, 2] = 1.0
+    weights[1, 5] = float("nan")
+    lengths = torch.tensor([6, 4])
+    fit = fit_bezier(padded, 2, weights=weights, lengths=lengths)
+    ref = fit_bezier(points[1, :4], 2)
+    assert_close(fit.control_points[1], ref.control_points)
+    assert_close(fit.rms[1], ref.rms)
+
+
+def test_coincident_parameters_give_the_minimum_norm_solution():
+    """A repeated sample makes two chord parameters equal, so the normal equations are
+    singular; the fallback (lstsq, gelsy driver) returned a non-solution (rms 0.82 where
+    an exact fit exists). Reference: numpy's SVD lstsq (minimum norm)."""
+    points = torch.tensor([[0.0, 0.0], [0.0, 0.0], [1.0, 1.0], [2.0, 0.0]], dtype=torch.float64)
+    batch = torch.stack([points, points.flip(0)])
+    for pts in (points, batch):
+        fit = fit_bezier(pts, 3)
+        for cp, t, p in zip(fit.control_points.reshape(-1, 4, 2), fit.t.reshape(-1, 4),
+                            pts.reshape(-1, 4, 2)):
+            basis = bernstein_basis(t, 3).numpy()
+            ref = np.linalg.lstsq(basis, p.numpy(), rcond=None)[0]
+            assert_close(cp, ref)
+        assert fit.rms.max() < 1e-12

@@ -255,3 +255,54 @@ def test_volume_input_and_scale_invariance():
         scaled = marching_squares(noisy * s, 0.0)
         assert torch.equal(scaled.lengths, ref.lengths)
         torch.testing.assert_close(scaled.vertices, ref.vertices, rtol=0, atol=1e-12)
+
+
+# --- contract regressions (issue 10) -----------------------------------------------------
+
+
+def _ring_fields(dtype) -> torch.Tensor:
+    x = torch.linspace(-1, 1, 7, dtype=torch.float64)
+    r2 = x[:, None] ** 2 + x[None, :] ** 2
+    return torch.stack([r2 - 0.5, 0.3 - r2]).to(dtype)
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_low_precision_is_computed_in_float32_and_cast_back(low):
+    """float16/bfloat16 fields returned float32 vertices; now the field's dtype, equal to
+    the float32 computation cast back (same topology, vertices within one rounding)."""
+    fields = _ring_fields(low)
+    out = marching_squares(fields, origin=(0.5, -1.0), spacing=(0.25, 0.5))
+    ref = marching_squares(fields.float(), origin=(0.5, -1.0), spacing=(0.25, 0.5))
+    assert out.vertices.dtype == low
+    for got, want in zip(out[1:], ref[1:]):
+        assert torch.equal(got, want)
+    torch.testing.assert_close(out.vertices, ref.vertices.to(low), rtol=0, atol=0)
+
+
+def test_vertices_keep_float32_under_a_float64_default_dtype():
+    """The edge selector was a default-dtype constant: float32 fields gave float64
+    vertices when the default dtype was float64."""
+    previous = torch.get_default_dtype()
+    torch.set_default_dtype(torch.float64)
+    try:
+        out = marching_squares(_ring_fields(torch.float32))
+    finally:
+        torch.set_default_dtype(previous)
+    assert out.vertices.dtype == torch.float32
+    ref = marching_squares(_ring_fields(torch.float32))
+    torch.testing.assert_close(out.vertices, ref.vertices, rtol=0, atol=0)
+
+
+def test_nan_iso_is_rejected_and_tensor_origin_follows_the_field():
+    """A NaN level silently gave no lines; now ValueError. origin/spacing tensors of
+    another float dtype are cast to the field's (documented)."""
+    fields = _ring_fields(torch.float64)
+    with pytest.raises(ValueError, match="iso"):
+        marching_squares(fields, iso=float("nan"))
+    origin, spacing = torch.tensor([0.5, -1.0]), torch.tensor([0.25, 0.5])  # float32
+    out = marching_squares(fields, origin=origin, spacing=spacing)
+    ref = marching_squares(fields, origin=(0.5, -1.0), spacing=(0.25, 0.5))
+    assert out.vertices.dtype == torch.float64
+    torch.testing.assert_close(out.vertices, ref.vertices, rtol=0, atol=0)
+    unit = marching_squares(fields)  # vertex = origin + index * spacing, by hand
+    torch.testing.assert_close(out.vertices, origin.double() + unit.vertices * spacing.double())

@@ -105,3 +105,37 @@ def test_table_example_and_cli(capsys, tmp_path):
                    init_globals={"OUTPUT": tmp_path / "fit.png"}, run_name="__main__")
     assert "shape | report (truth)" in capsys.readouterr().out
     assert (tmp_path / "fit.png").stat().st_size > 1000
+
+
+# --- contract regressions (issue 10) -----------------------------------------------------
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_low_precision_is_built_in_float32_and_cast_back(low):
+    """bfloat16 shapes were built in bfloat16 (targets off by 0.06, two roundings per
+    product); now the float64 truth rounded once."""
+    shapes = report_shapes(dtype=low)
+    truth = report_shapes(dtype=torch.float64)
+    for got, want in zip(shapes[:3], truth[:3]):
+        assert got.dtype == low
+        assert_close(got.double(), want.to(low).double(), rtol=torch.finfo(low).eps, atol=0)
+
+
+def test_fit_in_float16_fits_in_float32_and_casts_back():
+    """fit_report_shapes(dtype=float16) raised a raw 'cannot be converted to type c10::Half
+    without overflow'; now the float32 fit, cast back."""
+    fit = rs.fit_report_shapes(dtype=torch.float16)
+    ref = rs.fit_report_shapes(dtype=torch.float32)
+    for got, want in zip(fit[1:], ref[1:]):
+        assert got.dtype == torch.float16
+        assert_close(got.float(), want.to(torch.float16).float(), rtol=0, atol=0)
+    assert fit.error_homography.float().max() < 1e-5
+
+
+def test_integer_dtype_is_rejected_naming_dtype():
+    """An integer dtype raised 'offset: expected a floating-point tensor' (an internal
+    argument); now the error names dtype."""
+    with pytest.raises(TypeError, match="dtype: expected a floating-point"):
+        report_shapes(dtype=torch.int64)
+    with pytest.raises(TypeError, match="dtype: expected a floating-point"):
+        rs.fit_report_shapes(dtype=torch.int32)

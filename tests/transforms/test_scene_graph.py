@@ -154,7 +154,55 @@ def test_errors():
         scene.world_transforms(torch.zeros(3, dtype=torch.long))
     with pytest.raises(ShapeError, match=r"matrix: expected shape \(3, 3\)"):
         FixedTransform(torch.eye(2))
-    with pytest.raises(ValueError, match="radius must be a scalar"):
+    with pytest.raises(ShapeError, match=r"radius: expected shape \(\), got \(2\)"):
         Orbit(torch.ones(2))
     with pytest.raises(KeyError, match="no node named 'x'"):
         solar_system().world_transforms(torch.zeros(1)).get("x")
+
+
+def _orbit_reference(theta, radius, speed, phase, spin):
+    """``R(a)·T(r, 0)`` (spin) or ``T(r cos a, r sin a)``, written out by hand in float64."""
+    a = (speed * theta.double() + phase).numpy()
+    m = np.zeros((a.size, 3, 3))
+    m[:, 2, 2] = 1.0
+    if spin:
+        m[:, 0, 0], m[:, 0, 1], m[:, 1, 0], m[:, 1, 1] = np.cos(a), -np.sin(a), np.sin(a), np.cos(a)
+    else:
+        m[:, 0, 0] = m[:, 1, 1] = 1.0
+    m[:, 0, 2], m[:, 1, 2] = radius * np.cos(a), radius * np.sin(a)
+    return torch.from_numpy(m)
+
+
+@pytest.mark.parametrize("spin", [False, True])
+def test_orbit_follows_theta_dtype(spin):
+    """Regression (i10): float64 parameters with float32 theta raised a raw matmul error
+    (spin=True); the result now follows theta's dtype."""
+    theta = torch.tensor([0.0, 0.4, 2.5], dtype=torch.float32)
+    orbit = Orbit(torch.tensor(1.5, dtype=F64), torch.tensor(2.0, dtype=F64), 0.3, spin=spin)
+    out = orbit(theta)
+    assert out.dtype == torch.float32
+    torch.testing.assert_close(out.double(), _orbit_reference(theta, 1.5, 2.0, 0.3, spin),
+                               rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+@pytest.mark.parametrize("spin", [False, True])
+def test_low_precision_is_computed_in_float32(low, spin):
+    """Regression (i10): solar_system(spin=True) raised 'expected scalar type Half but found
+    Float'; float16/bfloat16 theta is now computed in float32 and cast back."""
+    theta = torch.tensor([0.0, 0.7, 5.9]).to(low)
+    out = solar_system(spin=spin).world_transforms(theta).matrices
+    assert out.dtype == low
+    ref = solar_system(spin=spin).to(F64).world_transforms(theta.double()).matrices
+    eps = torch.finfo(low).eps  # one rounding of the cast back
+    torch.testing.assert_close(out.double(), ref.to(low).double(), rtol=eps, atol=eps)
+
+
+def test_integer_theta_is_rejected():
+    """Regression (i10): Orbit and FixedTransform accepted an integer theta (FixedTransform
+    truncated its matrix to integers)."""
+    matrix = translation(torch.tensor([0.5, 1.5]))
+    with pytest.raises(TypeError, match="theta: expected a floating"):
+        FixedTransform(matrix)(torch.zeros(2, dtype=torch.long))
+    with pytest.raises(TypeError, match="theta: expected a floating"):
+        Orbit(1.0)(torch.zeros(2, dtype=torch.long))

@@ -20,6 +20,10 @@ Convention:
     - Ragged batches: a list of ``(M_i, D)`` tensors, a nested tensor, or a padded
       ``(*, M, D)`` tensor with ``lengths (*,)``; padded rows are ignored and get
       ``t = 0``.
+    - NaN in, NaN out per stroke: a NaN point or weight gives its stroke NaN
+      parameters (chord, centripetal), control points and rms; the other strokes of
+      the batch are unaffected. Coincident parameters (a singular system) give the
+      minimum-norm least-squares control points.
 """
 
 from __future__ import annotations
@@ -121,7 +125,8 @@ def as_padded_strokes(points, lengths=None, weights=None):
     Args:
         points: ``(*, M, D)`` tensor, a list of ``(M_i, D)`` tensors or a nested tensor.
         lengths: ``(*,)`` integer valid rows of a padded tensor (default: all ``M``).
-        weights: ``(*, M)`` non-negative per-sample weights (a list for list input).
+        weights: ``(*, M)`` non-negative per-sample weights (a list for list input),
+            cast to the dtype of ``points``.
 
     Example:
         >>> p, valid, w = as_padded_strokes([torch.zeros(3, 2), torch.ones(2, 2)])
@@ -174,7 +179,8 @@ def _parameters(points, valid, parametrization: str) -> torch.Tensor:
             step = step.sqrt()
         cumulative = torch.cat([torch.zeros_like(step[..., :1]), step.cumsum(-1)], dim=-1)
         total = cumulative[..., -1:]
-        t = torch.where(total > 0, cumulative / torch.where(total > 0, total, 1.0), uniform)
+        flat = total == 0  # all valid samples coincide: uniform; NaN stays NaN
+        t = torch.where(flat, uniform, cumulative / torch.where(flat, 1.0, total))
         return torch.where(valid, t, 0.0)
 
 
@@ -192,22 +198,35 @@ def _solve(t, points, w, degree: int) -> torch.Tensor:
     """Weighted least-squares control points ``(*, n + 1, D)`` (call in float64).
 
     Normal equations ``(A^T W A) c = A^T W x`` solved by LU (small ``(n+1)^2`` systems,
-    much faster than a batched ``lstsq``); if a system is singular (coincident
-    parameters) the whole batch falls back to ``lstsq`` (minimum-norm solution). The
-    products are elementwise sums, not BLAS calls: tiny float64 GEMMs are slow and,
-    with several threads on a busy machine, erratic.
+    much faster than a batched ``lstsq``); the strokes whose system is singular
+    (coincident parameters) fall back to the pseudo-inverse (minimum-norm solution). A stroke
+    with a non-finite point, weight or parameter gets NaN control points (its system is
+    replaced by the identity first, so it cannot break the solver or the other
+    strokes). The products are elementwise sums, not BLAS calls: tiny float64 GEMMs are
+    slow and, with several threads on a busy machine, erratic.
     """
-    basis_k = _bases(t, degree)  # (K, *, M)
+    batch, (m, d) = t.shape[:-1], points.shape[-2:]
+    t, points, w = t.reshape(-1, m), points.reshape(-1, m, d), w.reshape(-1, m)  # flat batch
+    basis_k = _bases(t, degree)  # (K, B, M)
     weighted_k = basis_k * w
     gram = (weighted_k[:, None] * basis_k[None]).sum(-1).movedim(0, -1).movedim(0, -1)
     points_d = points.movedim(-1, 0)  # (D, *, M)
     rhs = (weighted_k[:, None] * points_d[None]).sum(-1).movedim(0, -1).movedim(0, -1)
+    bad = ~(torch.isfinite(gram).all(-1).all(-1) & torch.isfinite(rhs).all(-1).all(-1))  # (B,)
+    eye = torch.eye(degree + 1, dtype=gram.dtype, device=gram.device)
+    gram = torch.where(bad[..., None, None], eye, gram)
+    rhs = torch.where(bad[..., None, None], 0.0, rhs)
     solution, info = torch.linalg.solve_ex(gram, rhs)
-    if bool((info != 0).any()) or not bool(torch.isfinite(solution).all()):
-        root_w = w.sqrt().unsqueeze(-1)
-        basis = basis_k.movedim(0, -1)
-        return torch.linalg.lstsq(basis * root_w, points * root_w).solution
-    return solution
+    singular = (info != 0) | ~torch.isfinite(solution).all(-1).all(-1)  # (B,)
+    if bool(singular.any()):
+        root_w = w[singular].sqrt().unsqueeze(-1)
+        basis = basis_k.movedim(0, -1)[singular]
+        # pseudo-inverse (SVD, scale-free cut-off): the minimum-norm solution on every
+        # device; lstsq's default CPU driver (gelsy) returns a non-solution here
+        fallback = torch.linalg.pinv(basis * root_w) @ (points[singular] * root_w)
+        solution = solution.index_put((singular,), fallback)
+    solution = torch.where(bad[..., None, None], torch.nan, solution)
+    return solution.reshape(*batch, degree + 1, d)
 
 
 def _evaluate(cp: torch.Tensor, basis_k: torch.Tensor) -> torch.Tensor:
@@ -334,7 +353,8 @@ def fit_bezier(
             alternating with the solve (see the module docstring).
         tol: relative rms improvement below which the correction stops.
         max_iterations: most solves of the correction.
-        weights: ``(*, M)`` non-negative per-sample weights (a list for list input).
+        weights: ``(*, M)`` non-negative per-sample weights (a list for list input),
+            cast to the dtype of ``points``; a NaN weight gives its stroke NaN results.
         lengths: ``(*,)`` valid rows of each stroke of a padded ``points`` tensor.
         progress: show a tqdm progress bar over the correction iterations.
 
@@ -373,8 +393,9 @@ def fit_bezier(
             f"points: fitting degree {degree} needs at least degree + 1 = {degree + 1} points, "
             f"got {least} (shape {tuple(points.shape)})"
         )
+    points = torch.where(valid[..., None], points, 0.0)  # padded rows are ignored, NaN too
     t = _parameters(points, valid, parametrization)
-    w = valid.to(points.dtype) if weights is None else weights * valid
+    w = valid.to(points.dtype) if weights is None else torch.where(valid, weights, 0.0)
     if correct_parameters:
         with torch.no_grad():
             t64 = _correct(t.double(), points.detach().double(), w.double(), degree, tol,

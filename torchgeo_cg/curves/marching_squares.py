@@ -26,7 +26,11 @@ Convention:
     - Orientation follows skimage (``positive_orientation="low"``): polylines keep
       values below ``iso`` on their left in (row, col) index space.
     - Closed polylines repeat their first vertex at the end, like skimage.
-    - Cells with a NaN corner produce nothing (skimage skips them too).
+    - Cells with a NaN corner produce nothing (skimage skips them too); a NaN ``iso``
+      raises ``ValueError``.
+    - dtype: vertices have ``field``'s dtype; ``origin`` and ``spacing`` tensors are
+      cast to it. float16/bfloat16 fields are computed in float32 (``delta`` of
+      float32) and the vertices cast back.
 
 Topology (which edges cross and how segments chain into polylines) is computed
 without gradients, from a 16-case table (``_marching_squares_tables.py``);
@@ -45,6 +49,7 @@ import numpy as np
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
 from torchgeo_cg.mesh._marching_cubes_steps import EdgeFraction
 from torchgeo_cg.sdf.grid import Volume
@@ -193,11 +198,12 @@ def marching_squares(
             :class:`~torchgeo_cg.sdf.grid.Volume` with ``(2,)`` origin and spacing (or
             a one-slice 3D Volume, values ``(*, H, W, 1)``): origin and spacing then
             come from it and must not be given.
-        iso: the level (a number).
-        origin: position of ``field[..., 0, 0]``: two numbers or a ``(2,)`` tensor;
-            default ``(0, 0)``.
+        iso: the level (a number, not NaN).
+        origin: position of ``field[..., 0, 0]``: two numbers or a ``(2,)`` tensor
+            (cast to ``field``'s dtype); default ``(0, 0)``.
         spacing: finite positive grid step along axis 0 (x) and axis 1 (y): two
-            numbers, one number or a ``(2,)`` tensor; default ``(1, 1)``.
+            numbers, one number or a ``(2,)`` tensor (cast to ``field``'s dtype);
+            default ``(1, 1)``.
         fully_connected: the saddle rule, one of :data:`SADDLE_RULES`.
 
     Returns:
@@ -208,7 +214,8 @@ def marching_squares(
         TypeError: ``field`` is not a float tensor or Volume, or a bad argument type.
         ShapeError: ``field`` is not at least 2D with ``H, W >= 2``, or ``origin`` /
             ``spacing`` do not have two entries.
-        ValueError: unknown ``fully_connected``, or ``spacing`` not finite and positive.
+        ValueError: unknown ``fully_connected``, ``spacing`` not finite and positive, or
+            ``iso`` NaN.
 
     Example:
         >>> f = torch.tensor([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0]])
@@ -239,11 +246,13 @@ def marching_squares(
     if isinstance(iso, bool) or not isinstance(iso, (numbers.Real, np.generic)):
         raise TypeError(f"iso: expected a number, got {type(iso).__name__}")
     iso = float(iso)
-    origin = _pair(origin, field, "origin")
-    spacing = _pair(spacing, field, "spacing")
+    if math.isnan(iso):
+        raise ValueError("iso: expected a number, got NaN")
+    values = field.reshape(-1, height, width).to(working_dtype(field.dtype))  # (B, H, W)
+    origin = _pair(origin, values, "origin")
+    spacing = _pair(spacing, values, "spacing")
     if not bool((torch.isfinite(spacing) & (spacing > 0)).all()):
         raise ValueError(f"spacing: expected finite positive values, got {spacing.tolist()}")
-    values = field.reshape(-1, height, width)  # (B, H, W)
     n_h = height * (width - 1)  # edges along axis 1 ("horizontal" in index space)
     n_edges = n_h + (height - 1) * width
     with torch.no_grad():
@@ -295,7 +304,9 @@ def marching_squares(
     fb = values[batch_of, i1, j1]
     delta = math.sqrt(torch.finfo(values.dtype).eps)
     fraction = EdgeFraction.apply(fa, fb, fa.new_tensor(iso).expand_as(fa), delta)
-    index_xy = torch.stack([i0.to(values.dtype) + torch.where(is_h, 0.0, 1.0) * fraction,
-                            j0.to(values.dtype) + torch.where(is_h, 1.0, 0.0) * fraction], dim=-1)
+    along_i = (~is_h).to(values.dtype)  # 1 on axis-0 edges: the fraction moves i
+    index_xy = torch.stack([i0.to(values.dtype) + along_i * fraction,
+                            j0.to(values.dtype) + (1 - along_i) * fraction], dim=-1)
     points = origin + index_xy * spacing  # (U, 2)
-    return MarchingSquaresResult(points[gather], out_len, polyline_batch, closed)
+    vertices = cast_back(points[gather], field.dtype)
+    return MarchingSquaresResult(vertices, out_len, polyline_batch, closed)

@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.decompose import decompose_affine
 from torchgeo_cg.transforms.estimation import find_homography_dlt
 from torchgeo_cg.transforms.fitting import fit_transform
@@ -67,6 +68,14 @@ _START_F = (
 )
 
 
+def _float_dtype(dtype) -> torch.dtype:
+    """``dtype`` (default: torch's default), or ``TypeError`` unless it is a float dtype."""
+    dtype = torch.get_default_dtype() if dtype is None else dtype
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype: expected a floating-point torch.dtype, got {dtype}")
+    return dtype
+
+
 class ReportShapes(NamedTuple):
     """Result of :func:`report_shapes`.
 
@@ -90,11 +99,15 @@ def report_shapes(device=None, dtype=None) -> ReportShapes:
 
     Convention:
         See the module docstring; the start shape is this project's letter "F"
-        (the report does not give its own).
+        (the report does not give its own). float16/bfloat16 are built in float32
+        and cast back.
 
     Args:
         device: device of the tensors (default: torch's default).
         dtype: float dtype of the tensors (default: torch's default).
+
+    Raises:
+        TypeError: ``dtype`` is not a floating-point dtype.
 
     Returns:
         :class:`ReportShapes` ``(start (10, 2), matrices (8, 3, 3),
@@ -108,7 +121,8 @@ def report_shapes(device=None, dtype=None) -> ReportShapes:
         tensor([[5.0000, 1.0000],
                 [5.6000, 1.0000]], dtype=torch.float64)
     """
-    kw = {"device": device, "dtype": dtype or torch.get_default_dtype()}
+    dtype = _float_dtype(dtype)
+    kw = {"device": device, "dtype": working_dtype(dtype)}
 
     def vec(*values: float) -> torch.Tensor:
         return torch.tensor(values, **kw)
@@ -130,6 +144,7 @@ def report_shapes(device=None, dtype=None) -> ReportShapes:
     ])
     start = torch.tensor(_START_F, **kw)
     targets = transform_points(matrices, start.expand(8, -1, -1))
+    start, matrices, targets = (cast_back(x, dtype) for x in (start, matrices, targets))
     return ReportShapes(start, matrices, targets, REPORT_NAMES, REPORT_FORMULAS)
 
 
@@ -161,7 +176,8 @@ def fit_report_shapes(optimizer: str = "lm", steps: int | None = None,
         Fits ``target_from_start`` with :func:`fit_transform` from the identity
         (``init=None``), once with ``model="homography"`` and once with
         ``model="affine"``; errors are the largest absolute matrix-entry
-        differences to the truth (both scaled to ``m33 = 1``).
+        differences to the truth (both scaled to ``m33 = 1``). float16/bfloat16
+        fit in float32 (from the float32 shapes) and every tensor is cast back.
 
     Args:
         optimizer: ``"lm"``, ``"adam"`` or ``"lbfgs"``.
@@ -172,19 +188,27 @@ def fit_report_shapes(optimizer: str = "lm", steps: int | None = None,
     Returns:
         :class:`ShapeFit`.
 
+    Raises:
+        TypeError: ``dtype`` is not a floating-point dtype.
+
     Example:
         >>> fit = fit_report_shapes()
         >>> bool(fit.error_homography.max() < 1e-6), bool(fit.error_affine[:7].max() < 1e-6)
         (True, True)
     """
-    shapes = report_shapes(device=device, dtype=dtype)
+    dtype = _float_dtype(dtype)
+    shapes = report_shapes(device=device, dtype=working_dtype(dtype))
     src = shapes.start.expand(8, -1, -1)
     fit_h = fit_transform(src, shapes.targets, "homography", optimizer, steps=steps)
     fit_a = fit_transform(src, shapes.targets, "affine", optimizer, steps=steps)
     dlt = find_homography_dlt(src, shapes.targets).matrix
     err_h = (fit_h.matrix - shapes.matrices).abs().amax((-2, -1))
     err_a = (fit_a.matrix - shapes.matrices).abs().amax((-2, -1))
-    return ShapeFit(shapes, fit_h.matrix, fit_a.matrix, dlt, err_h, err_a)
+    if dtype != shapes.start.dtype:  # float16/bfloat16: fitted in float32, cast back
+        shapes = shapes._replace(**{k: cast_back(getattr(shapes, k), dtype)
+                                    for k in ("start", "matrices", "targets")})
+    out = (cast_back(x, dtype) for x in (fit_h.matrix, fit_a.matrix, dlt, err_h, err_a))
+    return ShapeFit(shapes, *out)
 
 
 def _num(x: float) -> str:

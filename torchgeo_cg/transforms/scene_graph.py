@@ -27,6 +27,7 @@ from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.homogeneous import rotation, translation
 
 __all__ = ["Orbit", "FixedTransform", "SceneGraph", "WorldTransforms", "solar_system"]
@@ -68,7 +69,9 @@ class Orbit(nn.Module):
 
     Convention:
         Column vectors, radians, counter-clockwise positive; ``speed`` is in
-        revolutions per cycle of ``θ ∈ [0, 2π)``.
+        revolutions per cycle of ``θ ∈ [0, 2π)``. The result follows ``theta``'s
+        dtype (radius, speed and phase are cast to it); float16/bfloat16 are
+        computed in float32 and cast back.
 
     Args:
         radius: orbit radius (a float or a 0-d tensor; learnable if ``learnable``).
@@ -96,8 +99,7 @@ class Orbit(nn.Module):
         self.spin = spin
         for name, value in (("radius", radius), ("speed", speed), ("phase", phase)):
             value = as_tensor_like(value, None, name).clone()
-            if value.ndim != 0:
-                raise ValueError(f"Orbit: {name} must be a scalar, got shape {tuple(value.shape)}")
+            check_shape(value, [], name)  # a scalar: ShapeError naming it
             if learnable:
                 setattr(self, name, nn.Parameter(value))
             else:
@@ -105,12 +107,16 @@ class Orbit(nn.Module):
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
         """``(T,)`` phases in radians -> ``(T, 3, 3)`` ``parent_from_node``."""
-        angle = self.speed * theta + self.phase  # (T,)
+        check_float(theta, "theta")
+        theta_w = theta.to(working_dtype(theta.dtype))
+        radius, speed, phase = (p.to(theta_w) for p in (self.radius, self.speed, self.phase))
+        angle = speed * theta_w + phase  # (T,)
         if self.spin:
-            offset = torch.stack([self.radius.expand_as(angle), torch.zeros_like(angle)], -1)
-            return rotation(angle, degrees=False) @ translation(offset)
-        offset = self.radius * torch.stack([torch.cos(angle), torch.sin(angle)], dim=-1)
-        return translation(offset)
+            offset = torch.stack([radius.expand_as(angle), torch.zeros_like(angle)], -1)
+            local = rotation(angle, degrees=False) @ translation(offset)
+        else:
+            local = translation(radius * torch.stack([torch.cos(angle), torch.sin(angle)], -1))
+        return cast_back(local, theta.dtype)
 
     def extra_repr(self) -> str:
         return f"spin={self.spin}"
@@ -121,7 +127,8 @@ class FixedTransform(nn.Module):
 
     Convention:
         Column vectors; ``forward(theta (*))`` returns the matrix expanded to
-        ``(*, 3, 3)`` in ``theta``'s dtype (the same for every time).
+        ``(*, 3, 3)`` in ``theta``'s (float) dtype, the same for every time; a cast to
+        float16/bfloat16 saturates at the largest finite value.
 
     Example:
         >>> FixedTransform(translation(torch.tensor([1.0, 2.0])))(torch.zeros(3)).shape
@@ -135,7 +142,8 @@ class FixedTransform(nn.Module):
         self.register_buffer("matrix", matrix.clone(), persistent=True)
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
-        return self.matrix.to(theta.dtype).expand(*theta.shape, 3, 3)
+        check_float(theta, "theta")  # an integer theta would truncate the matrix
+        return cast_back(self.matrix, theta.dtype).expand(*theta.shape, 3, 3)
 
 
 class _CallableTransform(nn.Module):
@@ -232,7 +240,8 @@ class SceneGraph(nn.Module):
 
         Returns:
             :class:`WorldTransforms` with ``matrices (K, T, 3, 3)``, nodes in
-            insertion order.
+            insertion order, in ``theta``'s dtype (every local transform is cast to
+            it; float16/bfloat16 are computed in float32 and cast back).
         """
         check_shape(theta, ["T"], "theta")
         check_float(theta, "theta")
@@ -240,17 +249,18 @@ class SceneGraph(nn.Module):
         if not names:
             raise ValueError("SceneGraph.world_transforms: the graph has no nodes")
         index = {n: i for i, n in enumerate(names)}
-        world = theta.new_zeros(len(names), theta.shape[0], 3, 3)  # (K, T, 3, 3)
+        theta_w = theta.to(working_dtype(theta.dtype))
+        world = theta_w.new_zeros(len(names), theta.shape[0], 3, 3)  # (K, T, 3, 3)
         for depth in range(max(self._depth.values()) + 1):  # loop over tree levels
             level = [n for n in names if self._depth[n] == depth]
             rows = torch.tensor([index[n] for n in level], device=theta.device)
-            local = torch.stack([self.locals[n](theta).to(theta) for n in level])  # (L, T, 3, 3)
+            local = torch.stack([self.locals[n](theta_w).to(theta_w) for n in level])  # (L,T,3,3)
             if depth == 0:
                 world = world.index_copy(0, rows, local)
             else:
                 parents = torch.tensor([index[self._parent[n]] for n in level], device=theta.device)
                 world = world.index_copy(0, rows, world[parents] @ local)
-        return WorldTransforms(names, world)
+        return WorldTransforms(names, cast_back(world, theta.dtype))
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
         """``(K, T, 3, 3)``: same as ``world_transforms(theta).matrices``."""
