@@ -266,12 +266,14 @@ TET_P = torch.tensor([[0.1, 0.2, 0.3], [0.2, 0.2, -2.0], [0.05, 0.05, 0.05], [1.
 TET_SDF = torch.tensor([-0.1, 2.0, -0.05, 2.0 / math.sqrt(3.0)], dtype=torch.float64)
 
 
-@pytest.mark.parametrize("s", [1e-15, 1e-6, 1.0, 1e6, 1e77, 1e155, 1e-150])
+@pytest.mark.parametrize("s", [1e-15, 1e-6, 1.0, 1e6, 1e77, 1e155, 1e-150, 1e-300, 1e300])
 @pytest.mark.parametrize("sign", ["pseudonormal", "winding"])
 def test_scale_equivariance_float64(s, sign):
     r = M.mesh_sdf(TET_V * s, TET_F, TET_P * s, sign=sign, return_closest=True)
     assert torch.isfinite(r.sdf).all()
     assert_close(r.sdf / s, TET_SDF, atol=1e-12, rtol=1e-12)
+    plain = M.mesh_sdf(TET_V * s, TET_F, TET_P * s, sign=sign).sdf  # an engine's own path
+    assert_close(plain / s, TET_SDF, atol=1e-12, rtol=1e-12)
     assert torch.equal(r.face_ids, M.mesh_sdf(TET_V, TET_F, TET_P, sign=sign,
                                               return_closest=True).face_ids)
     w = M.winding_number(TET_V * s, TET_F, TET_P * s)

@@ -6,7 +6,11 @@ float32 face choice is not exact: measured on a 16k-face torus with 250k DeepSDF
 0.9% of the faces returned are not the closest (distance off by up to 1e-7, the float32
 rounding), and every one of them is a neighbour of the returned face. So the same kernel
 then checks, in float64, every face that shares a vertex with the returned one and keeps
-the closest. Only the face index leaves the engine; the distance is evaluated in torch.
+the closest. When asked (``mode``), it also evaluates the distance on that face in
+float64 with the operations of the torch evaluation
+(:func:`~torchgeo_cg.sdf.mesh_distance.closest_point_on_triangle`) and signs it with the
+pseudo-normal of the closest feature, so queries that need no gradient never leave the
+kernel; otherwise only the face index leaves it.
 
 Convention:
     Inputs are scaled by a power of two into ``[-1, 1]`` (see

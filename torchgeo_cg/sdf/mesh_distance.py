@@ -16,8 +16,11 @@ constant and needs no gradient: the torch backend
 (:mod:`~torchgeo_cg.sdf.engines`, the optional extra ``fast``) answers it. The
 **evaluation** (the exact point-triangle distance, closest point and sign on that face)
 runs in torch in the input dtype and device, so it is differentiable w.r.t. points and
-vertices and identical whatever the backend. :class:`MeshSDF` caches the search
-structure of a mesh for repeated queries.
+vertices and identical whatever the backend. A query that needs no gradient and no
+closest points is answered by an engine alone: its kernel evaluates the same formulas
+in float64 (agreeing with the torch evaluation to rounding). :class:`MeshSDF` caches
+the search structure of a mesh for repeated queries; plain calls reuse an engine's
+structure for exactly the mesh of the previous call.
 
 Convention:
     - Faces are ``(F, 3)`` vertex indices wound counter-clockwise seen from outside
@@ -519,9 +522,10 @@ def mesh_sdf(
     a round trip; results come back on the input device and dtype). An engine (``"warp"``,
     the optional extra ``pip install torchgeo_cg[fast]``) finds the closest face in
     float32, on the input's device (CUDA stays on CUDA), then checks the faces around it
-    in float64. Either way the distance, closest point, sign and gradients are then
-    computed in torch from that face, so the backends agree to rounding. ``"auto"`` picks
-    the fastest installed engine, else torch.
+    in float64. Where gradients or closest points are needed, the distance, closest point
+    and sign are then computed in torch from that face; otherwise the engine's kernel
+    evaluates the same formulas in float64. Either way the backends agree to rounding.
+    ``"auto"`` picks the fastest installed engine, else torch.
 
     Args:
         vertices: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
