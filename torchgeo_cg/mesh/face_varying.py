@@ -54,7 +54,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import ShapeError, check_shape, check_tensor
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.mesh.creasing import subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
 from torchgeo_cg.mesh.loop import loop_operator
@@ -470,7 +470,7 @@ class FaceVaryingSubdivision(nn.Module):
         return getattr(self, f"faces_{self.levels}")
 
     def forward(self, uvs: torch.Tensor) -> torch.Tensor:
-        check_tensor(uvs, "uvs")
+        check_float(uvs, "uvs")
         check_shape(uvs, ["*", self.num_uvs_in, "D"], "uvs")
         for level in range(self.levels):
             stencils = StencilMatrix(
@@ -516,6 +516,10 @@ def face_varying_subdivide(
     Returns:
         ``(uvs (*, T_L, D), uv_faces (F_L, 4) long)`` (Loop: ``(F_L, 3)``).
 
+    Raises:
+        TypeError: ``uvs`` is not a floating-point tensor.
+        ShapeError: ``uvs`` is not ``(*, T, D)``.
+
     Example:
         >>> cube_f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4],
         ...           [1, 5, 7, 3]]
@@ -525,7 +529,7 @@ def face_varying_subdivide(
         >>> uv.shape, uv_f.shape, uv[uv_f[0]].tolist()  # "corners_only": corners kept
         (torch.Size([54, 2]), torch.Size([24, 4]), [[0.0, 0.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]])
     """
-    check_tensor(uvs, "uvs")
+    check_float(uvs, "uvs")
     check_shape(uvs, ["*", "T", "D"], "uvs")
     module = FaceVaryingSubdivision(
         faces, uv_faces, num_vertices, uvs.shape[-2], levels, scheme, interpolation,
