@@ -102,3 +102,21 @@ def test_crease_tangent_runs_along_the_crease():
 def test_refuses_schemes_without_masks():
     with pytest.raises(ValueError, match="scheme 'bilinear'"):
         limit_frames(bilinear_operator(CUBE_F, 8), CUBE_V)
+
+
+@pytest.mark.parametrize("dtype, scale", [(torch.float32, 1e20), (torch.float32, 1e-25),
+                                          (torch.float64, 1e160), (torch.float64, 1e-170)])
+def test_normals_are_unit_at_every_scale(dtype, scale):
+    """Issue 10: the cross product of the tangents overflowed (NaN normals at 1e20 in float32)
+    or underflowed (zero normals at 1e-25); the normals of a tilted planar grid are its
+    plane normal, by hand, at every scale."""
+    xy = torch.tensor([[c, r] for r in range(4) for c in range(4)], dtype=torch.float64)
+    plane = torch.tensor([0.3, -0.2], dtype=torch.float64)  # z = 0.3 x - 0.2 y
+    verts = torch.cat([xy, (xy @ plane)[:, None]], 1)
+    expected = torch.cat([-plane, torch.ones(1, dtype=torch.float64)])
+    expected = (expected / expected.norm()).to(dtype).expand(16 * 4, 3)
+    op = catmull_clark_operator(GRID_Q, 16, dtype=dtype)
+    normals = limit_frames(op, (verts * scale).to(dtype)).normals
+    used = torch.unique(op.faces)
+    assert_close(normals[used], expected[used], rtol=0, atol=1e-5 if dtype == torch.float32
+                 else 1e-12)
