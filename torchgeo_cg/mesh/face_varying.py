@@ -55,6 +55,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
 from torchgeo_cg.mesh.loop import loop_operator
@@ -505,7 +506,8 @@ def face_varying_subdivide(
         ``catmull_clark(verts, faces, levels, boundary, tags, ...)``.
 
     Args:
-        uvs: ``(*, T, D)`` float values (UVs: ``D = 2``).
+        uvs: ``(*, T, D)`` float values (UVs: ``D = 2``); float16 and bfloat16 are
+            refined in float32 and returned in their dtype.
         faces: ``(F, K)`` long position faces, or index lists.
         uv_faces: ``(F, K)`` long value indices padded like ``faces``.
         num_vertices: ``V``.
@@ -534,6 +536,6 @@ def face_varying_subdivide(
     module = FaceVaryingSubdivision(
         faces, uv_faces, num_vertices, uvs.shape[-2], levels, scheme, interpolation,
         boundary, tags, crease_method, triangle_rule, device=uvs.device,
-        dtype=uvs.dtype if uvs.is_floating_point() else None,
+        dtype=working_dtype(uvs.dtype),
     )
     return module(uvs), module.faces

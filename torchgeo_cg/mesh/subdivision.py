@@ -52,6 +52,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import (
     CREASE_METHODS,
     child_tags,
@@ -422,7 +423,8 @@ def catmull_clark(
         See the module docstring (OpenSubdiv Catmark rules, new-vertex order).
 
     Args:
-        verts: ``(*, V, D)`` float; a batch of shapes sharing ``faces``.
+        verts: ``(*, V, D)`` float; a batch of shapes sharing ``faces``. float16 and
+            bfloat16 are refined in float32 (weights and sums) and returned in their dtype.
         faces: ``(F, K)`` long padded with ``-1`` (same device as ``verts``), or
             a list of index lists.
         levels: number of subdivision steps, ``>= 0``.
@@ -439,6 +441,7 @@ def catmull_clark(
         input unchanged (faces padded).
 
     Raises:
+        TypeError: ``verts`` is not a floating-point tensor.
         ValueError: ``verts`` and ``faces`` on different devices, or bad faces.
 
     Example:
@@ -451,7 +454,7 @@ def catmull_clark(
         >>> v1[0] * 9  # the corner moved to (2/9, 2/9, 2/9)
         tensor([2.0000, 2.0000, 2.0000])
     """
-    check_tensor(verts, "verts")
+    check_float(verts, "verts")
     if isinstance(faces, torch.Tensor) and faces.device != verts.device:
         raise ValueError(
             f"verts and faces must be on the same device, got {verts.device} and {faces.device}"
@@ -459,7 +462,7 @@ def catmull_clark(
     check_shape(verts, ["*", "V", "D"], "verts")
     module = CatmullClark(
         faces, verts.shape[-2], levels=levels, boundary=boundary,
-        device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
+        device=verts.device, dtype=working_dtype(verts.dtype),
         tags=tags, crease_method=crease_method, triangle_rule=triangle_rule,
     )
     return module(verts), module.faces
