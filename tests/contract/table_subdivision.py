@@ -77,6 +77,40 @@ def _tags(creases=None, crease_s=None, corners=None, corner_s=None, holes=None):
                              ("holes", holes)) if v is not None})
 
 
+def _faces(shape, g, dtype):
+    """Valid padded polygons ``(F, K)``: 3 to ``K`` distinct vertices of ``0 .. 2K - 1`` per
+    face, trailing ``-1`` padding (integer values in a float tensor, see :func:`_on_faces`)."""
+    K = shape[-1]
+    verts = torch.rand(*shape[:-1], 2 * K, generator=g).argsort(-1)[..., :K]
+    size = torch.randint(3, K + 1, shape[:-1], generator=g)
+    return torch.where(torch.arange(K) >= size[..., None], -1, verts).double()
+
+
+def _long_same_layout(x: torch.Tensor) -> torch.Tensor:
+    """``x.long()`` with the strides of ``x`` (strided and expanded layouts are kept)."""
+    n = x.untyped_storage().nbytes() // x.element_size()
+    whole = torch.empty(0, dtype=x.dtype).set_(x.untyped_storage(), 0, (n,), (1,))
+    return whole.long().as_strided(x.shape, x.stride(), x.storage_offset())
+
+
+def _on_faces(fn):
+    """Call a topology function on integer faces and return its integer result as floats.
+
+    The harness casts every input to the float dtype under test, so float-coded faces go
+    in as a long tensor of the same layout (integer faces as they are), and the result
+    comes back in the input's float dtype (float32 for integer faces) for the clauses to
+    compare: empty faces, wrong ranks, strided and expanded faces, no mutation.
+    """
+    def call(faces: torch.Tensor) -> torch.Tensor:
+        index = _long_same_layout(faces) if faces.is_floating_point() else faces
+        out = fn(index)
+        return out.to(faces.dtype if faces.is_floating_point() else torch.float32)
+
+    return call
+
+
+FACES = Arg("faces", (5, 5), _faces, "index")
+BADF = ((5,), (2, 5, 5))  # not (F, K)
 VERTS8 = Arg("verts", (2, 8, 3), CUBE_V)
 BADV = ((3,),)  # not (*, V, D)
 BADV8 = ((2, 7, 3), (3,))  # an operator fixes V
@@ -92,6 +126,16 @@ _CC_INF = M.catmull_clark_operator(
 # ----------------------------------------------------------------------------- the entries
 
 ENTRIES: list[Entry] = [
+    # --- padded faces: topology only (index law); a NaN index has no meaning (no NaN
+    # clause: the integer faces cannot carry one)
+    Entry("mesh.pad_faces", _on_faces(M.pad_faces), (FACES,), out="index", empty=(0, 0),
+          bad=BADF, nan="skip", int_ok=True, mixed=None),
+    Entry("mesh.face_sizes", _on_faces(M.face_sizes), (FACES,), out="index", empty=(0, 0),
+          bad=BADF, nan="skip", int_ok=True, mixed=None),
+    Entry("mesh.triangulate_faces", _on_faces(M.triangulate_faces), (FACES,), out="index",
+          empty=(0, 0), bad=BADF, nan="skip", int_ok=True, mixed=None),
+    Entry("mesh.unpad_faces", _on_faces(lambda f: M.pad_faces(M.unpad_faces(f))), (FACES,),
+          out="index", empty=(0, 0), bad=BADF, nan="skip", int_ok=True, mixed=None),
     # --- Catmull-Clark
     Entry("mesh.catmull_clark", lambda v: M.catmull_clark(v, CUBE_F)[0], (VERTS8,),
           empty=((0, 0), (0, -1)), bad=BADV),
@@ -200,12 +244,7 @@ ENTRIES: list[Entry] = [
           (Arg("uvs", (2, 8, 2), SEAM_UV_V),), empty=(0, 0), bad=((2, 7, 2), (3,))),
 ]
 
-PENDING: dict[str, tuple[str, str]] = {
-    "mesh.pad_faces": ("i10", "not yet under contract"),
-    "mesh.face_sizes": ("i10", "not yet under contract"),
-    "mesh.triangulate_faces": ("i10", "not yet under contract"),
-    "mesh.unpad_faces": ("i10", "not yet under contract"),
-}
+PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "mesh.check_faces": "pure validator of integer faces (ValueError naming the face; "
