@@ -20,7 +20,7 @@ import torch
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.stencils import stencil_matrix
 from torchgeo_cg.mesh.subdivision import SubdivisionOperator, mesh_topology
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.tags import SubdivisionTags, check_tags
 
 __all__ = ["bilinear_operator"]
 
@@ -52,6 +52,7 @@ def bilinear_operator(
 
     Raises:
         ValueError: invalid faces or hole ids (the message names them).
+        TypeError: a tags index field that is not an integer tensor.
 
     Example:
         >>> op = bilinear_operator([[0, 1, 2, 3]], 4)
@@ -88,7 +89,7 @@ def bilinear_operator(
         )
         child_tags, visible = None, faces_q4
         if tags is not None:
-            holes = tags.holes.to(dev).long().reshape(-1)
+            holes = check_tags(tags).holes.to(dev).long().reshape(-1)
             bad = (holes < 0) | (holes >= F0)
             if bool(bad.any()):
                 i = int(torch.nonzero(bad)[0])

@@ -83,6 +83,7 @@ def loop_operator(
     Raises:
         ShapeError: faces are not triangles.
         ValueError: bad ``boundary`` or invalid faces (the message names the face).
+        TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
 
     Example:
         >>> op = loop_operator([[0, 1, 2], [0, 2, 3]], 4)

@@ -251,6 +251,7 @@ def catmull_clark_operator(
         ValueError: bad ``boundary``; indices out of range, faces with fewer than
             3 distinct vertices, repeated vertices or repeated faces (the message
             names the face index).
+        TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
 
     Example:
         >>> from torchgeo_cg.mesh.tags import SubdivisionTags
