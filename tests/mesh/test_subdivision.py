@@ -471,3 +471,32 @@ def test_half_precision_is_refined_in_float32(low):
     tri = torch.tensor([[0.0, 0.0], [4.0, 0.0], [0.0, 4.0]])
     loop_v, _ = loop_subdivide(tri.to(low), [[0, 1, 2]])
     assert torch.equal(loop_v[3:], torch.tensor([[2.0, 0.0], [0.0, 2.0], [2.0, 2.0]]).to(low))
+
+
+def test_integer_weight_dtype_raises_type_error():
+    """Issue 10: ``dtype=torch.long`` was silently replaced by float32 weights (promoted
+    away); every builder and module now rejects a non-float weight dtype naming it."""
+    from torchgeo_cg.mesh import (
+        FaceVaryingSubdivision,
+        LoopSubdivision,
+        bilinear_operator,
+        face_varying_operator,
+        loop_operator,
+    )
+
+    quad, tris = [[0, 1, 2, 3]], [[0, 1, 2], [0, 2, 3]]
+    calls = [
+        lambda d: catmull_clark_operator(quad, 4, dtype=d),
+        lambda d: CatmullClark(quad, 4, dtype=d),
+        lambda d: loop_operator(tris, 4, dtype=d),
+        lambda d: LoopSubdivision(tris, 4, dtype=d),
+        lambda d: bilinear_operator(quad, 4, dtype=d),
+        lambda d: face_varying_operator(quad, quad, 4, 4, dtype=d),
+        lambda d: FaceVaryingSubdivision(quad, quad, 4, 4, dtype=d),
+    ]
+    for call in calls:
+        with pytest.raises(TypeError, match="dtype: expected a floating-point"):
+            call(torch.long)
+        assert call(torch.float64) is not None
+    assert catmull_clark_operator(quad, 4, dtype=torch.float64).stencils.weights.dtype == (
+        torch.float64)

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 import torch
 
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import stencil_matrix
+from torchgeo_cg.mesh.stencils import stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision import SubdivisionOperator, mesh_topology
 from torchgeo_cg.mesh.tags import SubdivisionTags, check_tags
 
@@ -53,6 +53,7 @@ def bilinear_operator(
     Raises:
         ValueError: invalid faces or hole ids (the message names them).
         TypeError: a tags index field that is not an integer tensor.
+        TypeError: ``dtype`` is not a floating-point dtype.
 
     Example:
         >>> op = bilinear_operator([[0, 1, 2, 3]], 4)
@@ -65,7 +66,7 @@ def bilinear_operator(
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
             faces_fk = faces_fk.to(device)
-        wdtype = torch.get_default_dtype() if dtype is None else dtype
+        wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_fk.shape[0]
         topo = mesh_topology(faces_fk, V0)
         E0 = topo.edge_lo_e.numel()

@@ -59,7 +59,7 @@ from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
 from torchgeo_cg.mesh.loop import loop_operator
-from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     catmull_clark_operator,
@@ -363,7 +363,7 @@ def face_varying_operator(
     _check_choice(boundary, ("edge_only", "edge_and_corner", "none"), "boundary")
     if isinstance(num_uvs, bool) or not isinstance(num_uvs, int) or num_uvs < 0:
         raise ValueError(f"num_uvs: expected an int >= 0, got {num_uvs!r}")
-    wdtype = torch.get_default_dtype() if dtype is None else dtype
+    wdtype = weights_dtype(dtype)
     with torch.no_grad():
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:

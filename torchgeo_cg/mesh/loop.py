@@ -34,7 +34,7 @@ from torchgeo_cg.core.check import ShapeError, check_float
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import child_tags, limit_rules, subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix
+from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     _check_boundary,
@@ -84,6 +84,7 @@ def loop_operator(
         ShapeError: faces are not triangles.
         ValueError: bad ``boundary`` or invalid faces (the message names the face).
         TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
+        TypeError: ``dtype`` is not a floating-point dtype.
 
     Example:
         >>> op = loop_operator([[0, 1, 2], [0, 2, 3]], 4)
@@ -110,7 +111,7 @@ def loop_operator(
         if device is not None:
             faces_f3 = faces_f3.to(device)
         dev = faces_f3.device
-        wdtype = torch.get_default_dtype() if dtype is None else dtype
+        wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_f3.shape[0]
         topo = mesh_topology(faces_f3, V0, boundary)
         E0 = topo.edge_lo_e.numel()

@@ -93,6 +93,24 @@ def _csr(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int) -> Tensor:
     return matrix
 
 
+def weights_dtype(dtype: torch.dtype | None) -> torch.dtype:
+    """The dtype of an operator's weights: ``dtype``, or the default dtype for ``None``.
+
+    Raises:
+        TypeError: ``dtype`` is not a floating-point dtype (an integer dtype would be
+            promoted away silently).
+
+    Example:
+        >>> weights_dtype(None) == torch.get_default_dtype(), weights_dtype(torch.float64)
+        (True, torch.float64)
+    """
+    if dtype is None:
+        return torch.get_default_dtype()
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype: expected a floating-point torch.dtype, got {dtype!r}")
+    return dtype
+
+
 def stencil_matrix(
     rows: Tensor, cols: Tensor, weights: Tensor, shape: tuple[int, int]
 ) -> StencilMatrix:

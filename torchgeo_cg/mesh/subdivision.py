@@ -60,7 +60,7 @@ from torchgeo_cg.mesh.creasing import (
     subdivision_rules,
 )
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.tags import SubdivisionTags
 
 __all__ = [
@@ -252,6 +252,7 @@ def catmull_clark_operator(
             3 distinct vertices, repeated vertices or repeated faces (the message
             names the face index).
         TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
+        TypeError: ``dtype`` is not a floating-point dtype.
 
     Example:
         >>> from torchgeo_cg.mesh.tags import SubdivisionTags
@@ -274,7 +275,7 @@ def catmull_clark_operator(
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
             faces_fk = faces_fk.to(device)
-        wdtype = torch.get_default_dtype() if dtype is None else dtype
+        wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_fk.shape[0]
         topo = mesh_topology(faces_fk, V0, boundary)
         rules = subdivision_rules(topo, V0, F0, tags, boundary, crease_method, wdtype)
