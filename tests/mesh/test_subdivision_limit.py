@@ -120,3 +120,21 @@ def test_normals_are_unit_at_every_scale(dtype, scale):
     used = torch.unique(op.faces)
     assert_close(normals[used], expected[used], rtol=0, atol=1e-5 if dtype == torch.float32
                  else 1e-12)
+
+
+@pytest.mark.parametrize("dtype, size, offset", [(torch.float32, 1e37, 2e38),
+                                                 (torch.float64, 1e306, 1e308)])
+def test_tangents_of_points_near_the_largest_float_are_finite(dtype, size, offset):
+    """Issue 10: tangent masks are differences (``4 e0 - 4 e2``), which overflowed to
+    ``inf - inf = NaN`` for a mesh translated near the largest float although the tangents
+    are finite. Tangent masks sum to 0, so translation must not change them (reference:
+    the same cube at the origin)."""
+    cube = CUBE_V.to(dtype) * 2 - 1
+    op = catmull_clark_operator(CUBE_F, 8, dtype=dtype)
+    here = limit_frames(op, cube * size)
+    far = limit_frames(op, cube * size + offset)
+    assert torch.isfinite(far.tangent_u).all() and torch.isfinite(far.tangent_v).all()
+    rtol = 1e-4 if dtype == torch.float32 else 1e-12
+    for got, want in ((far.tangent_u, here.tangent_u), (far.tangent_v, here.tangent_v)):
+        assert_close(got / size, want / size, rtol=rtol, atol=rtol)
+    assert_close(far.normals, here.normals, rtol=rtol, atol=rtol)

@@ -118,10 +118,23 @@ def limit_frames(operator: SubdivisionOperator, verts: torch.Tensor) -> LimitFra
     wdtype = operator.stencils.weights.dtype
     with torch.no_grad():
         tan_u, tan_v = _tangent_stencils(faces, V1, operator, wdtype)
-    refined = apply_operator(operator, verts)
-    tu, tv = apply_stencils(tan_u, refined), apply_stencils(tan_v, refined)
+    refined, scale = _power_of_two_scaled(apply_operator(operator, verts))
+    tu, tv = apply_stencils(tan_u, refined) * scale, apply_stencils(tan_v, refined) * scale
     normals = _unit_normals(tu, tv) if verts.shape[-1] == 3 else None
     return LimitFrames(positions, tu, tv, normals)
+
+
+def _power_of_two_scaled(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(x / scale, scale)`` with ``scale`` the power of two just below each item's largest
+    magnitude (exact division). Tangent masks are differences (rows sum to 0), so ``4 a -
+    4 b`` of points near the largest float would overflow although the tangent is finite;
+    on the scaled data it cannot. Empty, zero and non-finite items keep ``scale = 1``."""
+    if x.shape[-2] * x.shape[-1] == 0:
+        return x, x.new_ones(())
+    big = x.detach().abs().amax(dim=(-2, -1), keepdim=True)
+    scale = torch.ldexp(torch.ones_like(big), torch.frexp(big).exponent - 1)
+    scale = torch.where(torch.isfinite(big) & (big > 0), scale, torch.ones_like(big))
+    return x / scale, scale
 
 
 def _unit_normals(tu: torch.Tensor, tv: torch.Tensor) -> torch.Tensor:
