@@ -628,3 +628,18 @@ def test_tag_fields_of_the_wrong_dtype_or_shape_are_named(field, value, error):
         faces = quad if build is not loop_operator else [[0, 1, 2], [0, 2, 3]]
         with pytest.raises(error, match=f"tags.{field}"):
             build(faces, 4, tags=tags)
+
+
+@pytest.mark.parametrize("field", ["crease_sharpness", "corner_sharpness"])
+def test_nan_sharpness_raises_value_error_naming_it(field):
+    """Issue 10 (NaN in parameters is never swallowed): a NaN sharpness is not a sharpness;
+    every builder names the field instead of treating it as smooth (NaN > 0 is False)."""
+    one = torch.tensor([float("nan")], dtype=torch.float64)
+    tags = SubdivisionTags.empty(torch.float64)._replace(
+        creases=torch.tensor([[0, 2]]), crease_sharpness=torch.ones(1, dtype=torch.float64),
+        corners=torch.tensor([1]), corner_sharpness=torch.ones(1, dtype=torch.float64))
+    tags = tags._replace(**{field: one})
+    tris = [[0, 1, 2], [0, 2, 3]]
+    for build in (catmull_clark_operator, loop_operator):
+        with pytest.raises(ValueError, match=f"tags.{field}\\[0\\].*nan"):
+            build(tris, 4, tags=tags)
