@@ -138,3 +138,15 @@ def test_tangents_of_points_near_the_largest_float_are_finite(dtype, size, offse
     for got, want in ((far.tangent_u, here.tangent_u), (far.tangent_v, here.tangent_v)):
         assert_close(got / size, want / size, rtol=rtol, atol=rtol)
     assert_close(far.normals, here.normals, rtol=rtol, atol=rtol)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_gradcheck_frames_at_several_scales(scale):
+    """The scale-safe tangents and normals (power-of-two and max-component divisions,
+    detached) keep the exact gradient: gradcheck in float64 against finite differences."""
+    g = torch.Generator().manual_seed(3)
+    x = (CUBE_V * 2 - 1 + 0.1 * torch.randn(8, 3, generator=g, dtype=torch.float64)) * scale
+    op = catmull_clark_operator(CUBE_F, 8, dtype=torch.float64)
+    x.requires_grad_()
+    assert torch.autograd.gradcheck(lambda y: tuple(limit_frames(op, y)), (x,),
+                                    eps=1e-6 * scale, atol=1e-5)
