@@ -488,3 +488,15 @@ def test_errors_name_the_argument():
         face_varying_operator(faces, uv_faces, V, -1)
     with pytest.raises(ValueError, match="levels"):
         FaceVaryingSubdivision(faces, uv_faces, V, 16, levels=-1)
+
+
+def test_integer_uvs_raise_type_error():
+    """Issue 10: integer uvs reached the sparse matmul and raised a raw NotImplementedError;
+    they are rejected up front with a TypeError naming ``uvs``."""
+    uvs = torch.zeros(4, 2, dtype=torch.long)
+    with pytest.raises(TypeError, match="uvs: expected a floating-point tensor"):
+        face_varying_subdivide(uvs, [[0, 1, 2, 3]], [[0, 1, 2, 3]], 4)
+    module = FaceVaryingSubdivision([[0, 1, 2, 3]], [[0, 1, 2, 3]], 4, 4)
+    with pytest.raises(TypeError, match="uvs: expected a floating-point tensor"):
+        module(uvs)
+    assert module(uvs.double()).dtype == torch.float64

@@ -445,3 +445,58 @@ def test_empty_in_empty_out(levels):
         assert torch.equal(verts, lone) and faces_out.shape == (0, k)
         none, _ = fn(torch.zeros(0, 3, 2), [[0, 1, 2]], levels=levels)
         assert none.shape[0] == 0 and none.shape[-1] == 2
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_half_precision_is_refined_in_float32(low):
+    """Issue 10: float16/bfloat16 verts raised a raw NotImplementedError (no half sparse
+    kernel); they are refined in float32 and cast back: the cube corner moves to (2/9)^3
+    (hand-derived), every value equals the float32 result rounded once, and the gradient
+    (S^T applied to ones) comes back in the input dtype."""
+    from torchgeo_cg.mesh import loop_subdivide
+
+    v = torch.tensor(CUBE_V)
+    want32, _ = catmull_clark(v, CUBE_F)
+    verts = v.to(low).requires_grad_()
+    got, _ = catmull_clark(verts, CUBE_F)
+    assert got.dtype == low
+    assert torch.equal(got, want32.to(low))
+    assert_close(got[0].float(), torch.full((3,), 2 / 9), rtol=0, atol=4e-3)
+    got.sum().backward()
+    assert verts.grad.dtype == low
+    # 26 rows summing to 1, shared by 8 symmetric vertices: every column sums to 26 / 8
+    assert_close(verts.grad.float(), torch.full((8, 3), 26 / 8), rtol=1e-2, atol=0)
+    op = catmull_clark_operator(CUBE_F, 8, dtype=torch.float64)
+    assert torch.equal(apply_operator(op, v.to(low)), apply_operator(op, v).to(low))
+    tri = torch.tensor([[0.0, 0.0], [4.0, 0.0], [0.0, 4.0]])
+    loop_v, _ = loop_subdivide(tri.to(low), [[0, 1, 2]])
+    assert torch.equal(loop_v[3:], torch.tensor([[2.0, 0.0], [0.0, 2.0], [2.0, 2.0]]).to(low))
+
+
+def test_integer_weight_dtype_raises_type_error():
+    """Issue 10: ``dtype=torch.long`` was silently replaced by float32 weights (promoted
+    away); every builder and module now rejects a non-float weight dtype naming it."""
+    from torchgeo_cg.mesh import (
+        FaceVaryingSubdivision,
+        LoopSubdivision,
+        bilinear_operator,
+        face_varying_operator,
+        loop_operator,
+    )
+
+    quad, tris = [[0, 1, 2, 3]], [[0, 1, 2], [0, 2, 3]]
+    calls = [
+        lambda d: catmull_clark_operator(quad, 4, dtype=d),
+        lambda d: CatmullClark(quad, 4, dtype=d),
+        lambda d: loop_operator(tris, 4, dtype=d),
+        lambda d: LoopSubdivision(tris, 4, dtype=d),
+        lambda d: bilinear_operator(quad, 4, dtype=d),
+        lambda d: face_varying_operator(quad, quad, 4, 4, dtype=d),
+        lambda d: FaceVaryingSubdivision(quad, quad, 4, 4, dtype=d),
+    ]
+    for call in calls:
+        with pytest.raises(TypeError, match="dtype: expected a floating-point"):
+            call(torch.long)
+        assert call(torch.float64) is not None
+    assert catmull_clark_operator(quad, 4, dtype=torch.float64).stencils.weights.dtype == (
+        torch.float64)

@@ -102,3 +102,51 @@ def test_crease_tangent_runs_along_the_crease():
 def test_refuses_schemes_without_masks():
     with pytest.raises(ValueError, match="scheme 'bilinear'"):
         limit_frames(bilinear_operator(CUBE_F, 8), CUBE_V)
+
+
+@pytest.mark.parametrize("dtype, scale", [(torch.float32, 1e20), (torch.float32, 1e-25),
+                                          (torch.float64, 1e160), (torch.float64, 1e-170)])
+def test_normals_are_unit_at_every_scale(dtype, scale):
+    """Issue 10: the cross product of the tangents overflowed (NaN normals at 1e20 in float32)
+    or underflowed (zero normals at 1e-25); the normals of a tilted planar grid are its
+    plane normal, by hand, at every scale."""
+    xy = torch.tensor([[c, r] for r in range(4) for c in range(4)], dtype=torch.float64)
+    plane = torch.tensor([0.3, -0.2], dtype=torch.float64)  # z = 0.3 x - 0.2 y
+    verts = torch.cat([xy, (xy @ plane)[:, None]], 1)
+    expected = torch.cat([-plane, torch.ones(1, dtype=torch.float64)])
+    expected = (expected / expected.norm()).to(dtype).expand(16 * 4, 3)
+    op = catmull_clark_operator(GRID_Q, 16, dtype=dtype)
+    normals = limit_frames(op, (verts * scale).to(dtype)).normals
+    used = torch.unique(op.faces)
+    assert_close(normals[used], expected[used], rtol=0, atol=1e-5 if dtype == torch.float32
+                 else 1e-12)
+
+
+@pytest.mark.parametrize("dtype, size, offset", [(torch.float32, 1e37, 2e38),
+                                                 (torch.float64, 1e306, 1e308)])
+def test_tangents_of_points_near_the_largest_float_are_finite(dtype, size, offset):
+    """Issue 10: tangent masks are differences (``4 e0 - 4 e2``), which overflowed to
+    ``inf - inf = NaN`` for a mesh translated near the largest float although the tangents
+    are finite. Tangent masks sum to 0, so translation must not change them (reference:
+    the same cube at the origin)."""
+    cube = CUBE_V.to(dtype) * 2 - 1
+    op = catmull_clark_operator(CUBE_F, 8, dtype=dtype)
+    here = limit_frames(op, cube * size)
+    far = limit_frames(op, cube * size + offset)
+    assert torch.isfinite(far.tangent_u).all() and torch.isfinite(far.tangent_v).all()
+    rtol = 1e-4 if dtype == torch.float32 else 1e-12
+    for got, want in ((far.tangent_u, here.tangent_u), (far.tangent_v, here.tangent_v)):
+        assert_close(got / size, want / size, rtol=rtol, atol=rtol)
+    assert_close(far.normals, here.normals, rtol=rtol, atol=rtol)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_gradcheck_frames_at_several_scales(scale):
+    """The scale-safe tangents and normals (power-of-two and max-component divisions,
+    detached) keep the exact gradient: gradcheck in float64 against finite differences."""
+    g = torch.Generator().manual_seed(3)
+    x = (CUBE_V * 2 - 1 + 0.1 * torch.randn(8, 3, generator=g, dtype=torch.float64)) * scale
+    op = catmull_clark_operator(CUBE_F, 8, dtype=torch.float64)
+    x.requires_grad_()
+    assert torch.autograd.gradcheck(lambda y: tuple(limit_frames(op, y)), (x,),
+                                    eps=1e-6 * scale, atol=1e-5)

@@ -14,11 +14,13 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.mesh import (
     CatmullClark,
     LoopSubdivision,
     SubdivisionTags,
+    bilinear_operator,
     catmull_clark,
     catmull_clark_operator,
     loop_operator,
@@ -602,3 +604,42 @@ def test_random_tags_match_reference_and_rows_sum_to_one(sharp, corners, method,
         s = module.operator(level).matrix.to_dense()
         assert_close(s.sum(1), torch.ones(s.shape[0], dtype=torch.float64))
         assert bool((s >= 0).all())
+
+
+@pytest.mark.parametrize("field, value, error", [
+    ("creases", torch.tensor([[0.0, 1.5]]), TypeError),  # was truncated to (0, 1)
+    ("creases", torch.tensor([0, 1, 3]), ShapeError),  # was a raw reshape RuntimeError
+    ("creases", torch.tensor([[0, 1, 3, 2]]), ShapeError),  # was read as two creases
+    ("corners", torch.tensor([1.0]), TypeError),
+    ("holes", torch.tensor([True]), TypeError),
+])
+def test_tag_fields_of_the_wrong_dtype_or_shape_are_named(field, value, error):
+    """Issue 10: float indices were truncated and odd shapes reshaped silently or with a raw
+    torch error; every builder now names the field."""
+    sharp = {"creases": "crease_sharpness", "corners": "corner_sharpness"}.get(field)
+    tags = SubdivisionTags.empty(torch.float64)._replace(**{field: value})
+    if sharp:
+        n = value.shape[0] if field == "corners" else max(value.numel() // 2, 1)
+        tags = tags._replace(**{sharp: torch.ones(n, dtype=torch.float64)})
+    quad = [[0, 1, 2, 3]]
+    builders = [catmull_clark_operator, loop_operator] + (
+        [bilinear_operator] if field == "holes" else [])
+    for build in builders:
+        faces = quad if build is not loop_operator else [[0, 1, 2], [0, 2, 3]]
+        with pytest.raises(error, match=f"tags.{field}"):
+            build(faces, 4, tags=tags)
+
+
+@pytest.mark.parametrize("field", ["crease_sharpness", "corner_sharpness"])
+def test_nan_sharpness_raises_value_error_naming_it(field):
+    """Issue 10 (NaN in parameters is never swallowed): a NaN sharpness is not a sharpness;
+    every builder names the field instead of treating it as smooth (NaN > 0 is False)."""
+    one = torch.tensor([float("nan")], dtype=torch.float64)
+    tags = SubdivisionTags.empty(torch.float64)._replace(
+        creases=torch.tensor([[0, 2]]), crease_sharpness=torch.ones(1, dtype=torch.float64),
+        corners=torch.tensor([1]), corner_sharpness=torch.ones(1, dtype=torch.float64))
+    tags = tags._replace(**{field: one})
+    tris = [[0, 1, 2], [0, 2, 3]]
+    for build in (catmull_clark_operator, loop_operator):
+        with pytest.raises(ValueError, match=f"tags.{field}\\[0\\].*nan"):
+            build(tris, 4, tags=tags)

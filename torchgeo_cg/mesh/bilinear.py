@@ -18,9 +18,9 @@ from collections.abc import Sequence
 import torch
 
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import stencil_matrix
+from torchgeo_cg.mesh.stencils import stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision import SubdivisionOperator, mesh_topology
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.tags import SubdivisionTags, check_tags
 
 __all__ = ["bilinear_operator"]
 
@@ -52,6 +52,8 @@ def bilinear_operator(
 
     Raises:
         ValueError: invalid faces or hole ids (the message names them).
+        TypeError: a tags index field that is not an integer tensor.
+        TypeError: ``dtype`` is not a floating-point dtype.
 
     Example:
         >>> op = bilinear_operator([[0, 1, 2, 3]], 4)
@@ -64,7 +66,7 @@ def bilinear_operator(
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
             faces_fk = faces_fk.to(device)
-        wdtype = torch.get_default_dtype() if dtype is None else dtype
+        wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_fk.shape[0]
         topo = mesh_topology(faces_fk, V0)
         E0 = topo.edge_lo_e.numel()
@@ -88,7 +90,7 @@ def bilinear_operator(
         )
         child_tags, visible = None, faces_q4
         if tags is not None:
-            holes = tags.holes.to(dev).long().reshape(-1)
+            holes = check_tags(tags).holes.to(dev).long().reshape(-1)
             bad = (holes < 0) | (holes >= F0)
             if bool(bad.any()):
                 i = int(torch.nonzero(bad)[0])

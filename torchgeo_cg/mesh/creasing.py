@@ -35,7 +35,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
+from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags, check_tags
 
 __all__ = [
     "CREASE_METHODS",
@@ -195,6 +195,7 @@ def _scatter_tags(topo, tags: SubdivisionTags, V: int, F: int, dtype):
     """Tag values on the topology's edges, vertices and faces, with clear errors."""
     E = topo.edge_lo_e.numel()
     dev = topo.edge_lo_e.device
+    check_tags(tags)
     creases = tags.creases.to(dev).long().reshape(-1, 2)
     crease_s = tags.crease_sharpness.to(device=dev, dtype=dtype).reshape(-1)
     corners = tags.corners.to(dev).long().reshape(-1)

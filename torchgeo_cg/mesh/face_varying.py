@@ -54,11 +54,12 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import ShapeError, check_shape, check_tensor
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
 from torchgeo_cg.mesh.loop import loop_operator
-from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     catmull_clark_operator,
@@ -362,7 +363,7 @@ def face_varying_operator(
     _check_choice(boundary, ("edge_only", "edge_and_corner", "none"), "boundary")
     if isinstance(num_uvs, bool) or not isinstance(num_uvs, int) or num_uvs < 0:
         raise ValueError(f"num_uvs: expected an int >= 0, got {num_uvs!r}")
-    wdtype = torch.get_default_dtype() if dtype is None else dtype
+    wdtype = weights_dtype(dtype)
     with torch.no_grad():
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
@@ -470,7 +471,7 @@ class FaceVaryingSubdivision(nn.Module):
         return getattr(self, f"faces_{self.levels}")
 
     def forward(self, uvs: torch.Tensor) -> torch.Tensor:
-        check_tensor(uvs, "uvs")
+        check_float(uvs, "uvs")
         check_shape(uvs, ["*", self.num_uvs_in, "D"], "uvs")
         for level in range(self.levels):
             stencils = StencilMatrix(
@@ -505,7 +506,8 @@ def face_varying_subdivide(
         ``catmull_clark(verts, faces, levels, boundary, tags, ...)``.
 
     Args:
-        uvs: ``(*, T, D)`` float values (UVs: ``D = 2``).
+        uvs: ``(*, T, D)`` float values (UVs: ``D = 2``); float16 and bfloat16 are
+            refined in float32 and returned in their dtype.
         faces: ``(F, K)`` long position faces, or index lists.
         uv_faces: ``(F, K)`` long value indices padded like ``faces``.
         num_vertices: ``V``.
@@ -516,6 +518,10 @@ def face_varying_subdivide(
     Returns:
         ``(uvs (*, T_L, D), uv_faces (F_L, 4) long)`` (Loop: ``(F_L, 3)``).
 
+    Raises:
+        TypeError: ``uvs`` is not a floating-point tensor.
+        ShapeError: ``uvs`` is not ``(*, T, D)``.
+
     Example:
         >>> cube_f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4],
         ...           [1, 5, 7, 3]]
@@ -525,11 +531,11 @@ def face_varying_subdivide(
         >>> uv.shape, uv_f.shape, uv[uv_f[0]].tolist()  # "corners_only": corners kept
         (torch.Size([54, 2]), torch.Size([24, 4]), [[0.0, 0.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]])
     """
-    check_tensor(uvs, "uvs")
+    check_float(uvs, "uvs")
     check_shape(uvs, ["*", "T", "D"], "uvs")
     module = FaceVaryingSubdivision(
         faces, uv_faces, num_vertices, uvs.shape[-2], levels, scheme, interpolation,
         boundary, tags, crease_method, triangle_rule, device=uvs.device,
-        dtype=uvs.dtype if uvs.is_floating_point() else None,
+        dtype=working_dtype(uvs.dtype),
     )
     return module(uvs), module.faces

@@ -30,10 +30,11 @@ from collections.abc import Sequence
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_tensor
+from torchgeo_cg.core.check import ShapeError, check_float
+from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import child_tags, limit_rules, subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix
+from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision import (
     SubdivisionOperator,
     _check_boundary,
@@ -82,6 +83,8 @@ def loop_operator(
     Raises:
         ShapeError: faces are not triangles.
         ValueError: bad ``boundary`` or invalid faces (the message names the face).
+        TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
+        TypeError: ``dtype`` is not a floating-point dtype.
 
     Example:
         >>> op = loop_operator([[0, 1, 2], [0, 2, 3]], 4)
@@ -108,7 +111,7 @@ def loop_operator(
         if device is not None:
             faces_f3 = faces_f3.to(device)
         dev = faces_f3.device
-        wdtype = torch.get_default_dtype() if dtype is None else dtype
+        wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_f3.shape[0]
         topo = mesh_topology(faces_f3, V0, boundary)
         E0 = topo.edge_lo_e.numel()
@@ -207,7 +210,8 @@ def loop_subdivide(
         See the module docstring.
 
     Args:
-        verts: ``(*, V, D)`` float, a batch of shapes sharing ``faces``.
+        verts: ``(*, V, D)`` float, a batch of shapes sharing ``faces``. float16 and
+            bfloat16 are refined in float32 (weights and sums) and returned in their dtype.
         faces: ``(F, 3)`` long triangles on the device of ``verts``, or a list.
         levels: number of steps, ``>= 0``.
         boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
@@ -220,6 +224,9 @@ def loop_subdivide(
     Returns:
         ``(verts (*, V_L, D), faces (4^L F, 3) long)``.
 
+    Raises:
+        TypeError: ``verts`` is not a floating-point tensor.
+
     Example:
         >>> tri = torch.tensor([[0., 0.], [4., 0.], [0., 4.]])
         >>> v, f = loop_subdivide(tri, [[0, 1, 2]])
@@ -228,7 +235,7 @@ def loop_subdivide(
                 [0., 2.],
                 [2., 2.]])
     """
-    check_tensor(verts, "verts")
+    check_float(verts, "verts")
     if isinstance(faces, torch.Tensor) and faces.device != verts.device:
         raise ValueError(
             f"verts and faces must be on the same device, got {verts.device} and {faces.device}"
@@ -237,7 +244,7 @@ def loop_subdivide(
         raise ShapeError(f"verts: expected shape (*, V, D), got {tuple(verts.shape)}")
     module = LoopSubdivision(
         faces, verts.shape[-2], levels=levels, boundary=boundary,
-        device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
+        device=verts.device, dtype=working_dtype(verts.dtype),
         tags=tags, crease_method=crease_method,
     )
     return module(verts), module.faces

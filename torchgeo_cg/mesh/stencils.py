@@ -14,7 +14,8 @@ Convention:
     Rows are output items, columns input items: ``out[..., r, :] = sum_c S[r, c] x[..., c, :]``.
     ``crow`` is ``(R + 1,)`` long, ``col`` and ``weights`` are ``(nnz,)``, rows sorted,
     duplicate entries summed at build time. The weights are cast to the data's dtype
-    and device on use.
+    and device on use; float16/bfloat16 data is multiplied in float32 (sparse matmuls
+    have no half-precision kernels, and the sums would lose digits) and cast back.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ from typing import NamedTuple
 
 import torch
 from torch import Tensor
+
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = ["StencilMatrix", "stencil_matrix", "apply_stencils"]
 
@@ -88,6 +91,24 @@ def _csr(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int) -> Tensor:
         matrix = torch.sparse_csr_tensor(crow, col, weights, shape, check_invariants=False)
     _CSR_WARNING_SEEN = True
     return matrix
+
+
+def weights_dtype(dtype: torch.dtype | None) -> torch.dtype:
+    """The dtype of an operator's weights: ``dtype``, or the default dtype for ``None``.
+
+    Raises:
+        TypeError: ``dtype`` is not a floating-point dtype (an integer dtype would be
+            promoted away silently).
+
+    Example:
+        >>> weights_dtype(None) == torch.get_default_dtype(), weights_dtype(torch.float64)
+        (True, torch.float64)
+    """
+    if dtype is None:
+        return torch.get_default_dtype()
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype: expected a floating-point torch.dtype, got {dtype!r}")
+    return dtype
 
 
 def stencil_matrix(
@@ -241,7 +262,8 @@ def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
         Rows are items (vertices): ``x[..., c, :]`` is item ``c``. Differentiable in
         ``x`` (backward applies the transpose through the same op); works under
         ``torch.compile(fullgraph=True)``, ``torch.func.vmap`` and ``jacrev``. The
-        weights are cast to ``x``'s dtype and device when they differ.
+        weights are cast to ``x``'s dtype and device when they differ; float16 and
+        bfloat16 ``x`` are computed in float32 and the result cast back.
 
     Args:
         stencils: :class:`StencilMatrix` of shape ``(R, C)``.
@@ -257,10 +279,11 @@ def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
         tensor([[2., 4.]])
     """
     batch, (C, D) = x.shape[:-2], x.shape[-2:]
+    dtype = working_dtype(x.dtype)
     parts = list(stencils)
-    if parts[2].dtype != x.dtype or parts[2].device != x.device:
+    if parts[2].dtype != dtype or parts[2].device != x.device:
         parts = [p.to(x.device) for p in parts]
-        parts[2], parts[5] = parts[2].to(x.dtype), parts[5].to(x.dtype)
+        parts[2], parts[5] = parts[2].to(dtype), parts[5].to(dtype)
     function = _StencilApplyEager if _plain_eager() else _StencilApply
-    y_brd = function.apply(*parts, x.reshape(math.prod(batch), C, D))
-    return y_brd.reshape(*batch, y_brd.shape[1], D)
+    y_brd = function.apply(*parts, x.to(dtype).reshape(math.prod(batch), C, D))
+    return cast_back(y_brd.reshape(*batch, y_brd.shape[1], D), x.dtype)

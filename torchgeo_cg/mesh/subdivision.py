@@ -52,6 +52,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import (
     CREASE_METHODS,
     child_tags,
@@ -59,7 +60,7 @@ from torchgeo_cg.mesh.creasing import (
     subdivision_rules,
 )
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.tags import SubdivisionTags
 
 __all__ = [
@@ -250,6 +251,8 @@ def catmull_clark_operator(
         ValueError: bad ``boundary``; indices out of range, faces with fewer than
             3 distinct vertices, repeated vertices or repeated faces (the message
             names the face index).
+        TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
+        TypeError: ``dtype`` is not a floating-point dtype.
 
     Example:
         >>> from torchgeo_cg.mesh.tags import SubdivisionTags
@@ -272,7 +275,7 @@ def catmull_clark_operator(
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
             faces_fk = faces_fk.to(device)
-        wdtype = torch.get_default_dtype() if dtype is None else dtype
+        wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_fk.shape[0]
         topo = mesh_topology(faces_fk, V0, boundary)
         rules = subdivision_rules(topo, V0, F0, tags, boundary, crease_method, wdtype)
@@ -422,7 +425,8 @@ def catmull_clark(
         See the module docstring (OpenSubdiv Catmark rules, new-vertex order).
 
     Args:
-        verts: ``(*, V, D)`` float; a batch of shapes sharing ``faces``.
+        verts: ``(*, V, D)`` float; a batch of shapes sharing ``faces``. float16 and
+            bfloat16 are refined in float32 (weights and sums) and returned in their dtype.
         faces: ``(F, K)`` long padded with ``-1`` (same device as ``verts``), or
             a list of index lists.
         levels: number of subdivision steps, ``>= 0``.
@@ -439,6 +443,7 @@ def catmull_clark(
         input unchanged (faces padded).
 
     Raises:
+        TypeError: ``verts`` is not a floating-point tensor.
         ValueError: ``verts`` and ``faces`` on different devices, or bad faces.
 
     Example:
@@ -451,7 +456,7 @@ def catmull_clark(
         >>> v1[0] * 9  # the corner moved to (2/9, 2/9, 2/9)
         tensor([2.0000, 2.0000, 2.0000])
     """
-    check_tensor(verts, "verts")
+    check_float(verts, "verts")
     if isinstance(faces, torch.Tensor) and faces.device != verts.device:
         raise ValueError(
             f"verts and faces must be on the same device, got {verts.device} and {faces.device}"
@@ -459,7 +464,7 @@ def catmull_clark(
     check_shape(verts, ["*", "V", "D"], "verts")
     module = CatmullClark(
         faces, verts.shape[-2], levels=levels, boundary=boundary,
-        device=verts.device, dtype=verts.dtype if verts.is_floating_point() else None,
+        device=verts.device, dtype=working_dtype(verts.dtype),
         tags=tags, crease_method=crease_method, triangle_rule=triangle_rule,
     )
     return module(verts), module.faces

@@ -18,6 +18,8 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.check import check_shape, check_tensor
+
 __all__ = ["SubdivisionTags", "INFINITELY_SHARP"]
 
 INFINITELY_SHARP = 10.0
@@ -26,6 +28,9 @@ INFINITELY_SHARP = 10.0
 
 class SubdivisionTags(NamedTuple):
     """Sharp creases, corners and holes of a control mesh.
+
+    Sharpness values are cast to the dtype of the operator's weights (the data's dtype
+    in ``catmull_clark``/``loop_subdivide``); they do not scale with the positions.
 
     Attributes:
         creases: ``(E, 2)`` long, vertex pairs of the creased edges.
@@ -58,3 +63,28 @@ class SubdivisionTags(NamedTuple):
             corner_sharpness=torch.zeros(0, **real),
             holes=torch.zeros(0, **long),
         )
+
+
+def check_tags(tags: SubdivisionTags) -> SubdivisionTags:
+    """Raise unless the index fields are integer tensors and ``creases`` is ``(E, 2)``.
+
+    A float index would be truncated and a wrong shape reshaped silently; the errors name
+    the field (``TypeError`` for a dtype, ``ShapeError`` for a shape). Index ranges and
+    sharpness values are checked where the mesh is known (:mod:`torchgeo_cg.mesh.creasing`).
+
+    Example:
+        >>> check_tags(SubdivisionTags.empty()._replace(holes=torch.tensor([0.0])))
+        Traceback (most recent call last):
+        ...
+        TypeError: tags.holes: expected an integer tensor, got dtype torch.float32
+    """
+    for name in ("creases", "corners", "holes"):
+        ids = check_tensor(getattr(tags, name), f"tags.{name}")
+        if ids.is_floating_point() or ids.is_complex() or ids.dtype == torch.bool:
+            raise TypeError(f"tags.{name}: expected an integer tensor, got dtype {ids.dtype}")
+    for name in ("crease_sharpness", "corner_sharpness"):
+        values = check_tensor(getattr(tags, name), f"tags.{name}")
+        if values.is_complex() or values.dtype == torch.bool:
+            raise TypeError(f"tags.{name}: expected a real tensor, got dtype {values.dtype}")
+    check_shape(tags.creases, ["E", 2], "tags.creases")
+    return tags
