@@ -9,6 +9,9 @@ sets (the neighbour assignment is piecewise constant, as in PyTorch3D's ``knn_po
 
 Convention:
     - ``dists`` are squared Euclidean distances ``|q - r|^2``, as in PyTorch3D.
+    - ``query`` and ``reference`` share one float dtype (a ``TypeError`` naming both
+      otherwise); float16/bfloat16 are searched and computed in float32 and the
+      distances returned in the input dtype (saturating at its largest value).
     - Neighbours are sorted by distance; ties go to the smaller reference index.
     - Ragged batches: rows at or past ``query_lengths`` / ``reference_lengths`` are
       padding. Padded query rows and missing neighbours (``k`` larger than the
@@ -25,6 +28,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.points.search_brute import brute_knn_indices
 from torchgeo_cg.points.search_grid import grid_knn_indices
 
@@ -140,6 +144,8 @@ def knn(
     """
     query, reference, ql, rl, batch = _prepare(query, reference, k, query_lengths,
                                                reference_lengths)
+    dtype = query.dtype  # float16/bfloat16: searched and computed in float32
+    query, reference = query.to(working_dtype(dtype)), reference.to(working_dtype(dtype))
     N, D = query.shape[-2:]
     M = reference.shape[-2]
     B = math.prod(batch)
@@ -164,4 +170,5 @@ def knn(
     d2_bnk = (q_bnd[:, :, None, :] - near_bnkd).square().sum(-1)
     d2_bnk = torch.where(found_bnk, d2_bnk, torch.zeros_like(d2_bnk))
     d2_bnk = torch.where(bad_bn[..., None], torch.full_like(d2_bnk, float("nan")), d2_bnk)
-    return KNNResult(d2_bnk.reshape(*batch, N, k), idx_bnk.reshape(*batch, N, k))
+    return KNNResult(cast_back(d2_bnk.reshape(*batch, N, k), dtype),
+                     idx_bnk.reshape(*batch, N, k))
