@@ -22,7 +22,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
+from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.points.nearest_neighbors import check_lengths, knn
 
 __all__ = ["ChamferResult", "chamfer_distance", "ChamferDistance"]
@@ -51,16 +51,24 @@ def _pad_rows(x: torch.Tensor, rows: int) -> torch.Tensor:
     return torch.cat([x, pad], dim=-2)
 
 
-def _both_ways(a, b, al, bl):
-    """Nearest-neighbour squared distances a -> b and b -> a from one knn call."""
+def _both_ways(a, b, al, bl, squared: bool):
+    """Nearest-neighbour (squared) distances a -> b and b -> a from one knn call.
+
+    Distances (``squared=False``) are the norms of the differences (overflow- and
+    underflow-safe), not square roots of squares, which lose range at extreme scales."""
     N, M = a.shape[-2], b.shape[-2]
     L = max(N, M)
     query = torch.stack([_pad_rows(a, L), _pad_rows(b, L)])
     reference = torch.stack([_pad_rows(b, L), _pad_rows(a, L)])
     lengths_q = torch.stack([al, bl])
     lengths_r = torch.stack([bl, al])
-    d2 = knn(query, reference, 1, lengths_q, lengths_r).dists[..., 0]
-    return d2[0, ..., :N], d2[1, ..., :M]
+    found = knn(query, reference, 1, lengths_q, lengths_r)
+    d = found.dists[..., 0]
+    if not squared:  # where idx = -1, d is 0 (padding) or NaN (non-finite input)
+        idx = found.idx[..., 0]
+        near = torch.gather(reference, -2, idx.clamp_min(0)[..., None].expand_as(query))
+        d = torch.where(idx >= 0, safe_norm(query - near, dim=-1), d)
+    return d[0, ..., :N], d[1, ..., :M]
 
 
 def chamfer_distance(
@@ -111,9 +119,8 @@ def chamfer_distance(
     al = check_lengths(a_lengths, batch, sa["N"], "a_lengths", a.device)
     bl = check_lengths(b_lengths, batch, sb["M"], "b_lengths", a.device)
     dtype = a.dtype  # float16/bfloat16: computed in float32, returned in the input dtype
-    a_to_b, b_to_a = _both_ways(a.to(working_dtype(dtype)), b.to(working_dtype(dtype)), al, bl)
-    if not squared:
-        a_to_b, b_to_a = safe_sqrt(a_to_b, eps=0.0), safe_sqrt(b_to_a, eps=0.0)
+    a_to_b, b_to_a = _both_ways(a.to(working_dtype(dtype)), b.to(working_dtype(dtype)), al, bl,
+                                squared)
     if reduction == "sum":
         loss = a_to_b.sum() + b_to_a.sum()
     else:

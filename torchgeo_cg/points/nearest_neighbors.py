@@ -18,6 +18,9 @@ Convention:
       number of valid references) get ``idx = -1`` and ``dists = 0`` (no gradient).
     - Non-finite input: a query with a NaN/inf coordinate, or every query of a batch
       item whose valid references contain one, gets ``idx = -1`` and ``dists = NaN``.
+    - Scale-free: the search runs on the coordinates divided by a power of two per batch
+      item (exact), so the neighbours of ``s * query`` among ``s * reference`` are the
+      same for every finite ``s``.
 """
 
 from __future__ import annotations
@@ -95,6 +98,30 @@ def _prepare(query, reference, k, query_lengths, reference_lengths):
     return query, reference, ql, rl, batch
 
 
+def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: torch.Tensor,
+                 rl_b: torch.Tensor) -> torch.Tensor:
+    """Per batch item, the power of two at or above the largest valid coordinate: ``(B, 1,
+    1)``, 1 where there is none.
+
+    Dividing by it is exact and brings the coordinates into ``[-1, 1]``, so the squared
+    distances of the search neither overflow nor underflow at any scale.
+
+    Example:
+        >>> search_scale(torch.tensor([[[3.0, 0.0]]]), torch.tensor([[[0.0, -1e-3]]]),
+        ...              torch.tensor([1]), torch.tensor([1])).flatten()
+        tensor([4.])
+    """
+    B, N, _ = query_bnd.shape
+    M = reference_bmd.shape[1]
+    q_valid = (torch.arange(N, device=ql_b.device) < ql_b[:, None])[..., None]
+    r_valid = (torch.arange(M, device=rl_b.device) < rl_b[:, None])[..., None]
+    big = torch.cat([query_bnd.abs().masked_fill(~q_valid, 0).reshape(B, -1),
+                     reference_bmd.abs().masked_fill(~r_valid, 0).reshape(B, -1),
+                     query_bnd.new_zeros(B, 1)], dim=1).amax(1)
+    one = torch.ones_like(big)
+    return torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1]), one)[:, None, None]
+
+
 def find_neighbours(query_bnd, reference_bmd, k, ql_b, rl_b) -> torch.Tensor:
     """Exact indices ``(B, N, k)`` (``-1`` where none) on finite-masked inputs."""
     B, N, D = query_bnd.shape
@@ -158,7 +185,8 @@ def knn(
         r_ok_b = (torch.isfinite(r_bmd).all(-1) | ~r_valid_bm).all(-1)
         q_clean = torch.where(q_ok_bn[..., None], q_bnd.detach(), torch.zeros_like(q_bnd))
         r_clean = torch.where(torch.isfinite(r_bmd), r_bmd.detach(), torch.zeros_like(r_bmd))
-        idx_bnk = find_neighbours(q_clean, r_clean, k, ql_b, rl_b)
+        scale_b11 = search_scale(q_clean, r_clean, ql_b, rl_b)  # exact: a power of two
+        idx_bnk = find_neighbours(q_clean / scale_b11, r_clean / scale_b11, k, ql_b, rl_b)
         bad_bn = (~q_ok_bn | ~r_ok_b[:, None]) & (torch.arange(N, device=q_bnd.device)
                                                    < ql_b[:, None])
         idx_bnk = idx_bnk.masked_fill(bad_bn[..., None], -1)
