@@ -537,3 +537,54 @@ def test_mesh_sdf_module_under_compile_vmap_jacrev():
     r = module(p[0], return_closest=True)
     unit = (p[0] - r.closest_points) / r.sdf[:, None]
     assert_close(jac.diagonal(dim1=0, dim2=1).t(), unit, atol=1e-10, rtol=0)
+
+
+# --- scale, dtype policy (issue 10) ----------------------------------------------------------
+
+UNIT_TRI = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=torch.float64)
+
+
+@pytest.mark.parametrize("dtype, s", [(torch.float64, 1e-170), (torch.float64, 1e-100),
+                                      (torch.float64, 1e100), (torch.float64, 1e160),
+                                      (torch.float32, 1e-12), (torch.float32, 1e12),
+                                      (torch.float32, 1e20)])
+def test_closest_point_on_triangle_at_any_scale(dtype, s):
+    # hand-derived: the point (0.2, 0.3, 0.5) projects into the triangle z = 0; before the
+    # fix the 4th powers of the lengths under/overflowed: an edge point at 1e-100 and 1e100,
+    # a vertex at 1e-170, NaN at 1e160 (float32: an edge at 1e+-12, NaN at 1e20)
+    p = torch.tensor([[0.2, 0.3, 0.5], [2.0, -0.5, 0.0]], dtype=torch.float64)
+    r = M.closest_point_on_triangle((p * s).to(dtype), *(UNIT_TRI * s).to(dtype))
+    assert r.feature.tolist() == [0, 5]
+    want = torch.tensor([[0.2, 0.3, 0.0], [1.0, 0.0, 0.0]], dtype=torch.float64)
+    assert_close((r.points.double() / s), want, atol=1e-6 if dtype == torch.float32 else 1e-14,
+                 rtol=0)
+
+
+def test_mixed_dtypes_raise_naming_both():
+    V, F = TET_V, TET_F
+    p32 = TET_P.float()
+    for call in (lambda: M.mesh_sdf(V, F, p32), lambda: M.winding_number(V, F, p32),
+                 lambda: M.MeshSDF(V, F, backend="torch")(p32)):
+        with pytest.raises(TypeError, match="points is torch.float32.*vertices is torch.float64"
+                           "|vertices is torch.float64.*points is torch.float32"):
+            call()
+    with pytest.raises(TypeError, match="v1 is torch.float32 on cpu but points"):
+        M.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_low_precision_is_computed_in_float32(low):
+    V, F, P = TET_V.to(low), TET_F, TET_P.to(low)
+    ref = M.mesh_sdf(V.float(), F, P.float(), return_closest=True)
+    r = M.mesh_sdf(V, F, P, return_closest=True)
+    assert r.sdf.dtype == low and r.closest_points.dtype == low
+    assert torch.equal(r.sdf, ref.sdf.to(low))
+    assert torch.equal(r.closest_points, ref.closest_points.to(low))
+    assert torch.equal(r.face_ids, ref.face_ids)
+    assert torch.equal(M.MeshSDF(V, F, backend="torch")(P).sdf, ref.sdf.to(low))
+    w = M.winding_number(V, F, P)
+    assert w.dtype == low and torch.equal(w, M.winding_number(V.float(), F, P.float()).to(low))
+    c = M.closest_point_on_triangle(P, V[0], V[1], V[2])
+    c32 = M.closest_point_on_triangle(P.float(), V[0].float(), V[1].float(), V[2].float())
+    assert c.points.dtype == low and torch.equal(c.points, c32.points.to(low))
+    assert torch.equal(c.feature, c32.feature)

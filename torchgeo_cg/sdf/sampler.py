@@ -487,7 +487,7 @@ def save_samples(path: str | Path, samples: SDFSamples) -> None:
     check_float(sdf, "sdf")
     check_shape(points, ["N", "3"], "points")
     check_shape(sdf, ["N"], "sdf", {"N": points.shape[0]})
-    check_same_dtype({"sdf": sdf, "points": points})
+    check_same_dtype({"points": points, "sdf": sdf})
     rows = torch.cat([points, sdf[:, None]], dim=1).detach().cpu()
     rows = (rows.float() if rows.dtype == torch.bfloat16 else rows).numpy()
     inside = rows[:, 3] < 0
