@@ -100,16 +100,16 @@ def _prepare(query, reference, k, query_lengths, reference_lengths):
 
 def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: torch.Tensor,
                  rl_b: torch.Tensor) -> torch.Tensor:
-    """Per batch item, the power of two at or above the largest valid coordinate: ``(B, 1,
-    1)``, 1 where there is none.
+    """Per batch item, the largest power of two at or below the largest valid coordinate:
+    ``(B, 1, 1)``, 1 where there is none.
 
-    Dividing by it is exact and brings the coordinates into ``[-1, 1]``, so the squared
+    Dividing by it is exact and brings the coordinates into ``[-2, 2]``, so the squared
     distances of the search neither overflow nor underflow at any scale.
 
     Example:
         >>> search_scale(torch.tensor([[[3.0, 0.0]]]), torch.tensor([[[0.0, -1e-3]]]),
         ...              torch.tensor([1]), torch.tensor([1])).flatten()
-        tensor([4.])
+        tensor([2.])
     """
     B, N, _ = query_bnd.shape
     M = reference_bmd.shape[1]
@@ -118,8 +118,8 @@ def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: tor
     big = torch.cat([query_bnd.abs().masked_fill(~q_valid, 0).reshape(B, -1),
                      reference_bmd.abs().masked_fill(~r_valid, 0).reshape(B, -1),
                      query_bnd.new_zeros(B, 1)], dim=1).amax(1)
-    one = torch.ones_like(big)
-    return torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1]), one)[:, None, None]
+    one = torch.ones_like(big)  # 2^(e-1) <= big < 2^e: never overflows, even near max
+    return torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1] - 1), one)[:, None, None]
 
 
 def find_neighbours(query_bnd, reference_bmd, k, ql_b, rl_b) -> torch.Tensor:

@@ -161,9 +161,11 @@ def closest_point_on_triangle(
     # float16/bfloat16 are computed in float32
     origin = v0.to(working_dtype(dtype))
     rel = [x.to(origin.dtype) - origin for x in (points, v1, v2)]
-    big = torch.stack(torch.broadcast_tensors(*rel)).detach().abs().amax(dim=(0, -1))
-    scale = torch.where(big > 0, torch.ldexp(torch.ones_like(big), torch.frexp(big)[1]),
-                        torch.ones_like(big))[..., None]
+    big = torch.maximum(torch.maximum(rel[0].detach().abs().amax(-1),
+                                      rel[1].detach().abs().amax(-1)),
+                        rel[2].detach().abs().amax(-1))
+    one = torch.ones_like(big)  # 2^(e-1) <= big < 2^e: never overflows, even near max
+    scale = torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1] - 1), one)[..., None]
     rel = [x / scale for x in rel]
     p, a, b, c = (x.movedim(-1, 0).contiguous().unbind(0)  # structure of arrays
                   for x in (rel[0], torch.zeros_like(origin), rel[1], rel[2]))
