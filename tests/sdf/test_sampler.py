@@ -281,3 +281,13 @@ def test_sample_mesh_surface_low_precision_is_computed_in_float32(low):
     got = sample_mesh_surface(v, f, 50, torch.Generator().manual_seed(0))
     want = sample_mesh_surface(v.float(), f, 50, torch.Generator().manual_seed(0))
     assert got.dtype == low and torch.equal(got, want.to(low))
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_function_source_low_precision_is_computed_in_float32(low):
+    # the Newton projection ran in bfloat16 and never met its tolerance (RuntimeError)
+    got = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=low).sample(40)
+    want = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=torch.float32).sample(40)
+    assert got.points.dtype == low and got.sdf.dtype == low
+    assert torch.equal(got.points, want.points.to(low))
+    assert torch.equal(got.sdf, sphere(got.points.float(), 0.5).to(low))

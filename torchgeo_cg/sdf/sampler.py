@@ -242,7 +242,7 @@ class SDFSampler:
         backend: search backend passed to ``mesh_sdf`` for meshes (``"auto"`` takes the
             compiled engine of the ``fast`` extra when installed, else ``"torch"``).
         device, dtype: of the returned samples (default: of the mesh, else CPU and
-            the default dtype).
+            the default dtype); float16/bfloat16 samples are computed in float32.
 
     Example:
         >>> from torchgeo_cg.sdf.primitives import sphere
@@ -324,14 +324,14 @@ class SDFSampler:
         return torch.cat(out, -1) if out else pts.new_zeros(pts.shape[:-1])
 
     def _evaluate_chunk(self, pts: torch.Tensor) -> torch.Tensor:
-        if self.sdf_fn is not None:
+        if self.sdf_fn is not None:  # float16/bfloat16: evaluated in float32, cast back
             with torch.no_grad():
-                values = self.sdf_fn(pts)
+                values = self.sdf_fn(pts.to(working_dtype(self.dtype)))
             if not isinstance(values, torch.Tensor) or values.shape != pts.shape[:-1]:
                 raise ValueError(f"source: expected the SDF to return shape "
                                  f"{tuple(pts.shape[:-1])}, got "
                                  f"{getattr(values, 'shape', type(values))}")
-            return values.to(self.dtype)
+            return cast_back(values.to(working_dtype(self.dtype)), self.dtype)
         verts = self.vertices.to(self.device, self.dtype)
         with torch.no_grad():
             return mesh_sdf(verts, self.faces.to(self.device), pts, sign=self.sign,
@@ -354,10 +354,11 @@ class SDFSampler:
 
     def _function_surface_points(self, n: int) -> torch.Tensor:
         size = float((self.bounds[1] - self.bounds[0]).max())
+        work = working_dtype(self.dtype)  # float16/bfloat16: projected in float32
         found: list[torch.Tensor] = []
         have = 0
         for _ in range(50):  # rounds of rejection, not a loop over points
-            p = self._uniform(max(2 * (n - have), 64)).to(self.device, self.dtype)
+            p = self._uniform(max(2 * (n - have), 64)).to(self.device, work)
             for _ in range(8):
                 with torch.enable_grad():
                     q = p.detach().requires_grad_(True)
@@ -369,7 +370,7 @@ class SDFSampler:
             with torch.no_grad():
                 f = self.sdf_fn(p)
             lo, hi = self.bounds.to(p)
-            ok = (f.abs() < 1e-6 * size * (10 if self.dtype == torch.float32 else 1)) & (
+            ok = (f.abs() < 1e-6 * size * (10 if work == torch.float32 else 1)) & (
                 (p >= lo) & (p <= hi)).all(-1)
             found.append(p[ok].double().cpu())
             have += int(ok.sum())
