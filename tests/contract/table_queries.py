@@ -147,6 +147,14 @@ ENTRIES: list[Entry] = [
     # above BRUTE_FORCE_PAIRS (2 x 370 x 370 pairs): the grid search on the CPU
     Entry("points.knn[grid]", P.knn, (Arg("query", (2, 370, 3)), Arg("reference", (2, 370, 3))),
           out=("area", "index"), bad=((2, 370, 2), (3,)), bad_arg=1),
+    # ragged: the lengths are constants sized for the batch of 2, so nothing to empty
+    Entry("points.knn[ragged]",
+          lambda q, r: P.knn(q, r, 3, torch.tensor([6, 2]), torch.tensor([7, 2])),
+          (Arg("query", (2, 6, 3)), Arg("reference", (2, 7, 3))),
+          out=("area", "index"), empty=None, bad=((2, 7, 5), (3,)), bad_arg=1),
+    Entry("points.chamfer_distance[ragged]",
+          lambda a, b: P.chamfer_distance(a, b, torch.tensor([6, 3]), torch.tensor([2, 7])),
+          (A, B), out=("area",) * 3, empty=None, bad=((2, 7, 2), (3,)), bad_arg=1),
     Entry("points.chamfer_distance", P.chamfer_distance, (A, B), out=("area",) * 3,
           bad=((2, 7, 2), (3,)), bad_arg=1),
     Entry("points.chamfer_distance[unsquared]",
