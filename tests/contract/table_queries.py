@@ -114,18 +114,20 @@ ENTRIES: list[Entry] = [
     Entry("sdf.closest_point_on_triangle", S.closest_point_on_triangle,
           (QUERY, Arg("v0", (2, 1, 3)), Arg("v1", (2, 1, 3)), Arg("v2", (2, 1, 3))),
           out=("length", "index"), bad=((2, 5, 2), (3, 2))),
+    # the mesh follows the dtype of the points (documented: a parameter of the query)
     Entry("sdf.winding_number",
           lambda v, p: S.winding_number(v, OCTA, p, backend="torch"), (VERTS, QUERY),
-          out="unitless", empty=(1, -2), bad=BAD_VERTS),
+          out="unitless", empty=(1, -2), bad=BAD_VERTS, mixed=("follow", 1)),
     # vertices must be finite (documented ValueError): NaN points are the [winding] variant
     Entry("sdf.mesh_sdf", _mesh_sdf("torch"), (VERTS, QUERY), out=("length", "length"),
-          empty=(1, -2), bad=BAD_VERTS, nan="raise"),
+          empty=(1, -2), bad=BAD_VERTS, nan="raise", mixed=("follow", 1)),
     Entry("sdf.mesh_sdf[auto]", _mesh_sdf("auto"), (VERTS, QUERY),
-          out=("length", "length"), empty=(1, -2), bad=BAD_VERTS, nan="raise"),
+          out=("length", "length"), empty=(1, -2), bad=BAD_VERTS, nan="raise",
+          mixed=("follow", 1)),
     Entry("sdf.mesh_sdf[winding]", _mesh_sdf_points_first, (QUERY, VERTS),
-          out=("length", "length"), bad=((2, 5, 2), (3,))),
+          out=("length", "length"), bad=((2, 5, 2), (3,)), mixed=("follow", 0)),
     Entry("sdf.MeshSDF", _module, (QUERY, VERTS), out=("length", "length"),
-          bad=((2, 5, 2), (3,))),
+          bad=((2, 5, 2), (3,)), mixed=("follow", 0)),
     # --- samples
     # vertices must be finite (documented ValueError); the empty input is an empty batch
     Entry("sdf.SDFSampler", _sampler, (VERTS, Arg("sigma", (2,), "small_positive")),

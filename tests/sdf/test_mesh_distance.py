@@ -560,16 +560,16 @@ def test_closest_point_on_triangle_at_any_scale(dtype, s):
                  rtol=0)
 
 
-def test_mixed_dtypes_raise_naming_both():
-    V, F = TET_V, TET_F
-    p32 = TET_P.float()
-    for call in (lambda: M.mesh_sdf(V, F, p32), lambda: M.winding_number(V, F, p32),
-                 lambda: M.MeshSDF(V, F, backend="torch")(p32)):
-        with pytest.raises(TypeError, match="points is torch.float32.*vertices is torch.float64"
-                           "|vertices is torch.float64.*points is torch.float32"):
-            call()
+def test_mixed_dtypes_follow_the_points_or_raise_naming_both():
+    # the mesh follows the points (winding numbers used to follow the vertices instead)
+    V, F, p32 = TET_V, TET_F, TET_P.float()
+    ref = M.mesh_sdf(V.float(), F, p32).sdf
+    assert torch.equal(M.mesh_sdf(V, F, p32).sdf, ref)
+    assert torch.equal(M.MeshSDF(V, F, backend="torch")(p32).sdf, ref)
+    w = M.winding_number(V, F, p32)
+    assert w.dtype == torch.float32 and torch.equal(w, M.winding_number(V.float(), F, p32))
     with pytest.raises(TypeError, match="v1 is torch.float32 on cpu but points"):
-        M.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])
+        M.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])  # was promoted
 
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])

@@ -243,21 +243,6 @@ def check_mesh(vertices: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     return tris.to(vertices.device)
 
 
-def _check_points(points: torch.Tensor, vertices: torch.Tensor) -> None:
-    """Validate query points ``(*, N, 3)`` against the mesh's ``vertices``: a float tensor
-    of the same dtype and device (a ``TypeError`` naming both otherwise).
-
-    Example:
-        >>> _check_points(torch.zeros(5, 3), torch.zeros(4, 3, dtype=torch.float64))
-        Traceback (most recent call last):
-        ...
-        TypeError: vertices is torch.float64 on cpu but points is torch.float32 on cpu; ...
-    """
-    check_float(points, "points")
-    check_shape(points, ["*", "N", "3"], "points")
-    check_same_dtype({"points": points, "vertices": vertices})
-
-
 def _check_mesh(vertices: torch.Tensor, faces: torch.Tensor) -> None:
     """Former private name of :func:`check_mesh` (kept for the sampler)."""
     check_mesh(vertices, faces)
@@ -345,8 +330,8 @@ def winding_number(
             exact brute-force sum in torch today (validated like :func:`mesh_sdf`'s).
 
     Returns:
-        ``(*, N)`` winding numbers, dtype of ``points`` and ``vertices`` (which must
-        agree; float16/bfloat16 are computed in float32), empty for ``N = 0``.
+        ``(*, N)`` winding numbers, dtype of ``points`` (the vertices follow it;
+        float16/bfloat16 are computed in float32), empty for ``N = 0``.
 
     Example:
         >>> tet = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
@@ -357,7 +342,8 @@ def winding_number(
     from torchgeo_cg.sdf.engines import resolve_backend
 
     tris = check_mesh(vertices, faces)
-    _check_points(points, vertices)
+    check_float(points, "points")
+    check_shape(points, ["*", "N", "3"], "points")
     resolve_backend(backend)
     verts_bv3, points_bn3, lead = batch_mesh_points(vertices, points)
     work = working_dtype(points.dtype)  # float16/bfloat16: computed in float32
@@ -552,9 +538,10 @@ def mesh_sdf(
         index those triangles. Scale-free: every guard is relative to the mesh's box
         (coordinates are divided by a power of two), so a mesh and points scaled by any
         ``s`` give the distances scaled by ``s``. NaN points give NaN; no points give
-        empty results. ``vertices`` and ``points`` share one float dtype and device (a
-        ``TypeError`` naming both otherwise); float16/bfloat16 are computed in float32
-        and returned in the input dtype.
+        empty results. Results have the dtype of ``points``: the mesh follows it, as
+        parameters follow the main input (float64 vertices from a file with float32
+        points give float32 distances); float16/bfloat16 are computed in float32 and
+        returned in the input dtype.
 
     Backends: ``"torch"`` searches on the CPU in float64 (inputs on another device make
     a round trip; results come back on the input device and dtype). An engine (``"warp"``,
@@ -584,7 +571,7 @@ def mesh_sdf(
             ``backend``.
         ImportError: an engine named in ``backend`` is not installed.
         ShapeError: wrong shapes.
-        TypeError: integer inputs, or ``points`` and ``vertices`` of different dtypes.
+        TypeError: integer inputs.
 
     Example:
         >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
@@ -597,7 +584,8 @@ def mesh_sdf(
     from torchgeo_cg.sdf.engines import resolve_backend, search_faces
 
     tris = check_mesh(vertices, faces)
-    _check_points(points, vertices)
+    check_float(points, "points")
+    check_shape(points, ["*", "N", "3"], "points")
     if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: computed in float32
         work = working_dtype(points.dtype)
         return _cast_result(mesh_sdf(vertices.to(work), faces, points.to(work), sign,
@@ -621,8 +609,8 @@ class MeshSDF(nn.Module):
 
     Convention:
         As :func:`mesh_sdf` (negative inside, outward counter-clockwise faces, same
-        defaults, same dtype policy: query points have the dtype of the module's
-        vertices). ``vertices`` may be batched ``(*, V, 3)``.
+        defaults, same dtype policy: results have the dtype of the query points).
+        ``vertices`` may be batched ``(*, V, 3)``.
 
     Args:
         vertices: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
@@ -663,7 +651,8 @@ class MeshSDF(nn.Module):
         """Signed distances of ``points (*, N, 3)``: :class:`MeshSDFResult`."""
         from torchgeo_cg.sdf.engines import resolve_backend, search_faces
 
-        _check_points(points, self.vertices)
+        check_float(points, "points")
+        check_shape(points, ["*", "N", "3"], "points")
         if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: in float32
             work = working_dtype(points.dtype)
             return _cast_result(mesh_sdf(self.vertices.to(work), self.faces, points.to(work),
