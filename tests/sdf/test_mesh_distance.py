@@ -588,3 +588,13 @@ def test_low_precision_is_computed_in_float32(low):
     c32 = M.closest_point_on_triangle(P.float(), V[0].float(), V[1].float(), V[2].float())
     assert c.points.dtype == low and torch.equal(c.points, c32.points.to(low))
     assert torch.equal(c.feature, c32.feature)
+
+
+@pytest.mark.parametrize("dtype, s", [(torch.float64, 1.5e308), (torch.float32, 2.5e38)])
+@pytest.mark.parametrize("sign", ["pseudonormal", "winding"])
+def test_top_of_the_float_range(dtype, s, sign):
+    # the power-of-two scale was 2^1024 = inf there (2^128 in float32): NaN distances
+    rows = [0, 2, 3]  # inputs and distances below the largest finite value
+    V, P = (TET_V * s).to(dtype), (TET_P[rows] * s).to(dtype)
+    r = M.mesh_sdf(V, TET_F, P, sign=sign, backend="torch").sdf
+    assert_close(r.double() / s, TET_SDF[rows], atol=1e-6, rtol=0)
