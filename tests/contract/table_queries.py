@@ -82,6 +82,13 @@ def _sampler(vertices, sigma):
     return tuple(sampler.sample(12))
 
 
+def _balanced(vertices, sigma):
+    """Balanced and clamped: ``clamp`` is a length too (from ``sigma``)."""
+    sampler = S.SDFSampler((vertices, OCTA), variances=tuple((sigma * sigma).tolist()),
+                           balanced=True, clamp=float(3 * sigma[0]), seed=1, backend="torch")
+    return tuple(sampler.sample(12))
+
+
 def _surface(vertices):
     return S.sample_mesh_surface(vertices, OCTA, 5, torch.Generator().manual_seed(0))
 
@@ -121,6 +128,7 @@ ENTRIES: list[Entry] = [
     # vertices must be finite (documented ValueError): NaN points are the [winding] variant
     Entry("sdf.mesh_sdf", _mesh_sdf("torch"), (VERTS, QUERY), out=("length", "length"),
           empty=(1, -2), bad=BAD_VERTS, nan="raise", mixed=("follow", 1)),
+    # "auto": the fastest installed engine (Warp's float32 BVH when the extra is installed)
     Entry("sdf.mesh_sdf[auto]", _mesh_sdf("auto"), (VERTS, QUERY),
           out=("length", "length"), empty=(1, -2), bad=BAD_VERTS, nan="raise",
           mixed=("follow", 1)),
@@ -133,6 +141,10 @@ ENTRIES: list[Entry] = [
     Entry("sdf.SDFSampler", _sampler, (VERTS, Arg("sigma", (2,), "small_positive")),
           out=("length", "length"), empty=(0, 0), bad=BAD_VERTS, nan="raise",
           mixed=None),  # sigma becomes Python floats (the variances)
+    Entry("sdf.SDFSampler[balanced]", _balanced, (VERTS, Arg("sigma", (2,), "small_positive")),
+          out=("length", "length"), empty=(0, 0), bad=BAD_VERTS, nan="raise",
+          mixed=None),  # sigma becomes Python floats (the variances, the clamp)
+    # vertices must be finite (documented ValueError: the area CDF is undefined)
     Entry("sdf.sample_mesh_surface", _surface, (VERTS,), empty=(0, 0), bad=BAD_VERTS,
           nan="raise"),
     Entry("sdf.save_samples", _save_load, (Arg("points", (6, 3)), Arg("sdf", (6,))),
