@@ -80,3 +80,30 @@ def test_empty_and_bad_reduction():
         chamfer_distance(torch.zeros(2, 3), torch.ones(4, 3), reduction="max")
     nan = chamfer_distance(torch.tensor([[float("nan"), 0.0]]), torch.ones(4, 2))
     assert torch.isnan(nan.loss)
+
+
+@pytest.mark.parametrize("dtype, scale", [(torch.float64, 1e-170), (torch.float64, 1e160),
+                                          (torch.float32, 1e-25), (torch.float32, 1e19)])
+def test_unsquared_distances_at_extreme_scales(dtype, scale):
+    # sqrt of the squared distance lost range (0 at 1e-170, inf at 1e160); the norm of
+    # the difference does not
+    gen = torch.Generator().manual_seed(4)
+    a = torch.randn(2, 9, 3, generator=gen, dtype=torch.float64).to(dtype).double()
+    b = torch.randn(2, 7, 3, generator=gen, dtype=torch.float64).to(dtype).double()
+    res = chamfer_distance((a * scale).to(dtype), (b * scale).to(dtype), squared=False)
+    for i in range(2):
+        ab, ba = reference_chamfer(a[i], b[i])
+        torch.testing.assert_close(res.a_to_b[i].double() / scale, ab.sqrt(), rtol=1e-5, atol=0)
+        torch.testing.assert_close(res.b_to_a[i].double() / scale, ba.sqrt(), rtol=1e-5, atol=0)
+    assert torch.isfinite(res.loss)
+
+
+def test_low_precision_is_computed_in_float32():
+    gen = torch.Generator().manual_seed(5)
+    a, b = torch.randn(2, 9, 3, generator=gen), torch.randn(2, 7, 3, generator=gen)
+    for low in (torch.float16, torch.bfloat16):
+        res = chamfer_distance(a.to(low), b.to(low), squared=False)
+        ref = chamfer_distance(a.to(low).float(), b.to(low).float(), squared=False)
+        assert all(x.dtype == low for x in res)
+        for x, y in zip(res, ref):
+            assert torch.equal(x, y.to(low))

@@ -162,3 +162,28 @@ def test_errors_name_the_argument():
         knn(torch.zeros(2, 4, 3), torch.zeros(2, 5, 3), reference_lengths=torch.tensor([6, 1]))
     with pytest.raises(ShapeError, match="query_lengths"):
         knn(torch.zeros(2, 4, 3), torch.zeros(2, 5, 3), query_lengths=torch.tensor([1]))
+
+
+@pytest.mark.parametrize("dtype, scale", [(torch.float64, 1e-170), (torch.float64, 1e160),
+                                          (torch.float32, 1e-25), (torch.float32, 1e20)])
+def test_neighbours_at_extreme_scales(path, dtype, scale):
+    # before the search ran on power-of-two scaled coordinates, every squared distance
+    # underflowed to 0 (all ties: index 0) or overflowed to inf (idx -1, dists 0)
+    gen = torch.Generator().manual_seed(11)
+    q = torch.randn(2, 20, 3, generator=gen, dtype=torch.float64)
+    r = torch.randn(2, 25, 3, generator=gen, dtype=torch.float64)
+    _, i_ref = reference_knn(q.to(dtype).double(), r.to(dtype).double(), 3)
+    res = knn((q * scale).to(dtype), (r * scale).to(dtype), k=3)
+    assert torch.equal(res.idx, i_ref)
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_low_precision_is_searched_in_float32_and_saturates(low):
+    q = torch.tensor([[0.0, 0.0], [1.0, 0.5]]).to(low)
+    r = torch.tensor([[300.0, 0.0], [1.0, 0.25]]).to(low)
+    res = knn(q, r, k=2)
+    ref = knn(q.float(), r.float(), k=2)
+    assert res.dists.dtype == low and torch.equal(res.idx, ref.idx)
+    # 300^2 is beyond float16: the largest finite value, not inf (computed in float32)
+    assert torch.equal(res.dists, ref.dists.clamp_max(torch.finfo(low).max).to(low))
+    assert torch.isfinite(res.dists).all()

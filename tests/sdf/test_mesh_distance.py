@@ -580,3 +580,64 @@ def test_repeated_calls_reuse_only_an_identical_mesh(backend, monkeypatch):
     V.mul_(2.0)
     assert_close(M.mesh_sdf(V, F, p, backend=backend).sdf, want2, atol=1e-12, rtol=0)
     assert reused == (1 if backend != "torch" else 2) and len(builds) == reused + 1
+
+
+# --- scale, dtype policy (issue 10) ----------------------------------------------------------
+
+UNIT_TRI = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=torch.float64)
+
+
+@pytest.mark.parametrize("dtype, s", [(torch.float64, 1e-170), (torch.float64, 1e-100),
+                                      (torch.float64, 1e100), (torch.float64, 1e160),
+                                      (torch.float32, 1e-12), (torch.float32, 1e12),
+                                      (torch.float32, 1e20)])
+def test_closest_point_on_triangle_at_any_scale(dtype, s):
+    # hand-derived: the point (0.2, 0.3, 0.5) projects into the triangle z = 0; before the
+    # fix the 4th powers of the lengths under/overflowed: an edge point at 1e-100 and 1e100,
+    # a vertex at 1e-170, NaN at 1e160 (float32: an edge at 1e+-12, NaN at 1e20)
+    p = torch.tensor([[0.2, 0.3, 0.5], [2.0, -0.5, 0.0]], dtype=torch.float64)
+    r = M.closest_point_on_triangle((p * s).to(dtype), *(UNIT_TRI * s).to(dtype))
+    assert r.feature.tolist() == [0, 5]
+    want = torch.tensor([[0.2, 0.3, 0.0], [1.0, 0.0, 0.0]], dtype=torch.float64)
+    assert_close((r.points.double() / s), want, atol=1e-6 if dtype == torch.float32 else 1e-14,
+                 rtol=0)
+
+
+def test_mixed_dtypes_follow_the_points_or_raise_naming_both():
+    # the mesh follows the points (winding numbers used to follow the vertices instead)
+    V, F, p32 = TET_V, TET_F, TET_P.float()
+    ref = M.mesh_sdf(V.float(), F, p32).sdf
+    assert torch.equal(M.mesh_sdf(V, F, p32).sdf, ref)
+    assert torch.equal(M.MeshSDF(V, F, backend="torch")(p32).sdf, ref)
+    w = M.winding_number(V, F, p32)
+    assert w.dtype == torch.float32 and torch.equal(w, M.winding_number(V.float(), F, p32))
+    with pytest.raises(TypeError, match="v1 is torch.float32 on cpu but points"):
+        M.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])  # was promoted
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_low_precision_is_computed_in_float32(low):
+    V, F, P = TET_V.to(low), TET_F, TET_P.to(low)
+    ref = M.mesh_sdf(V.float(), F, P.float(), return_closest=True)
+    r = M.mesh_sdf(V, F, P, return_closest=True)
+    assert r.sdf.dtype == low and r.closest_points.dtype == low
+    assert torch.equal(r.sdf, ref.sdf.to(low))
+    assert torch.equal(r.closest_points, ref.closest_points.to(low))
+    assert torch.equal(r.face_ids, ref.face_ids)
+    assert torch.equal(M.MeshSDF(V, F, backend="torch")(P).sdf, ref.sdf.to(low))
+    w = M.winding_number(V, F, P)
+    assert w.dtype == low and torch.equal(w, M.winding_number(V.float(), F, P.float()).to(low))
+    c = M.closest_point_on_triangle(P, V[0], V[1], V[2])
+    c32 = M.closest_point_on_triangle(P.float(), V[0].float(), V[1].float(), V[2].float())
+    assert c.points.dtype == low and torch.equal(c.points, c32.points.to(low))
+    assert torch.equal(c.feature, c32.feature)
+
+
+@pytest.mark.parametrize("dtype, s", [(torch.float64, 1.5e308), (torch.float32, 2.5e38)])
+@pytest.mark.parametrize("sign", ["pseudonormal", "winding"])
+def test_top_of_the_float_range(dtype, s, sign):
+    # the power-of-two scale was 2^1024 = inf there (2^128 in float32): NaN distances
+    rows = [0, 2, 3]  # inputs and distances below the largest finite value
+    V, P = (TET_V * s).to(dtype), (TET_P[rows] * s).to(dtype)
+    r = M.mesh_sdf(V, TET_F, P, sign=sign, backend="torch").sdf
+    assert_close(r.double() / s, TET_SDF[rows], atol=1e-6, rtol=0)

@@ -10,10 +10,17 @@ import torch
 import trimesh
 from scipy import stats
 
+from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 from torchgeo_cg.sdf.primitives import Torus, sphere, torus
-from torchgeo_cg.sdf.sampler import SDFSampler, SDFSamples, load_samples, sample_mesh_surface
+from torchgeo_cg.sdf.sampler import (
+    SDFSampler,
+    SDFSamples,
+    load_samples,
+    sample_mesh_surface,
+    save_samples,
+)
 
 
 def test_distribution_of_an_analytic_source():
@@ -230,3 +237,57 @@ def test_backend_is_passed_to_mesh_sdf(backend):
     assert_close(s.sdf, mesh_sdf(V, F, s.points, backend="torch").sdf)
     with pytest.raises(ValueError, match="backend"):
         SDFSampler(m, seed=3, backend="no-such-engine")
+
+
+# --- dtype policy and file validation (issue 10) --------------------------------------------
+
+
+def test_save_samples_dtypes(tmp_path):
+    points = torch.tensor([[0.0, 0, 0], [2, 0, 0]], dtype=torch.float64)
+    sdf = torch.tensor([-1.0, 1.0], dtype=torch.float64)
+    path = tmp_path / "s.npz"
+    with pytest.raises(TypeError, match="sdf is torch.float32 on cpu but points"):
+        save_samples(path, SDFSamples(points, sdf.float()))  # was silently promoted
+    with pytest.raises(TypeError, match="sdf: expected a floating-point"):
+        save_samples(path, SDFSamples(points, sdf.long()))
+    # numpy has no bfloat16: stored as float32, restored on request (was a raw torch error)
+    save_samples(path, SDFSamples(points.bfloat16(), sdf.bfloat16()))
+    with np.load(path) as data:
+        assert data["pos"].dtype == np.float32
+        assert data["pos"].tolist() == [[2.0, 0, 0, 1.0]]
+        assert data["neg"].tolist() == [[0.0, 0, 0, -1.0]]
+    back = load_samples(path, dtype=torch.bfloat16)
+    assert back.sdf.dtype == torch.bfloat16 and back.sdf.tolist() == [1.0, -1.0]
+
+
+def test_load_samples_validates_each_array(tmp_path):
+    good = np.zeros((2, 4))
+    for pos, neg, error, match in ((np.zeros((2, 5)), good, ShapeError, r"pos: .*\(2, 5\)"),
+                                   (good, np.zeros(4), ShapeError, r"neg: .*\(4,\)"),
+                                   (good, np.zeros((2, 4), dtype=np.int64), TypeError,
+                                    "neg: expected floating-point rows")):
+        np.savez(tmp_path / "bad.npz", pos=pos, neg=neg)
+        with pytest.raises(error, match=match):  # were a raw numpy error / int tensors
+            load_samples(tmp_path / "bad.npz")
+    np.savez(tmp_path / "mixed.npz", pos=good, neg=good.astype(np.float32))
+    assert load_samples(tmp_path / "mixed.npz").points.dtype == torch.float64  # promoted
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_sample_mesh_surface_low_precision_is_computed_in_float32(low):
+    m = trimesh.creation.icosphere(subdivisions=1)
+    v = torch.tensor(m.vertices).to(low)
+    f = torch.tensor(m.faces)
+    got = sample_mesh_surface(v, f, 50, torch.Generator().manual_seed(0))
+    want = sample_mesh_surface(v.float(), f, 50, torch.Generator().manual_seed(0))
+    assert got.dtype == low and torch.equal(got, want.to(low))
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
+def test_function_source_low_precision_is_computed_in_float32(low):
+    # the Newton projection ran in bfloat16 and never met its tolerance (RuntimeError)
+    got = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=low).sample(40)
+    want = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=torch.float32).sample(40)
+    assert got.points.dtype == low and got.sdf.dtype == low
+    assert torch.equal(got.points, want.points.to(low))
+    assert torch.equal(got.sdf, sphere(got.points.float(), 0.5).to(low))

@@ -9,6 +9,8 @@ Convention:
       ``point_reduction="mean"``. ``reduction="mean"`` averages it over the batch,
       ``"sum"`` adds every valid ``a_to_b`` and ``b_to_a`` entry of the batch (no
       division), ``"none"`` returns the per-item losses ``(*,)``.
+    - ``a`` and ``b`` share one float dtype (a ``TypeError`` naming both otherwise);
+      float16/bfloat16 are computed in float32 and returned in the input dtype.
     - Both directions are found in one exact :func:`~torchgeo_cg.points.nearest_neighbors.knn` call.
 """
 
@@ -20,7 +22,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.numerics import safe_sqrt
+from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.points.nearest_neighbors import check_lengths, knn
 
 __all__ = ["ChamferResult", "chamfer_distance", "ChamferDistance"]
@@ -49,16 +51,24 @@ def _pad_rows(x: torch.Tensor, rows: int) -> torch.Tensor:
     return torch.cat([x, pad], dim=-2)
 
 
-def _both_ways(a, b, al, bl):
-    """Nearest-neighbour squared distances a -> b and b -> a from one knn call."""
+def _both_ways(a, b, al, bl, squared: bool):
+    """Nearest-neighbour (squared) distances a -> b and b -> a from one knn call.
+
+    Distances (``squared=False``) are the norms of the differences (overflow- and
+    underflow-safe), not square roots of squares, which lose range at extreme scales."""
     N, M = a.shape[-2], b.shape[-2]
     L = max(N, M)
     query = torch.stack([_pad_rows(a, L), _pad_rows(b, L)])
     reference = torch.stack([_pad_rows(b, L), _pad_rows(a, L)])
     lengths_q = torch.stack([al, bl])
     lengths_r = torch.stack([bl, al])
-    d2 = knn(query, reference, 1, lengths_q, lengths_r).dists[..., 0]
-    return d2[0, ..., :N], d2[1, ..., :M]
+    found = knn(query, reference, 1, lengths_q, lengths_r)
+    d = found.dists[..., 0]
+    if not squared:  # where idx = -1, d is 0 (padding) or NaN (non-finite input)
+        idx = found.idx[..., 0]
+        near = torch.gather(reference, -2, idx.clamp_min(0)[..., None].expand_as(query))
+        d = torch.where(idx >= 0, safe_norm(query - near, dim=-1), d)
+    return d[0, ..., :N], d[1, ..., :M]
 
 
 def chamfer_distance(
@@ -108,15 +118,16 @@ def chamfer_distance(
     b = b.expand(*batch, *b.shape[-2:])
     al = check_lengths(a_lengths, batch, sa["N"], "a_lengths", a.device)
     bl = check_lengths(b_lengths, batch, sb["M"], "b_lengths", a.device)
-    a_to_b, b_to_a = _both_ways(a, b, al, bl)
-    if not squared:
-        a_to_b, b_to_a = safe_sqrt(a_to_b, eps=0.0), safe_sqrt(b_to_a, eps=0.0)
+    dtype = a.dtype  # float16/bfloat16: computed in float32, returned in the input dtype
+    a_to_b, b_to_a = _both_ways(a.to(working_dtype(dtype)), b.to(working_dtype(dtype)), al, bl,
+                                squared)
     if reduction == "sum":
-        return ChamferResult(a_to_b.sum() + b_to_a.sum(), a_to_b, b_to_a)
-    per_item = (a_to_b.sum(-1) / al.clamp_min(1).to(a_to_b)
-                + b_to_a.sum(-1) / bl.clamp_min(1).to(b_to_a))
-    loss = per_item if reduction == "none" else per_item.sum() / max(per_item.numel(), 1)
-    return ChamferResult(loss, a_to_b, b_to_a)
+        loss = a_to_b.sum() + b_to_a.sum()
+    else:
+        per_item = (a_to_b.sum(-1) / al.clamp_min(1).to(a_to_b)
+                    + b_to_a.sum(-1) / bl.clamp_min(1).to(b_to_a))
+        loss = per_item if reduction == "none" else per_item.sum() / max(per_item.numel(), 1)
+    return ChamferResult(*(cast_back(x, dtype) for x in (loss, a_to_b, b_to_a)))
 
 
 class ChamferDistance(nn.Module):

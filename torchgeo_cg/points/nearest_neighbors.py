@@ -9,12 +9,18 @@ sets (the neighbour assignment is piecewise constant, as in PyTorch3D's ``knn_po
 
 Convention:
     - ``dists`` are squared Euclidean distances ``|q - r|^2``, as in PyTorch3D.
+    - ``query`` and ``reference`` share one float dtype (a ``TypeError`` naming both
+      otherwise); float16/bfloat16 are searched and computed in float32 and the
+      distances returned in the input dtype (saturating at its largest value).
     - Neighbours are sorted by distance; ties go to the smaller reference index.
     - Ragged batches: rows at or past ``query_lengths`` / ``reference_lengths`` are
       padding. Padded query rows and missing neighbours (``k`` larger than the
       number of valid references) get ``idx = -1`` and ``dists = 0`` (no gradient).
     - Non-finite input: a query with a NaN/inf coordinate, or every query of a batch
       item whose valid references contain one, gets ``idx = -1`` and ``dists = NaN``.
+    - Scale-free: the search runs on the coordinates divided by a power of two per batch
+      item (exact), so the neighbours of ``s * query`` among ``s * reference`` are the
+      same for every finite ``s``.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.points.search_brute import brute_knn_indices
 from torchgeo_cg.points.search_grid import grid_knn_indices
 
@@ -91,6 +98,30 @@ def _prepare(query, reference, k, query_lengths, reference_lengths):
     return query, reference, ql, rl, batch
 
 
+def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: torch.Tensor,
+                 rl_b: torch.Tensor) -> torch.Tensor:
+    """Per batch item, the largest power of two at or below the largest valid coordinate:
+    ``(B, 1, 1)``, 1 where there is none.
+
+    Dividing by it is exact and brings the coordinates into ``[-2, 2]``, so the squared
+    distances of the search neither overflow nor underflow at any scale.
+
+    Example:
+        >>> search_scale(torch.tensor([[[3.0, 0.0]]]), torch.tensor([[[0.0, -1e-3]]]),
+        ...              torch.tensor([1]), torch.tensor([1])).flatten()
+        tensor([2.])
+    """
+    B, N, _ = query_bnd.shape
+    M = reference_bmd.shape[1]
+    q_valid = (torch.arange(N, device=ql_b.device) < ql_b[:, None])[..., None]
+    r_valid = (torch.arange(M, device=rl_b.device) < rl_b[:, None])[..., None]
+    big = torch.cat([query_bnd.abs().masked_fill(~q_valid, 0).reshape(B, -1),
+                     reference_bmd.abs().masked_fill(~r_valid, 0).reshape(B, -1),
+                     query_bnd.new_zeros(B, 1)], dim=1).amax(1)
+    one = torch.ones_like(big)  # 2^(e-1) <= big < 2^e: never overflows, even near max
+    return torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1] - 1), one)[:, None, None]
+
+
 def find_neighbours(query_bnd, reference_bmd, k, ql_b, rl_b) -> torch.Tensor:
     """Exact indices ``(B, N, k)`` (``-1`` where none) on finite-masked inputs."""
     B, N, D = query_bnd.shape
@@ -140,6 +171,8 @@ def knn(
     """
     query, reference, ql, rl, batch = _prepare(query, reference, k, query_lengths,
                                                reference_lengths)
+    dtype = query.dtype  # float16/bfloat16: searched and computed in float32
+    query, reference = query.to(working_dtype(dtype)), reference.to(working_dtype(dtype))
     N, D = query.shape[-2:]
     M = reference.shape[-2]
     B = math.prod(batch)
@@ -152,7 +185,8 @@ def knn(
         r_ok_b = (torch.isfinite(r_bmd).all(-1) | ~r_valid_bm).all(-1)
         q_clean = torch.where(q_ok_bn[..., None], q_bnd.detach(), torch.zeros_like(q_bnd))
         r_clean = torch.where(torch.isfinite(r_bmd), r_bmd.detach(), torch.zeros_like(r_bmd))
-        idx_bnk = find_neighbours(q_clean, r_clean, k, ql_b, rl_b)
+        scale_b11 = search_scale(q_clean, r_clean, ql_b, rl_b)  # exact: a power of two
+        idx_bnk = find_neighbours(q_clean / scale_b11, r_clean / scale_b11, k, ql_b, rl_b)
         bad_bn = (~q_ok_bn | ~r_ok_b[:, None]) & (torch.arange(N, device=q_bnd.device)
                                                    < ql_b[:, None])
         idx_bnk = idx_bnk.masked_fill(bad_bn[..., None], -1)
@@ -164,4 +198,5 @@ def knn(
     d2_bnk = (q_bnd[:, :, None, :] - near_bnkd).square().sum(-1)
     d2_bnk = torch.where(found_bnk, d2_bnk, torch.zeros_like(d2_bnk))
     d2_bnk = torch.where(bad_bn[..., None], torch.full_like(d2_bnk, float("nan")), d2_bnk)
-    return KNNResult(d2_bnk.reshape(*batch, N, k), idx_bnk.reshape(*batch, N, k))
+    return KNNResult(cast_back(d2_bnk.reshape(*batch, N, k), dtype),
+                     idx_bnk.reshape(*batch, N, k))

@@ -48,7 +48,8 @@ from torchgeo_cg.core.check import (
     check_shape,
     check_tensor,
 )
-from torchgeo_cg.core.numerics import hypot
+from torchgeo_cg.core.coerce import check_same_dtype
+from torchgeo_cg.core.numerics import cast_back, hypot, working_dtype
 from torchgeo_cg.mesh.faces import triangulate_faces
 from torchgeo_cg.sdf.mesh_search import far_radius, power_of_two_scale, pull_in_far_points
 
@@ -131,9 +132,12 @@ def closest_point_on_triangle(
     division by a zero area.
 
     Convention:
-        All arguments broadcast; feature codes as in :data:`FEATURES`
-        (0 face, 1-3 edges v0v1, v1v2, v2v0, 4-6 vertices). Differentiable almost
-        everywhere w.r.t. all inputs, with finite gradients.
+        All arguments broadcast and share one float dtype (a ``TypeError`` naming two
+        otherwise); feature codes as in :data:`FEATURES` (0 face, 1-3 edges v0v1, v1v2,
+        v2v0, 4-6 vertices). Differentiable almost everywhere w.r.t. all inputs, with
+        finite gradients. Scale-free: computed relative to ``v0`` and divided by a power
+        of two per element, so no intermediate overflows at any finite scale.
+        float16/bfloat16 are computed in float32 and returned in the input dtype.
 
     Args:
         points: ``(*, 3)``.
@@ -150,12 +154,25 @@ def closest_point_on_triangle(
         (tensor([[0.3333, 0.3333, 0.3333],
                 [1.0000, 0.0000, 0.0000]]), tensor([0, 4]))
     """
-    for name, x in (("points", points), ("v0", v0), ("v1", v1), ("v2", v2)):
+    named = {"points": points, "v0": v0, "v1": v1, "v2": v2}
+    for name, x in named.items():
         check_float(x, name)
         check_shape(x, ["*", "3"], name)
-    shape = torch.broadcast_shapes(points.shape, v0.shape, v1.shape, v2.shape)
+    dtype = check_same_dtype(named).dtype
+    shape = tuple(check_broadcastable({k: x.shape[:-1] for k, x in named.items()})) + (3,)
+    # relative to v0 and divided by a power of two (exact, detached) per element, so that
+    # no product (up to 4th powers of lengths) overflows or underflows at any scale;
+    # float16/bfloat16 are computed in float32
+    origin = v0.to(working_dtype(dtype))
+    rel = [x.to(origin.dtype) - origin for x in (points, v1, v2)]
+    big = torch.maximum(torch.maximum(rel[0].detach().abs().amax(-1),
+                                      rel[1].detach().abs().amax(-1)),
+                        rel[2].detach().abs().amax(-1))
+    one = torch.ones_like(big)  # 2^(e-1) <= big < 2^e: never overflows, even near max
+    scale = torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1] - 1), one)[..., None]
+    rel = [x / scale for x in rel]
     p, a, b, c = (x.movedim(-1, 0).contiguous().unbind(0)  # structure of arrays
-                  for x in (points, v0, v1, v2))
+                  for x in (rel[0], torch.zeros_like(origin), rel[1], rel[2]))
     e0, e1 = [y - x for x, y in zip(a, b)], [y - x for x, y in zip(a, c)]
     w = [y - x for x, y in zip(a, p)]
     d00, d01, d11 = _dot(e0, e0), _dot(e0, e1), _dot(e1, e1)
@@ -184,8 +201,8 @@ def closest_point_on_triangle(
     start, end = (torch.tensor(x, device=code.device)[edge] for x in ([4, 5, 6], [5, 6, 4]))
     feature = torch.where(t_best <= 0, start, torch.where(t_best >= 1, end, code))
     feature = torch.where(code == 0, 0, feature).expand(shape[:-1])
-    q = torch.stack(torch.broadcast_tensors(*q), dim=-1).expand(shape)
-    return TriangleClosestPoint(q, feature)
+    q = torch.stack(torch.broadcast_tensors(*q), dim=-1) * scale + origin
+    return TriangleClosestPoint(cast_back(q.expand(shape), dtype), feature)
 
 
 def check_mesh(vertices: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
@@ -317,7 +334,8 @@ def winding_number(
             exact brute-force sum in torch today (validated like :func:`mesh_sdf`'s).
 
     Returns:
-        ``(*, N)`` winding numbers, dtype of ``vertices`` (empty for ``N = 0``).
+        ``(*, N)`` winding numbers, dtype of ``points`` (the vertices follow it;
+        float16/bfloat16 are computed in float32), empty for ``N = 0``.
 
     Example:
         >>> tet = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
@@ -332,11 +350,12 @@ def winding_number(
     check_shape(points, ["*", "N", "3"], "points")
     resolve_backend(backend)
     verts_bv3, points_bn3, lead = batch_mesh_points(vertices, points)
+    work = working_dtype(points.dtype)  # float16/bfloat16: computed in float32
     with torch.no_grad():
-        scale = power_of_two_scale(verts_bv3)
-        tri = gather_triangles(verts_bv3.detach() / scale, tris).to(points.dtype)
-        total = _solid_angles_sum(tri, points_bn3.detach() / scale.to(points.dtype), chunk)
-    return (total / (4.0 * math.pi)).reshape(lead).to(vertices.dtype)
+        scale = power_of_two_scale(verts_bv3.to(work))
+        tri = gather_triangles(verts_bv3.detach().to(work) / scale, tris)
+        total = _solid_angles_sum(tri, points_bn3.detach().to(work) / scale, chunk)
+    return cast_back((total / (4.0 * math.pi)).reshape(lead), points.dtype)
 
 
 def batch_mesh_points(vertices: torch.Tensor, points: torch.Tensor):
@@ -493,6 +512,14 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
     return dist * scale[..., 0], cp.points * scale
 
 
+def _cast_result(result: MeshSDFResult, dtype: torch.dtype) -> MeshSDFResult:
+    """``result`` with its float fields cast back to ``dtype`` (saturating, see
+    :func:`~torchgeo_cg.core.numerics.cast_back`)."""
+    return result._replace(sdf=cast_back(result.sdf, dtype), closest_points=None
+                           if result.closest_points is None
+                           else cast_back(result.closest_points, dtype))
+
+
 def mesh_sdf(
     vertices: torch.Tensor,
     faces: torch.Tensor,
@@ -516,7 +543,10 @@ def mesh_sdf(
         index those triangles. Scale-free: every guard is relative to the mesh's box
         (coordinates are divided by a power of two), so a mesh and points scaled by any
         ``s`` give the distances scaled by ``s``. NaN points give NaN; no points give
-        empty results.
+        empty results. Results have the dtype of ``points``: the mesh follows it, as
+        parameters follow the main input (float64 vertices from a file with float32
+        points give float32 distances); float16/bfloat16 are computed in float32 and
+        returned in the input dtype.
 
     Backends: ``"torch"`` searches on the CPU in float64 (inputs on another device make
     a round trip; results come back on the input device and dtype). An engine (``"warp"``,
@@ -547,6 +577,7 @@ def mesh_sdf(
             ``backend``.
         ImportError: an engine named in ``backend`` is not installed.
         ShapeError: wrong shapes.
+        TypeError: integer inputs.
 
     Example:
         >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
@@ -561,6 +592,10 @@ def mesh_sdf(
     tris = check_mesh(vertices, faces)
     check_float(points, "points")
     check_shape(points, ["*", "N", "3"], "points")
+    if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: computed in float32
+        work = working_dtype(points.dtype)
+        return _cast_result(mesh_sdf(vertices.to(work), faces, points.to(work), sign,
+                                    return_closest, backend, progress), points.dtype)
     sign = resolve_sign(sign, tris, vertices.shape[-2])
     engine = resolve_backend(backend)
     verts_bv3, points_bn3, lead = batch_mesh_points(vertices, points)
@@ -620,7 +655,8 @@ class MeshSDF(nn.Module):
 
     Convention:
         As :func:`mesh_sdf` (negative inside, outward counter-clockwise faces, same
-        defaults). ``vertices`` may be batched ``(*, V, 3)``.
+        defaults, same dtype policy: results have the dtype of the query points).
+        ``vertices`` may be batched ``(*, V, 3)``.
 
     Args:
         vertices: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
@@ -663,6 +699,11 @@ class MeshSDF(nn.Module):
 
         check_float(points, "points")
         check_shape(points, ["*", "N", "3"], "points")
+        if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: in float32
+            work = working_dtype(points.dtype)
+            return _cast_result(mesh_sdf(self.vertices.to(work), self.faces, points.to(work),
+                                        self.sign, return_closest, self.backend, progress),
+                               points.dtype)
         engine = resolve_backend(self.backend)
         verts_bv3, points_bn3, lead = batch_mesh_points(self.vertices, points)
         same_meshes = verts_bv3.shape[0] == self.vertices.shape[:-2].numel()

@@ -54,7 +54,8 @@ def power_of_two_scale(x_bk3: torch.Tensor) -> torch.Tensor:
     """Per batch item, the power of two at or above the largest absolute coordinate.
 
     Dividing by it is exact (no rounding) and brings every coordinate into ``[-1, 1]``;
-    an all-zero item gets scale 1.
+    an all-zero item gets scale 1. Above the dtype's largest power of two (where the
+    next one would be ``inf``) it is that power, and coordinates land in ``[-2, 2]``.
 
     Args:
         x_bk3: ``(B, K, 3)`` finite coordinates.
@@ -68,7 +69,8 @@ def power_of_two_scale(x_bk3: torch.Tensor) -> torch.Tensor:
     """
     big = x_bk3.detach().abs().amax(dim=(1, 2), keepdim=True)
     _, exponent = torch.frexp(big)  # big = m * 2**e with m in [0.5, 1)
-    return torch.where(big > 0, torch.ldexp(torch.ones_like(big), exponent),
+    top = math.frexp(torch.finfo(big.dtype).max)[1] - 1  # 2**top is the largest finite
+    return torch.where(big > 0, torch.ldexp(torch.ones_like(big), exponent.clamp_max(top)),
                        torch.ones_like(big))
 
 

@@ -42,6 +42,8 @@ import numpy as np
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.coerce import check_same_dtype
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.faces import check_faces, triangulate_faces
 from torchgeo_cg.sdf.engines import resolve_backend
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
@@ -135,7 +137,7 @@ def sample_mesh_surface(
         are fan-triangulated (module docstring).
 
     Args:
-        vertices: ``(*, V, 3)``.
+        vertices: ``(*, V, 3)`` float, finite.
         faces: ``(F, 3)`` triangles or ``(F, K)`` padded polygons; each mesh needs a face
             of positive area.
         n: number of points per mesh.
@@ -143,7 +145,10 @@ def sample_mesh_surface(
 
     Returns:
         ``(*, n, 3)`` points, dtype and device of ``vertices`` (differentiable w.r.t.
-        ``vertices``).
+        ``vertices``; float16/bfloat16 are computed in float32).
+
+    Raises:
+        ValueError: non-finite vertices, an empty mesh, a mesh without area, bad ``n``.
 
     Example:
         >>> tri = torch.tensor([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -170,7 +175,8 @@ def sample_mesh_surface(
         w = torch.stack([1 - s, s * (1 - r[..., 2]), s * r[..., 2]], dim=-1)
     face = face.to(vertices.device)
     picked = torch.gather(corners, -3, face[..., None, None].expand(*face.shape, 3, 3))
-    return (w.to(vertices).unsqueeze(-1) * picked).sum(-2)
+    picked = picked.to(working_dtype(vertices.dtype))  # float16/bfloat16: in float32
+    return cast_back((w.to(picked).unsqueeze(-1) * picked).sum(-2), vertices.dtype)
 
 
 def _parse_bounds(bounds) -> torch.Tensor:
@@ -236,7 +242,7 @@ class SDFSampler:
         backend: search backend passed to ``mesh_sdf`` for meshes (``"auto"`` takes the
             compiled engine of the ``fast`` extra when installed, else ``"torch"``).
         device, dtype: of the returned samples (default: of the mesh, else CPU and
-            the default dtype).
+            the default dtype); float16/bfloat16 samples are computed in float32.
 
     Example:
         >>> from torchgeo_cg.sdf.primitives import sphere
@@ -318,14 +324,14 @@ class SDFSampler:
         return torch.cat(out, -1) if out else pts.new_zeros(pts.shape[:-1])
 
     def _evaluate_chunk(self, pts: torch.Tensor) -> torch.Tensor:
-        if self.sdf_fn is not None:
+        if self.sdf_fn is not None:  # float16/bfloat16: evaluated in float32, cast back
             with torch.no_grad():
-                values = self.sdf_fn(pts)
+                values = self.sdf_fn(pts.to(working_dtype(self.dtype)))
             if not isinstance(values, torch.Tensor) or values.shape != pts.shape[:-1]:
                 raise ValueError(f"source: expected the SDF to return shape "
                                  f"{tuple(pts.shape[:-1])}, got "
                                  f"{getattr(values, 'shape', type(values))}")
-            return values.to(self.dtype)
+            return cast_back(values.to(working_dtype(self.dtype)), self.dtype)
         verts = self.vertices.to(self.device, self.dtype)
         with torch.no_grad():
             return mesh_sdf(verts, self.faces.to(self.device), pts, sign=self.sign,
@@ -348,10 +354,11 @@ class SDFSampler:
 
     def _function_surface_points(self, n: int) -> torch.Tensor:
         size = float((self.bounds[1] - self.bounds[0]).max())
+        work = working_dtype(self.dtype)  # float16/bfloat16: projected in float32
         found: list[torch.Tensor] = []
         have = 0
         for _ in range(50):  # rounds of rejection, not a loop over points
-            p = self._uniform(max(2 * (n - have), 64)).to(self.device, self.dtype)
+            p = self._uniform(max(2 * (n - have), 64)).to(self.device, work)
             for _ in range(8):
                 with torch.enable_grad():
                     q = p.detach().requires_grad_(True)
@@ -363,7 +370,7 @@ class SDFSampler:
             with torch.no_grad():
                 f = self.sdf_fn(p)
             lo, hi = self.bounds.to(p)
-            ok = (f.abs() < 1e-6 * size * (10 if self.dtype == torch.float32 else 1)) & (
+            ok = (f.abs() < 1e-6 * size * (10 if work == torch.float32 else 1)) & (
                 (p >= lo) & (p <= hi)).all(-1)
             found.append(p[ok].double().cpu())
             have += int(ok.sum())
@@ -456,11 +463,14 @@ class SDFSampler:
 def save_samples(path: str | Path, samples: SDFSamples) -> None:
     """Save samples to ``.npz`` in DeepSDF's layout: ``pos`` and ``neg``, each ``(M, 4)``.
 
-    Rows are ``(x, y, z, sdf)``; ``pos`` holds ``sdf >= 0``, ``neg`` holds ``sdf < 0``.
+    Rows are ``(x, y, z, sdf)``; ``pos`` holds ``sdf >= 0`` (and NaN), ``neg`` holds
+    ``sdf < 0``. The arrays have the dtype of the samples; bfloat16 (which NumPy lacks)
+    is stored as float32 (``load_samples(..., dtype=torch.bfloat16)`` restores it).
 
     Args:
         path: file path (``.npz`` is appended by NumPy if missing).
-        samples: :class:`SDFSamples` with ``points (N, 3)`` and ``sdf (N,)``.
+        samples: :class:`SDFSamples` with ``points (N, 3)`` and ``sdf (N,)``, float
+            tensors of one dtype (a ``TypeError`` naming both otherwise).
 
     Returns:
         ``None``; writes the file.
@@ -475,9 +485,12 @@ def save_samples(path: str | Path, samples: SDFSamples) -> None:
     """
     points, sdf = samples
     check_float(points, "points")
+    check_float(sdf, "sdf")
     check_shape(points, ["N", "3"], "points")
     check_shape(sdf, ["N"], "sdf", {"N": points.shape[0]})
-    rows = torch.cat([points, sdf[:, None]], dim=1).detach().cpu().numpy()
+    check_same_dtype({"points": points, "sdf": sdf})
+    rows = torch.cat([points, sdf[:, None]], dim=1).detach().cpu()
+    rows = (rows.float() if rows.dtype == torch.bfloat16 else rows).numpy()
     inside = rows[:, 3] < 0
     np.savez(path, pos=rows[~inside], neg=rows[inside])
 
@@ -487,10 +500,16 @@ def load_samples(path: str | Path, device=None, dtype=None) -> SDFSamples:
 
     Args:
         path: the ``.npz`` file.
-        device, dtype: of the result (default: CPU, the stored dtype).
+        device, dtype: of the result (default: CPU, the stored dtype; ``pos`` and
+            ``neg`` of different float dtypes are promoted by NumPy's rules).
 
     Returns:
         :class:`SDFSamples` ``(points (N, 3), sdf (N,))``, positive rows first.
+
+    Raises:
+        ValueError: ``pos`` or ``neg`` missing.
+        ShapeError: ``pos`` or ``neg`` not of shape ``(M, 4)``.
+        TypeError: ``pos`` or ``neg`` not floating point.
 
     Example:
         >>> import tempfile, os
@@ -505,8 +524,13 @@ def load_samples(path: str | Path, device=None, dtype=None) -> SDFSamples:
         if "pos" not in data or "neg" not in data:
             raise ValueError(f"path: expected arrays 'pos' and 'neg' in {path}, "
                              f"got {sorted(data.keys())}")
-        rows = torch.from_numpy(np.concatenate([data["pos"], data["neg"]]))
-    if rows.dim() != 2 or rows.shape[1] != 4:
-        raise ValueError(f"path: expected (M, 4) rows, got {tuple(rows.shape)}")
+        arrays = {name: data[name] for name in ("pos", "neg")}
+    for name, array in arrays.items():
+        if array.ndim != 2 or array.shape[1] != 4:
+            raise ShapeError(f"{name}: expected shape (M, 4) in {path}, got {array.shape}")
+        if array.dtype.kind != "f":
+            raise TypeError(f"{name}: expected floating-point rows in {path}, "
+                            f"got dtype {array.dtype}")
+    rows = torch.from_numpy(np.concatenate([arrays["pos"], arrays["neg"]]))
     rows = rows.to(device=device, dtype=dtype or rows.dtype)
     return SDFSamples(rows[:, :3], rows[:, 3])
