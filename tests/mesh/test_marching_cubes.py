@@ -978,3 +978,44 @@ def test_interior_test_agrees_with_a_brute_force_flood_fill_of_the_trilinear_int
         disagree += truth != int(ours[k])
     assert len(ask) == 1500 and tunnels >= 10
     assert disagree <= 5  # thin tunnels below the flood fill's resolution
+
+
+# ----------------------------------------------------------------------------- contract (i10)
+@pytest.mark.parametrize("where", [(0, 0, 0), (2, 3, 1)])
+@pytest.mark.parametrize("mask", [None, torch.zeros(4, 4, 4, dtype=torch.bool)])
+def test_nan_sample_raises_naming_volume(where, mask):
+    # a NaN sample is neither inside nor outside: it was silently outside (swallowed)
+    X, Y, Z, h, lo = grid(4)
+    vol = sphere(X, Y, Z, 0.9)
+    vol[where] = float("nan")
+    with pytest.raises(ValueError, match="volume: expected no NaN samples.*got 1 of 64"):
+        marching_cubes(vol, mask=mask)
+    with pytest.raises(ValueError, match="volume"):
+        marching_cubes(torch.stack([sphere(X, Y, Z), vol]).float())
+
+
+def test_nan_iso_raises_and_opposite_infinities_are_samples():
+    X, Y, Z, h, lo = grid(5)
+    vol = sphere(X, Y, Z)
+    with pytest.raises(ValueError, match="iso"):  # was: an empty mesh
+        marching_cubes(vol, iso=float("nan"))
+    with pytest.raises(ValueError, match="iso"):
+        marching_cubes(torch.stack([vol, vol]), iso=torch.tensor([0.0, float("nan")]))
+    # +inf and -inf samples make the fast check's sum NaN; they are valid samples
+    vol = vol.clone()
+    vol[0, 0, 0], vol[-1, -1, -1] = float("inf"), -float("inf")
+    result = marching_cubes(vol)
+    assert result.faces.shape[0] > 0 and torch.isfinite(result.verts).all()
+
+
+@pytest.mark.parametrize("soft", [None, 0.5])
+def test_empty_batch_gives_empty_result(soft):
+    # was: ValueError from torch.cat(): expected a non-empty list of Tensors
+    for dtype in (torch.float32, torch.float64):
+        result = marching_cubes(torch.zeros(0, 3, 4, 5, dtype=dtype), iso=torch.zeros(0),
+                                origin=torch.zeros(0, 3), temperature=soft)
+        shapes = [tuple(x.shape) for x in result]
+        assert shapes == [(0, 3), (0, 3), (0, 3), (0,), (0,), (0,)]
+        assert [x.dtype for x in result] == [dtype, torch.long, dtype, dtype, torch.long,
+                                             torch.long]
+        assert result.split() == []

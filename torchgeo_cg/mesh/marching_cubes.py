@@ -190,8 +190,8 @@ def marching_cubes(
     Returns:
         :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3) long, normals
         (V, 3), face_weights (F,), verts_per_mesh (B,), faces_per_mesh (B,))``,
-        packed over the batch (``B = 1`` for an unbatched volume). No surface gives
-        empty tensors of the right shapes and dtypes.
+        packed over the batch (``B = 1`` for an unbatched volume). No surface, or an
+        empty batch (``B = 0``), gives empty tensors of the right shapes and dtypes.
 
     Raises:
         TypeError: ``volume`` is not a float tensor or Volume, an argument has a wrong
@@ -199,7 +199,8 @@ def marching_cubes(
         ShapeError: ``volume`` is not 3D/4D, has a spatial size < 2, or an argument
             has a wrong shape (or length).
         ValueError: ``spacing`` is not finite and positive, ``temperature`` is not
-            positive, or ``ambiguity`` is unknown.
+            positive, ``ambiguity`` is unknown, ``iso`` is NaN, or a sample of ``volume``
+            is NaN (neither inside nor outside; also under a ``mask``).
 
     Example:
         >>> x = torch.linspace(-1.0, 1.0, 5)
@@ -225,6 +226,8 @@ def marching_cubes(
         raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
     vol = args.vol
     B, X, Y, Z = vol.shape
+    if B == 0:
+        return _empty_result(vol)
     with torch.no_grad():
         cell_id, cases_a = classify(vol.detach(), args.iso.detach())
         welded = weld(cell_id, cases_a, (X, Y, Z))
@@ -263,6 +266,14 @@ def marching_cubes(
     out = vol.dtype
     return MarchingCubesResult(verts.to(out), faces, normals.to(out), face_weights.to(out),
                                *counts)
+
+def _empty_result(vol: torch.Tensor) -> MarchingCubesResult:
+    """The result of an empty batch: no vertices, no faces, no meshes."""
+    counts = torch.zeros(0, dtype=torch.long, device=vol.device)
+    faces = torch.zeros(0, 3, dtype=torch.long, device=vol.device)
+    return MarchingCubesResult(vol.new_zeros(0, 3), faces, vol.new_zeros(0, 3), vol.new_zeros(0),
+                               counts, counts.clone())
+
 
 def _cell_rows(vol, args, cell_id, cases, ambiguity):
     """Table rows, triangle counts (0 where a cell makes none) and the table, per active cell."""
