@@ -122,7 +122,7 @@ def _to_trimesh(verts):
 def _from_trimesh(verts):
     import trimesh
 
-    tm = trimesh.Trimesh(vertices=verts.numpy(), faces=OCTA.numpy(), process=False)
+    tm = trimesh.Trimesh(vertices=verts.double().numpy(), faces=OCTA.numpy(), process=False)
     mesh = M.from_trimesh(tm, dtype=verts.dtype)
     return mesh.verts, mesh.faces
 
@@ -172,7 +172,7 @@ ENTRIES: list[Entry] = [
     Entry("mesh.Mesh", _mesh_obj, (VERTS, Arg("uvs", (6, 2), "t01", "unitless"),
                                    Arg("sharpness", (1,), "positive", "unitless")),
           out=("length", "unitless", "unitless", "index", "index"), empty=None, bad=BAD_VERTS,
-          mixed="raise"),
+          mixed=("follow", 0)),  # a file holds numbers: load_mesh(dtype=verts.dtype) decides
     Entry("mesh.to_trimesh", _to_trimesh, (VERTS,), out=("length", "index"), empty=None,
           bad=BAD_VERTS, mixed=None),
     Entry("mesh.from_trimesh", _from_trimesh, (VERTS,), out=("length", "index"), empty=None,

@@ -65,7 +65,23 @@ class Mesh(NamedTuple):
 
 
 def _resolve_dtype(dtype: torch.dtype | None) -> torch.dtype:
-    return torch.get_default_dtype() if dtype is None else dtype
+    """``dtype`` (default: ``torch.get_default_dtype()``), a floating-point dtype."""
+    dtype = torch.get_default_dtype() if dtype is None else dtype
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype: expected a floating-point dtype for verts, got {dtype}")
+    return dtype
+
+
+def _numpy(x: torch.Tensor) -> np.ndarray:
+    """``x`` detached on the CPU as numpy; bfloat16 (which numpy lacks) as float32, exactly."""
+    x = x.detach().cpu()
+    return (x.float() if x.dtype == torch.bfloat16 else x).numpy()
+
+
+def _digits(x: torch.Tensor | None) -> int:
+    """Significant digits that write ``x``'s dtype exactly: 17 (float64) or 9 (float32 and
+    the half types, which float32 holds)."""
+    return 17 if x is not None and x.dtype == torch.float64 else 9
 
 
 def _suffix(path) -> str:
@@ -109,7 +125,7 @@ def _uv_arrays(uvs, uv_faces, faces_fk: torch.Tensor):
     check_tensor(uvs, "uvs")
     check_shape(uvs, ["T", "2"], "uvs")
     check_float(uvs, "uvs")
-    uvs_np = uvs.detach().cpu().numpy()
+    uvs_np = _numpy(uvs)
     if uv_faces is None:
         return uvs_np, None
     uv_fk = pad_faces(uv_faces).cpu()
@@ -132,7 +148,7 @@ def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, n_verts: int
         return ObjTags.empty()._replace(options=dict(options or {}))
     if not isinstance(tags, SubdivisionTags):
         raise TypeError(f"tags: expected a SubdivisionTags, got {type(tags).__name__}")
-    creases, crease_s, corners, corner_s, holes = (t.detach().cpu().numpy() for t in tags)
+    creases, crease_s, corners, corner_s, holes = (_numpy(t) for t in tags)
     if creases.reshape(-1, 2).shape[0] != crease_s.size or corners.size != corner_s.size:
         raise ValueError("tags: one sharpness per crease and per corner expected")
     out = ObjTags(creases.reshape(-1, 2).astype(np.int64), crease_s.astype(np.float64),
@@ -200,8 +216,8 @@ def save_mesh(
         raise TypeError("save_mesh: faces are required unless verts is a Mesh")
     suffix = _suffix(path)
     verts, faces_fk = _mesh_arrays(verts, faces)
-    verts_v3 = verts.detach().cpu().numpy()
-    precision = 17 if verts.dtype == torch.float64 else 9
+    verts_v3 = _numpy(verts)
+    precision = _digits(verts)
     if suffix != ".obj" and (uvs is not None or uv_faces is not None or options or (
             tags is not None and any(t.numel() for t in tags))):
         raise ValueError(f"path: {suffix[1:].upper()} holds no uvs, uv_faces, tags or options; "
@@ -220,7 +236,8 @@ def save_mesh(
     uvs_np, uv_np = _uv_arrays(uvs, uv_faces, faces_fk)
     tag_np = _tag_arrays(tags, options, len(verts_v3), faces_fk.numpy())
     content = ObjContent(verts_v3, faces_fk.numpy(), uvs_np, uv_np, tag_np)
-    text = format_obj(content, precision)
+    text = format_obj(content, precision, uv_precision=_digits(uvs),
+                      tag_precision=_digits(None if tags is None else tags.crease_sharpness))
     with open(path, "w", encoding="utf-8", newline="\n") as fh:
         fh.write(text)
 
@@ -359,5 +376,5 @@ def to_trimesh(verts_or_result: Any, faces=None, process: bool = False):
     verts, faces_fk = _mesh_arrays(verts, faces)
     tris_t3 = triangulate_faces(faces_fk) if faces_fk.shape[0] else faces_fk.new_zeros(0, 3)
     return trimesh.Trimesh(
-        vertices=verts.detach().cpu().numpy(), faces=tris_t3.numpy(), process=process
+        vertices=_numpy(verts), faces=tris_t3.numpy(), process=process
     )
