@@ -1019,3 +1019,28 @@ def test_empty_batch_gives_empty_result(soft):
         assert [x.dtype for x in result] == [dtype, torch.long, dtype, dtype, torch.long,
                                              torch.long]
         assert result.split() == []
+
+
+@pytest.mark.parametrize("s", [1e-300, 1e-200, 1e200, 1e300])
+@pytest.mark.parametrize("ambiguity", ["asymptotic", "separate"])
+def test_any_float64_field_scale_gives_the_same_mesh(s, ambiguity):
+    # was: the decider's products g_a g_c - g_b g_d underflowed to 0 (ties) below ~1e-160
+    # and overflowed to inf - inf = NaN above ~1e154, changing the triangulation
+    gen = torch.Generator().manual_seed(3)
+    vol = torch.randn(2, 7, 6, 5, generator=gen, dtype=torch.float64)
+    want = marching_cubes(vol, ambiguity=ambiguity)
+    got = marching_cubes(vol * s, ambiguity=ambiguity)
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.verts, want.verts, rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(got.normals, want.normals, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("h", [1e-310, 1e-200, 1e200])
+def test_normals_at_tiny_and_huge_spacing(h):
+    # was: grad / spacing overflowed to inf at a subnormal spacing (NaN normals)
+    X, Y, Z, _, lo = grid(6)
+    vol = torus(X, Y, Z)
+    want = marching_cubes(vol, spacing=(1.0, 2.0, 0.5))
+    got = marching_cubes(vol, spacing=(h, 2 * h, 0.5 * h))
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.normals, want.normals, rtol=1e-12, atol=1e-12)

@@ -400,7 +400,10 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
         1, welded.d[:, None], t[:, None])
     spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)
     verts = to_world(index_pos, b_v)
-    normals = _unit_normals(samples, t, welded.d, axes, steps, spacing_v)
+    # normals depend on the ratios of the spacings only: relative spacings in (0, 1]
+    # keep the world gradient from overflowing at a tiny spacing
+    relative_v = spacing_v / spacing_v.amax(-1, keepdim=True)
+    normals = _unit_normals(samples, t, welded.d, axes, steps, relative_v)
     return verts, normals
 
 
