@@ -9,8 +9,8 @@ the inside corners are joined, exactly when ``g_a g_c > g_b g_d``: the sign of
 same four samples in the same order by both cells sharing the face, so they decide
 identically and the mesh is closed by construction. It has no unit (scaling ``g``
 scales ``D`` by a square; each cell's ``g`` is rescaled by a power of two first, so
-the products neither underflow nor overflow at any field scale) and no epsilon; ``D == 0`` (saddle exactly at ``iso``) counts
-as outside, the tie rule of the samples.
+the products neither underflow nor overflow at any field scale) and no epsilon;
+``D == 0`` (saddle exactly at ``iso``) counts as outside, the tie rule of the samples.
 
 Interior decision (the interior test of Marching Cubes 33, Chernyaev 1995, as Lewiner
 et al. 2003 implement it): along each axis, the slices of the cell perpendicular to it
