@@ -1044,3 +1044,17 @@ def test_normals_at_tiny_and_huge_spacing(h):
     got = marching_cubes(vol, spacing=(h, 2 * h, 0.5 * h))
     assert torch.equal(got.faces, want.faces)
     torch.testing.assert_close(got.normals, want.normals, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("s", [1e30, 8e37])
+def test_float32_field_near_the_top_of_its_range(s):
+    # was: f2 - f1 and the central differences overflowed to inf beyond ~4e37: vertices
+    # moved to the sample and normals were NaN (inf / inf) although every input was finite
+    gen = torch.Generator().manual_seed(0)
+    vol = torch.randn(2, 6, 6, 6, generator=gen, dtype=torch.float32)
+    got = marching_cubes(vol * s, iso=torch.tensor([0.0, 0.25 * s]))
+    assert torch.isfinite(got.verts).all() and torch.isfinite(got.normals).all()
+    want = marching_cubes(vol.double(), iso=torch.tensor([0.0, 0.25], dtype=torch.float64))
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.verts.double(), want.verts, rtol=0, atol=1e-5)
+    torch.testing.assert_close(got.normals.double(), want.normals, rtol=0, atol=1e-5)

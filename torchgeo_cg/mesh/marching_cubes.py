@@ -44,9 +44,15 @@ Convention:
       working dtype (3.5e-4 in float32, 1.5e-8 in float64), so samples equal to ``iso``
       give neither duplicate vertices nor zero-area faces. Multiplying the field (and
       ``iso``) by any ``s > 0`` leaves vertices and faces unchanged (up to the rounding
-      of the scaled samples). Where the clamp is active the gradient is zero; the
+      of the scaled samples), over the whole finite range of the dtype: decisions and
+      samples near overflow are rescaled by powers of two, and normals depend on the
+      ratios of the spacings only. Where the clamp is active the gradient is zero; the
       derivatives of ``t`` are formed with one division each, so they stay finite at
       any scale.
+    - NaN: a NaN sample is neither inside nor outside, so it raises ``ValueError``
+      (also under a ``mask``), as does a NaN ``iso``; a NaN ``origin`` gives NaN
+      positions. Tensor ``iso``/``origin``/``spacing``/``temperature`` of another float
+      dtype or device follow the volume's (cast; float32 for a half volume).
     - Half precision: float16/bfloat16 volumes are classified as they are (no copy
       of the volume) and interpolated in float32; positions, normals and weights are
       returned rounded to the input dtype. The no-duplicate/no-zero-area guarantee
