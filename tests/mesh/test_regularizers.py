@@ -260,3 +260,14 @@ def test_mesh_edges_validates_and_accepts_lists():
         mesh_edges(torch.zeros(2, 3))
     with pytest.raises(ValueError, match="faces"):
         mesh_edges(torch.tensor([[0, 1, -1]]))
+
+
+@pytest.mark.parametrize("n_verts", [0, 4])
+def test_no_faces_gives_zero_losses(n_verts):
+    verts = torch.randn(2, n_verts, 3, dtype=torch.float64)
+    faces = torch.zeros(0, 3, dtype=torch.long)
+    for method in ("uniform", "cotangent"):
+        assert torch.equal(mesh_laplacian(verts, faces, method), torch.zeros_like(verts))
+        assert torch.equal(laplacian_smoothing_loss(verts, faces, method), verts.new_zeros(2))
+    assert torch.equal(normal_consistency_loss(verts, faces), verts.new_zeros(2))
+    assert torch.equal(edge_length_loss(verts, faces, 0.5), verts.new_zeros(2))

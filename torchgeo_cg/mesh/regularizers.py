@@ -72,6 +72,8 @@ def _unit_scaled(verts: torch.Tensor) -> torch.Tensor:
     """``verts`` times a power of two per mesh (exact) making the largest coordinate
     ``[0.5, 1)``: products of coordinates then neither overflow nor underflow, and
     scale-invariant quantities are unchanged. NaN/inf/zero meshes are left as they are."""
+    if verts.shape[-2] == 0:
+        return verts
     big = verts.detach().abs().flatten(-2).amax(-1)[..., None, None]  # (*, 1, 1)
     _, exponent = torch.frexp(torch.where(torch.isfinite(big) & (big > 0), big, 1.0))
     # a power-of-two factor, then a product (exact; torch.ldexp has no gradient for verts)
