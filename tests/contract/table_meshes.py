@@ -113,18 +113,24 @@ def _mesh_obj(verts, uvs, sharpness):
     return back.verts, back.uvs, back.tags.crease_sharpness, back.faces, back.uv_faces
 
 
-def _to_trimesh(verts):
-    tm = M.to_trimesh(verts, PRISM)
-    back = torch.from_numpy(tm.vertices).to(verts.dtype)
-    return back, torch.from_numpy(tm.faces)
+def _to_trimesh(faces):
+    def call(verts):
+        tm = M.to_trimesh(verts, faces)
+        return torch.from_numpy(tm.vertices).to(verts.dtype), torch.from_numpy(tm.faces)
+
+    return call
 
 
-def _from_trimesh(verts):
-    import trimesh
+def _from_trimesh(faces):
+    def call(verts):
+        import trimesh
 
-    tm = trimesh.Trimesh(vertices=verts.double().numpy(), faces=OCTA.numpy(), process=False)
-    mesh = M.from_trimesh(tm, dtype=verts.dtype)
-    return mesh.verts, mesh.faces
+        tm = trimesh.Trimesh(vertices=verts.double().numpy(), faces=faces.numpy(),
+                             process=False)
+        mesh = M.from_trimesh(tm, dtype=verts.dtype)
+        return mesh.verts, mesh.faces
+
+    return call
 
 
 VERTS = Arg("verts", (6, 3))
@@ -173,10 +179,17 @@ ENTRIES: list[Entry] = [
                                    Arg("sharpness", (1,), "positive", "unitless")),
           out=("length", "unitless", "unitless", "index", "index"), empty=None, bad=BAD_VERTS,
           mixed=("follow", 0)),  # a file holds numbers: load_mesh(dtype=verts.dtype) decides
-    Entry("mesh.to_trimesh", _to_trimesh, (VERTS,), out=("length", "index"), empty=None,
-          bad=BAD_VERTS, mixed=None),
-    Entry("mesh.from_trimesh", _from_trimesh, (VERTS,), out=("length", "index"), empty=None,
-          mixed=None),
+    Entry("mesh.load_mesh[ply_points]", _round_trip(".ply", PRISM[:0, :3]), (VERTS,),
+          out=("length", "index"), bad=BAD_VERTS, mixed=None),
+    # --- trimesh (float64 inside: exact for every dtype we have)
+    Entry("mesh.to_trimesh", _to_trimesh(PRISM), (VERTS,), out=("length", "index"),
+          empty=None, bad=BAD_VERTS, mixed=None),
+    Entry("mesh.to_trimesh[points]", _to_trimesh(PRISM[:0, :3]), (VERTS,),
+          out=("length", "index"), bad=BAD_VERTS, mixed=None),
+    Entry("mesh.from_trimesh", _from_trimesh(OCTA), (VERTS,), out=("length", "index"),
+          empty=None, mixed=None),
+    Entry("mesh.from_trimesh[points]", _from_trimesh(OCTA[:0]), (VERTS,),
+          out=("length", "index"), mixed=None),
     # --- regularizers
     Entry("mesh.mesh_laplacian", lambda v: M.mesh_laplacian(v, OCTA), (BVERTS,), empty=(0, 0),
           bad=BAD_BVERTS, mixed=None),
