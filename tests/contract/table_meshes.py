@@ -133,6 +133,12 @@ def _from_trimesh(faces):
     return call
 
 
+#: the fixed faces index 6 vertices, so 0 vertices is a ValueError (index out of range);
+#: the ``[points]`` / ``[*_points]`` variants (no faces) check 0 vertices instead
+FIXED_FACES = None
+#: a NaN sample is neither inside nor outside: ``ValueError`` naming ``volume``
+NAN_SAMPLE = "raise"
+
 VERTS = Arg("verts", (6, 3))
 BAD_VERTS = ((6, 2), (2, 6, 3))
 BVERTS = Arg("verts", (2, 6, 3))
@@ -143,51 +149,52 @@ BAD_BVERTS = ((2, 6, 2), (3,))
 ENTRIES: list[Entry] = [
     # --- marching cubes: positions follow origin and spacing, the field's unit is free
     Entry("mesh.marching_cubes", _mc(), (VOL, ISO, ORIGIN, SPACING), out=MC_OUT,
-          empty=EMPTY_MC, bad=BAD_VOL, mixed=("follow", 0), nan="raise"),
+          empty=EMPTY_MC, bad=BAD_VOL, mixed=("follow", 0), nan=NAN_SAMPLE),
     Entry("mesh.marching_cubes[separate]", _mc(ambiguity="separate"),
           (VOL, ISO, ORIGIN, SPACING), out=MC_OUT, empty=EMPTY_MC, bad=BAD_VOL,
-          mixed=("follow", 0), nan="raise"),
+          mixed=("follow", 0), nan=NAN_SAMPLE),
     Entry("mesh.marching_cubes[field]", _mc(), (VOL_S, ISO_S, Arg("origin", (3,), "normal",
                                                                   "unitless"),
                                                 Arg("spacing", (3,), "positive", "unitless")),
-          out=MC_SAME, empty=((0, 0), (1, 0)), bad=BAD_VOL, mixed=("follow", 0), nan="raise"),
+          out=MC_SAME, empty=((0, 0), (1, 0)), bad=BAD_VOL, mixed=("follow", 0),
+          nan=NAN_SAMPLE),
     Entry("mesh.marching_cubes[mask]", _mc(mask=MASK), (VOL, ISO, ORIGIN, SPACING), out=MC_OUT,
-          empty=EMPTY_MC, bad=BAD_VOL, mixed=("follow", 0), nan="raise"),
+          empty=EMPTY_MC, bad=BAD_VOL, mixed=("follow", 0), nan=NAN_SAMPLE),
     Entry("mesh.marching_cubes[soft]", _mc_soft,
           (VOL_S, ISO_S, Arg("temperature", (2,), "positive", "length")), out=MC_SAME,
-          empty=EMPTY_MC[:3], bad=BAD_VOL, mixed=("follow", 0), nan="raise"),
+          empty=EMPTY_MC[:3], bad=BAD_VOL, mixed=("follow", 0), nan=NAN_SAMPLE),
     Entry("mesh.marching_cubes[split]", _mc_split, (VOL, ISO, ORIGIN, SPACING), out=MC_OUT * 2,
           empty=None,  # split() of an empty batch is an empty list: no tensor to check
-          bad=BAD_VOL, mixed=("follow", 0), nan="raise"),
+          bad=BAD_VOL, mixed=("follow", 0), nan=NAN_SAMPLE),
     Entry("mesh.MarchingCubes", _mc_module, (VOL, ISO, ORIGIN, SPACING), out=MC_OUT,
-          empty=EMPTY_MC, bad=BAD_VOL, mixed=("follow", 0), nan="raise"),
+          empty=EMPTY_MC, bad=BAD_VOL, mixed=("follow", 0), nan=NAN_SAMPLE),
     # --- files: save with fixed faces, load back (exact in every format)
     Entry("mesh.save_mesh[obj]", _round_trip(".obj"), (VERTS,), out=("length", "index"),
-          empty=None,  # the fixed faces index 6 vertices: see [points] for 0 vertices
-          bad=BAD_VERTS, mixed=None),
+          empty=FIXED_FACES, bad=BAD_VERTS, mixed=None),
     Entry("mesh.save_mesh[points]", _round_trip(".obj", PRISM[:0, :3]), (VERTS,),
           out=("length", "index"), bad=BAD_VERTS, mixed=None),
     Entry("mesh.save_mesh[off]", _round_trip(".off"), (VERTS,), out=("length", "index"),
-          empty=None, bad=BAD_VERTS, mixed=None),
+          empty=FIXED_FACES, bad=BAD_VERTS, mixed=None),
     Entry("mesh.load_mesh[ply]", _round_trip(".ply"), (VERTS,), out=("length", "index"),
-          empty=None, bad=BAD_VERTS, mixed=None),
+          empty=FIXED_FACES, bad=BAD_VERTS, mixed=None),
     Entry("mesh.load_mesh[ply_ascii]", _round_trip(".ply", binary=False), (VERTS,),
-          out=("length", "index"), empty=None, bad=BAD_VERTS, mixed=None),
+          out=("length", "index"), empty=FIXED_FACES, bad=BAD_VERTS, mixed=None),
     Entry("mesh.load_mesh[off_points]", _round_trip(".off", PRISM[:0, :3]), (VERTS,),
           out=("length", "index"), bad=BAD_VERTS, mixed=None),
     Entry("mesh.Mesh", _mesh_obj, (VERTS, Arg("uvs", (6, 2), "t01", "unitless"),
                                    Arg("sharpness", (1,), "positive", "unitless")),
-          out=("length", "unitless", "unitless", "index", "index"), empty=None, bad=BAD_VERTS,
+          out=("length", "unitless", "unitless", "index", "index"), empty=FIXED_FACES,
+          bad=BAD_VERTS,
           mixed=("follow", 0)),  # a file holds numbers: load_mesh(dtype=verts.dtype) decides
     Entry("mesh.load_mesh[ply_points]", _round_trip(".ply", PRISM[:0, :3]), (VERTS,),
           out=("length", "index"), bad=BAD_VERTS, mixed=None),
     # --- trimesh (float64 inside: exact for every dtype we have)
     Entry("mesh.to_trimesh", _to_trimesh(PRISM), (VERTS,), out=("length", "index"),
-          empty=None, bad=BAD_VERTS, mixed=None),
+          empty=FIXED_FACES, bad=BAD_VERTS, mixed=None),
     Entry("mesh.to_trimesh[points]", _to_trimesh(PRISM[:0, :3]), (VERTS,),
           out=("length", "index"), bad=BAD_VERTS, mixed=None),
     Entry("mesh.from_trimesh", _from_trimesh(OCTA), (VERTS,), out=("length", "index"),
-          empty=None, mixed=None),
+          empty=FIXED_FACES, mixed=None),
     Entry("mesh.from_trimesh[points]", _from_trimesh(OCTA[:0]), (VERTS,),
           out=("length", "index"), mixed=None),
     # --- regularizers
