@@ -301,7 +301,9 @@ def normal_consistency_loss(verts: torch.Tensor, faces) -> torch.Tensor:
     return cast_back(term.sum(-1) / max(pairs.shape[0], 1), dtype)
 
 
-def edge_length_loss(verts: torch.Tensor, faces, target: float = 0.0) -> torch.Tensor:
+def edge_length_loss(
+    verts: torch.Tensor, faces, target: float | torch.Tensor = 0.0
+) -> torch.Tensor:
     """Mean squared deviation of the edge lengths from ``target``, per mesh.
 
     Formula:
