@@ -1058,3 +1058,32 @@ def test_float32_field_near_the_top_of_its_range(s):
     assert torch.equal(got.faces, want.faces)
     torch.testing.assert_close(got.verts.double(), want.verts, rtol=0, atol=1e-5)
     torch.testing.assert_close(got.normals.double(), want.normals, rtol=0, atol=1e-5)
+
+
+def test_float64_field_near_the_top_of_its_range():
+    # was: f - iso overflowed to inf in the decider for samples and iso of opposite signs
+    # near 1e308 (inf products, NaN decisions), changing the triangulation
+    gen = torch.Generator().manual_seed(4)
+    u = torch.rand(2, 6, 5, 7, generator=gen, dtype=torch.float64)
+    inside = torch.rand(2, 6, 5, 7, generator=gen, dtype=torch.float64) < 0.5
+    vol = torch.where(inside, -0.86 - 0.1 * u, 0.98 + 0.02 * u)  # many ambiguous cells
+    iso = torch.tensor([-0.82, -0.84], dtype=torch.float64)
+    want = marching_cubes(vol, iso=iso)
+    got = marching_cubes(vol * 1e308, iso=iso * 1e308)
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.verts, want.verts, rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(got.normals, want.normals, rtol=1e-12, atol=1e-12)
+
+
+def test_soft_weights_near_the_top_of_the_range():
+    # was: iso - f overflowed to inf, so logits (iso - f) / tau saturated: weights 0 or 1
+    gen = torch.Generator().manual_seed(5)
+    u = torch.rand(6, 5, 7, generator=gen, dtype=torch.float64)
+    inside = torch.rand(6, 5, 7, generator=gen, dtype=torch.float64) < 0.5
+    vol = torch.where(inside, -0.86 - 0.1 * u, 0.98 + 0.02 * u)
+    want = marching_cubes(vol, iso=-0.82, temperature=0.7)
+    assert want.faces.shape[0] > 0 and (want.face_weights > 1e-200).all()
+    s = 1e308
+    got = marching_cubes(vol * s, iso=-0.82 * s, temperature=0.7 * s)
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.face_weights, want.face_weights, rtol=1e-12, atol=0.0)

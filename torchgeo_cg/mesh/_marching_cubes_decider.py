@@ -128,7 +128,10 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
     flat = vol.reshape(-1)
     f = take(flat, (cells[:, None] + corner_delta).view(-1)).view(-1, 8).double()
     iso_c = take(iso_b.double(), cells // (X * Y * Z))
-    g = _unit_scaled(f - iso_c[:, None])  # (N, 8)
+    # scaled twice by powers of two (exact, signs kept): before the difference, so f - iso
+    # cannot overflow near the top of float64, and after it, for the products
+    f_iso = _unit_scaled(torch.cat([f, iso_c[:, None]], 1))  # (N, 9)
+    g = _unit_scaled(f_iso[:, :8] - f_iso[:, 8:])  # (N, 8)
     case_p = take(cases, pick)
     config = case_p * 64 + face_decisions(g, case_p, tables)
     tube = torch.zeros_like(config)

@@ -450,6 +450,9 @@ def soft_weights(vol, cell_id, cases, cell_of_face, args) -> torch.Tensor:
     inside_bits = (take(cases, cells)[:, None] >> torch.arange(8, device=device)) & 1
     sign = (2 * inside_bits - 1).to(args.work)  # (C, 8): +1 inside, -1 outside
     b_c = take(cell_id, cells) // (X * Y * Z)
-    logits = sign * (take(args.iso, b_c)[:, None] - f_corners) / take(args.tau, b_c)[:, None]
+    # halves first: iso - f cannot overflow near the top of the float range (a quotient
+    # beyond it is +-inf, which logsigmoid saturates correctly)
+    half_gap = take(args.iso, b_c)[:, None] * 0.5 - f_corners * 0.5
+    logits = sign * (half_gap / take(args.tau, b_c)[:, None]) * 2
     cell_weight = torch.nn.functional.logsigmoid(logits).sum(-1).exp()  # (C,)
     return take(cell_weight, face_to_cell)
