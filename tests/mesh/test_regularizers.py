@@ -244,6 +244,8 @@ def test_edge_length_target_tensor():
         edge_length_loss(verts, faces, torch.tensor([0.5, -1.0], dtype=torch.float64))
     with pytest.raises(ValueError, match="target"):
         edge_length_loss(verts, faces, float("nan"))
+    with pytest.raises(ShapeError, match="target"):  # was: a raw broadcasting RuntimeError
+        edge_length_loss(batch, faces, torch.ones(3, dtype=torch.float64))
 
 
 def test_mesh_edges_validates_and_accepts_lists():

@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
@@ -325,6 +325,7 @@ def edge_length_loss(
     Raises:
         ValueError: ``target`` is negative or NaN.
         TypeError: ``target`` is a tensor of another dtype than ``verts``.
+        ShapeError: ``target``'s shape does not broadcast with the batch dims of ``verts``.
 
     Example:
         >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
@@ -339,6 +340,7 @@ def edge_length_loss(
     target = as_tensor_like(target, like, "target", like_name="verts")
     if not bool((target.detach() >= 0).all()):
         raise ValueError(f"target: expected a length >= 0, got {target.detach().tolist()}")
+    check_broadcastable({"verts": verts.shape[:-2], "target": target.shape})
     target = target.to(v.dtype)[..., None]
     edges = mesh_edges(faces).edges
     length = safe_norm(v[..., edges[:, 0], :] - v[..., edges[:, 1], :])  # (*, E)
