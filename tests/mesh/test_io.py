@@ -717,3 +717,16 @@ def test_non_float_dtype_raises(tmp_path, dtype):
         load_mesh(path, dtype=dtype)
     with pytest.raises(TypeError, match="dtype: expected a floating-point dtype"):
         from_trimesh(trimesh.creation.box(), dtype=dtype)
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16])
+def test_half_dtype_saturates_instead_of_inf(tmp_path, dtype):
+    # was: 1e5 (float16) or 1e39 (bfloat16) in the file became inf
+    big = 1e39 if dtype == torch.bfloat16 else 1e5
+    v = _verts() * big
+    path = tmp_path / "m.obj"
+    save_mesh(path, v, MIXED)
+    top = torch.finfo(dtype).max
+    want = torch.where(v > top, top, v).to(dtype)
+    assert torch.equal(load_mesh(path, dtype=dtype).verts, want)
+    assert torch.equal(from_trimesh(to_trimesh(v, MIXED), dtype=dtype).verts, want)

@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
 from torchgeo_cg.mesh.io_obj import ObjContent, format_obj, read_obj
 from torchgeo_cg.mesh.io_obj_tags import ObjTags, check_tags
@@ -259,8 +260,9 @@ def load_mesh(
 
     Args:
         path: an ``.obj``, ``.ply`` or ``.off`` file.
-        dtype: dtype of ``verts``, ``uvs`` and the tag sharpness (default:
-            ``torch.get_default_dtype()``).
+        dtype: floating dtype of ``verts``, ``uvs`` and the tag sharpness (default:
+            ``torch.get_default_dtype()``); float16/bfloat16 saturate at their largest
+            finite value (never ``inf`` for a finite number in the file).
         device: device of every tensor (default: CPU).
 
     Returns:
@@ -296,8 +298,8 @@ def load_mesh(
     else:
         content = read_obj(data, name)
 
-    def real(a):
-        return None if a is None else torch.from_numpy(a).to(device=device, dtype=dtype)
+    def real(a):  # saturating: a value beyond a half type's range reads as its largest
+        return None if a is None else cast_back(torch.from_numpy(a), dtype).to(device)
 
     def index(a):
         return None if a is None else torch.from_numpy(a).to(device=device)
@@ -317,7 +319,8 @@ def from_trimesh(
     Args:
         mesh: a ``trimesh.Trimesh`` (anything with ``.vertices`` ``(V, 3)`` and
             ``.faces`` ``(F, 3)``).
-        dtype: dtype of ``verts`` (default: ``torch.get_default_dtype()``).
+        dtype: floating dtype of ``verts`` (default: ``torch.get_default_dtype()``);
+            float16/bfloat16 saturate at their largest finite value.
         device: device of both tensors (default: CPU).
 
     Returns:
@@ -334,7 +337,7 @@ def from_trimesh(
             raise TypeError(f"mesh: expected a trimesh.Trimesh, got {type(mesh).__name__}")
     verts = torch.as_tensor(np.asarray(mesh.vertices, dtype=np.float64))
     faces = torch.as_tensor(np.asarray(mesh.faces, dtype=np.int64)).reshape(-1, 3)
-    return Mesh(verts.to(device=device, dtype=_resolve_dtype(dtype)), faces.to(device))
+    return Mesh(cast_back(verts, _resolve_dtype(dtype)).to(device), faces.to(device))
 
 
 def to_trimesh(verts_or_result: Any, faces=None, process: bool = False):
