@@ -1087,3 +1087,15 @@ def test_soft_weights_near_the_top_of_the_range():
     got = marching_cubes(vol * s, iso=-0.82 * s, temperature=0.7 * s)
     assert torch.equal(got.faces, want.faces)
     torch.testing.assert_close(got.face_weights, want.face_weights, rtol=1e-12, atol=0.0)
+
+
+def test_half_positions_saturate_instead_of_inf():
+    # was: float16 positions beyond 65504 (a large origin) were rounded to inf
+    X, Y, Z, h, lo = grid(6)
+    vol = sphere(X, Y, Z).half()
+    origin = (65530.0, 0.0, 0.0)  # x beyond 65520 rounds to inf in float16
+    got = marching_cubes(vol, origin=origin, spacing=(h, h, h))
+    ref = marching_cubes(vol.float(), origin=origin, spacing=(h, h, h))
+    assert torch.isfinite(got.verts).all()
+    top = torch.finfo(torch.float16).max
+    torch.testing.assert_close(got.verts, ref.verts.clamp(max=top).half())

@@ -55,7 +55,8 @@ Convention:
       dtype or device follow the volume's (cast; float32 for a half volume).
     - Half precision: float16/bfloat16 volumes are classified as they are (no copy
       of the volume) and interpolated in float32; positions, normals and weights are
-      returned rounded to the input dtype. The no-duplicate/no-zero-area guarantee
+      returned rounded to the input dtype (saturating at its largest finite value, as
+      :func:`~torchgeo_cg.core.cast_back`). The no-duplicate/no-zero-area guarantee
       holds for the float32 positions; after rounding to the half type, vertices
       closer than the half type's resolution to a sample (or to each other) can
       coincide, so it is not guaranteed there (faces and topology are unchanged).
@@ -71,6 +72,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh._marching_cubes_args import parse_arguments
 from torchgeo_cg.mesh._marching_cubes_decider import asymptotic_rows
 from torchgeo_cg.mesh._marching_cubes_steps import (
@@ -269,9 +271,9 @@ def marching_cubes(
         face_weights = verts.new_ones(faces.shape[0])
     else:
         face_weights = soft_weights(vol, cell_id, cases_a, cell_of_face, args)
-    out = vol.dtype
-    return MarchingCubesResult(verts.to(out), faces, normals.to(out), face_weights.to(out),
-                               *counts)
+    out = vol.dtype  # half types saturate (a position beyond 65504 is not inf)
+    return MarchingCubesResult(cast_back(verts, out), faces, cast_back(normals, out),
+                               cast_back(face_weights, out), *counts)
 
 def _empty_result(vol: torch.Tensor) -> MarchingCubesResult:
     """The result of an empty batch: no vertices, no faces, no meshes."""
