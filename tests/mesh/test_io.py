@@ -676,3 +676,57 @@ def test_one_huge_face_does_not_pad_every_face_to_gigabytes(tmp_path):
         str(i).encode() for i in range(1, 801)) + b"\n"
     with pytest.raises(ValueError, match=r"line 200801: a face of 800 vertices pads 200001 faces"):
         _load_bytes(tmp_path, "big.obj", text)
+
+
+# ----------------------------------------------------------------------------- contract (i10)
+@pytest.mark.parametrize("suffix, binary", [(".obj", True), (".ply", True), (".ply", False),
+                                            (".off", True)])
+def test_bfloat16_verts_save_exactly(tmp_path, suffix, binary):
+    # was: TypeError "Got unsupported ScalarType BFloat16" from .numpy()
+    v = (_verts(torch.float64) * 1.37 - 0.4).to(torch.bfloat16)
+    path = tmp_path / f"m{suffix}"
+    save_mesh(path, v, MIXED, binary=binary)
+    back = load_mesh(path, dtype=torch.bfloat16)
+    assert back.verts.dtype == torch.bfloat16 and torch.equal(back.verts, v)
+    tm = to_trimesh(v, MIXED)
+    assert np.array_equal(tm.vertices, v.double().numpy())
+
+
+def test_uvs_and_sharpness_keep_their_own_digits(tmp_path):
+    # was: uvs and tag sharpness written with the digits of the verts' dtype (9 for float32)
+    v = _verts(torch.float32)
+    uvs = torch.tensor([[0.1, 0.2], [1 / 3, 2 / 3], [0.7, 0.9]], dtype=torch.float64)
+    uv_faces = [[0, 1, 2, 0], [1, 2, 0], [2, 0, 1, 2, 0]]
+    sharp = torch.tensor([1 / 3], dtype=torch.float64)
+    empty = torch.zeros(0, dtype=torch.long)
+    tags = SubdivisionTags(torch.tensor([[0, 1]]), sharp, empty, sharp[:0], empty)
+    path = tmp_path / "m.obj"
+    save_mesh(path, v, MIXED, uvs=uvs, uv_faces=uv_faces, tags=tags)
+    back = load_mesh(path, dtype=torch.float64)
+    assert torch.equal(back.uvs, uvs)  # 17 digits: exact in float64
+    assert torch.equal(back.tags.crease_sharpness, sharp)
+    assert torch.equal(back.verts, v.double())
+
+
+@pytest.mark.parametrize("dtype", [torch.long, torch.bool, "float64"])
+def test_non_float_dtype_raises(tmp_path, dtype):
+    # was: load_mesh(dtype=torch.long) truncated the coordinates silently
+    path = tmp_path / "m.obj"
+    save_mesh(path, _verts() + 0.25, MIXED)
+    with pytest.raises(TypeError, match="dtype: expected a floating-point dtype"):
+        load_mesh(path, dtype=dtype)
+    with pytest.raises(TypeError, match="dtype: expected a floating-point dtype"):
+        from_trimesh(trimesh.creation.box(), dtype=dtype)
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16])
+def test_half_dtype_saturates_instead_of_inf(tmp_path, dtype):
+    # was: 1e5 (float16) or 1e39 (bfloat16) in the file became inf
+    big = 1e39 if dtype == torch.bfloat16 else 1e5
+    v = _verts() * big
+    path = tmp_path / "m.obj"
+    save_mesh(path, v, MIXED)
+    top = torch.finfo(dtype).max
+    want = torch.where(v > top, top, v).to(dtype)
+    assert torch.equal(load_mesh(path, dtype=dtype).verts, want)
+    assert torch.equal(from_trimesh(to_trimesh(v, MIXED), dtype=dtype).verts, want)

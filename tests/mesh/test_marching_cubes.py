@@ -978,3 +978,124 @@ def test_interior_test_agrees_with_a_brute_force_flood_fill_of_the_trilinear_int
         disagree += truth != int(ours[k])
     assert len(ask) == 1500 and tunnels >= 10
     assert disagree <= 5  # thin tunnels below the flood fill's resolution
+
+
+# ----------------------------------------------------------------------------- contract (i10)
+@pytest.mark.parametrize("where", [(0, 0, 0), (2, 3, 1)])
+@pytest.mark.parametrize("mask", [None, torch.zeros(4, 4, 4, dtype=torch.bool)])
+def test_nan_sample_raises_naming_volume(where, mask):
+    # a NaN sample is neither inside nor outside: it was silently outside (swallowed)
+    X, Y, Z, h, lo = grid(4)
+    vol = sphere(X, Y, Z, 0.9)
+    vol[where] = float("nan")
+    with pytest.raises(ValueError, match="volume: expected no NaN samples.*got 1 of 64"):
+        marching_cubes(vol, mask=mask)
+    with pytest.raises(ValueError, match="volume"):
+        marching_cubes(torch.stack([sphere(X, Y, Z), vol]).float())
+
+
+def test_nan_iso_raises_and_opposite_infinities_are_samples():
+    X, Y, Z, h, lo = grid(5)
+    vol = sphere(X, Y, Z)
+    with pytest.raises(ValueError, match="iso"):  # was: an empty mesh
+        marching_cubes(vol, iso=float("nan"))
+    with pytest.raises(ValueError, match="iso"):
+        marching_cubes(torch.stack([vol, vol]), iso=torch.tensor([0.0, float("nan")]))
+    # +inf and -inf samples make the fast check's sum NaN; they are valid samples
+    vol = vol.clone()
+    vol[0, 0, 0], vol[-1, -1, -1] = float("inf"), -float("inf")
+    result = marching_cubes(vol)
+    assert result.faces.shape[0] > 0 and torch.isfinite(result.verts).all()
+
+
+@pytest.mark.parametrize("soft", [None, 0.5])
+def test_empty_batch_gives_empty_result(soft):
+    # was: ValueError from torch.cat(): expected a non-empty list of Tensors
+    for dtype in (torch.float32, torch.float64):
+        result = marching_cubes(torch.zeros(0, 3, 4, 5, dtype=dtype), iso=torch.zeros(0),
+                                origin=torch.zeros(0, 3), temperature=soft)
+        shapes = [tuple(x.shape) for x in result]
+        assert shapes == [(0, 3), (0, 3), (0, 3), (0,), (0,), (0,)]
+        assert [x.dtype for x in result] == [dtype, torch.long, dtype, dtype, torch.long,
+                                             torch.long]
+        assert result.split() == []
+
+
+@pytest.mark.parametrize("s", [1e-300, 1e-200, 1e200, 1e300])
+@pytest.mark.parametrize("ambiguity", ["asymptotic", "separate"])
+def test_any_float64_field_scale_gives_the_same_mesh(s, ambiguity):
+    # was: the decider's products g_a g_c - g_b g_d underflowed to 0 (ties) below ~1e-160
+    # and overflowed to inf - inf = NaN above ~1e154, changing the triangulation
+    gen = torch.Generator().manual_seed(3)
+    vol = torch.randn(2, 7, 6, 5, generator=gen, dtype=torch.float64)
+    want = marching_cubes(vol, ambiguity=ambiguity)
+    got = marching_cubes(vol * s, ambiguity=ambiguity)
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.verts, want.verts, rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(got.normals, want.normals, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("h", [1e-310, 1e-200, 1e200])
+def test_normals_at_tiny_and_huge_spacing(h):
+    # was: grad / spacing overflowed to inf at a subnormal spacing (NaN normals)
+    X, Y, Z, _, lo = grid(6)
+    vol = torus(X, Y, Z)
+    want = marching_cubes(vol, spacing=(1.0, 2.0, 0.5))
+    got = marching_cubes(vol, spacing=(h, 2 * h, 0.5 * h))
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.normals, want.normals, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("s", [1e30, 8e37])
+def test_float32_field_near_the_top_of_its_range(s):
+    # was: f2 - f1 and the central differences overflowed to inf beyond ~4e37: vertices
+    # moved to the sample and normals were NaN (inf / inf) although every input was finite
+    gen = torch.Generator().manual_seed(0)
+    vol = torch.randn(2, 6, 6, 6, generator=gen, dtype=torch.float32)
+    got = marching_cubes(vol * s, iso=torch.tensor([0.0, 0.25 * s]))
+    assert torch.isfinite(got.verts).all() and torch.isfinite(got.normals).all()
+    want = marching_cubes(vol.double(), iso=torch.tensor([0.0, 0.25], dtype=torch.float64))
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.verts.double(), want.verts, rtol=0, atol=1e-5)
+    torch.testing.assert_close(got.normals.double(), want.normals, rtol=0, atol=1e-5)
+
+
+def test_float64_field_near_the_top_of_its_range():
+    # was: f - iso overflowed to inf in the decider for samples and iso of opposite signs
+    # near 1e308 (inf products, NaN decisions), changing the triangulation
+    gen = torch.Generator().manual_seed(4)
+    u = torch.rand(2, 6, 5, 7, generator=gen, dtype=torch.float64)
+    inside = torch.rand(2, 6, 5, 7, generator=gen, dtype=torch.float64) < 0.5
+    vol = torch.where(inside, -0.86 - 0.1 * u, 0.98 + 0.02 * u)  # many ambiguous cells
+    iso = torch.tensor([-0.82, -0.84], dtype=torch.float64)
+    want = marching_cubes(vol, iso=iso)
+    got = marching_cubes(vol * 1e308, iso=iso * 1e308)
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.verts, want.verts, rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(got.normals, want.normals, rtol=1e-12, atol=1e-12)
+
+
+def test_soft_weights_near_the_top_of_the_range():
+    # was: iso - f overflowed to inf, so logits (iso - f) / tau saturated: weights 0 or 1
+    gen = torch.Generator().manual_seed(5)
+    u = torch.rand(6, 5, 7, generator=gen, dtype=torch.float64)
+    inside = torch.rand(6, 5, 7, generator=gen, dtype=torch.float64) < 0.5
+    vol = torch.where(inside, -0.86 - 0.1 * u, 0.98 + 0.02 * u)
+    want = marching_cubes(vol, iso=-0.82, temperature=0.7)
+    assert want.faces.shape[0] > 0 and (want.face_weights > 1e-200).all()
+    s = 1e308
+    got = marching_cubes(vol * s, iso=-0.82 * s, temperature=0.7 * s)
+    assert torch.equal(got.faces, want.faces)
+    torch.testing.assert_close(got.face_weights, want.face_weights, rtol=1e-12, atol=0.0)
+
+
+def test_half_positions_saturate_instead_of_inf():
+    # was: float16 positions beyond 65504 (a large origin) were rounded to inf
+    X, Y, Z, h, lo = grid(6)
+    vol = sphere(X, Y, Z).half()
+    origin = (65530.0, 0.0, 0.0)  # x beyond 65520 rounds to inf in float16
+    got = marching_cubes(vol, origin=origin, spacing=(h, h, h))
+    ref = marching_cubes(vol.float(), origin=origin, spacing=(h, h, h))
+    assert torch.isfinite(got.verts).all()
+    top = torch.finfo(torch.float16).max
+    torch.testing.assert_close(got.verts, ref.verts.clamp(max=top).half())

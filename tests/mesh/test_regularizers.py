@@ -8,9 +8,11 @@ import pytest
 import torch
 import trimesh
 
+from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.mesh import (
     edge_length_loss,
     laplacian_smoothing_loss,
+    mesh_edges,
     mesh_laplacian,
     normal_consistency_loss,
 )
@@ -175,3 +177,99 @@ def test_flat_grid_gradient_is_finite_and_nan_propagates():
         laplacian_smoothing_loss(bad, faces, "robust")
     with pytest.raises(ValueError, match="faces"):
         edge_length_loss(bad, torch.tensor([[0, 1, 99]]))
+
+
+# ----------------------------------------------------------------------------- contract (i10)
+def test_nan_vertex_propagates_to_normal_consistency_and_cotangents():
+    # was: a NaN normal failed the "> 0" guard and counted as a zero-area face (term 0)
+    verts, faces = mixed_polygons()
+    bad = verts.clone()
+    bad[6, 2] = float("nan")
+    assert torch.isnan(normal_consistency_loss(bad, faces))
+    lap = mesh_laplacian(bad, faces, "cotangent")
+    reference = reference_cotangent(verts, faces)
+    touched = torch.tensor([3, 4, 5, 6])  # the neighbours of vertex 6, and itself
+    assert torch.isnan(lap[touched]).any(-1).all()
+    untouched = torch.tensor([0, 1, 2])
+    torch.testing.assert_close(lap[untouched], reference[untouched])
+
+
+@pytest.mark.parametrize("s", [1e-30, 1e-12, 1e12, 1e30])
+def test_float32_at_extreme_scales_matches_float64(s):
+    # was: |n_f|^2 |n_g|^2 (s^8) and |a x b|^2 (s^4) under/overflowed float32: the normal
+    # consistency became 0 or NaN, the cotangent weights 0, the smoothing loss 0 or inf
+    verts, faces = bumpy_mesh()
+    want_nc = normal_consistency_loss(verts, faces)
+    want_lap = mesh_laplacian(verts, faces, "cotangent")
+    small = (verts * s).float()
+    torch.testing.assert_close(normal_consistency_loss(small, faces).double(), want_nc,
+                               rtol=1e-4, atol=1e-6)
+    torch.testing.assert_close(mesh_laplacian(small, faces, "cotangent").double() / s, want_lap,
+                               rtol=1e-3, atol=1e-5)
+    want = laplacian_smoothing_loss(verts, faces)
+    torch.testing.assert_close(laplacian_smoothing_loss(small, faces).double() / s, want,
+                               rtol=1e-4, atol=0.0)
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16])
+def test_half_inputs_are_computed_in_float32(dtype):
+    verts, faces = bumpy_mesh()
+    half = verts.to(dtype)
+    ref = half.float()
+    for fn in (lambda v: mesh_laplacian(v, faces, "cotangent"),
+               lambda v: laplacian_smoothing_loss(v, faces),
+               lambda v: normal_consistency_loss(v, faces),
+               lambda v: edge_length_loss(v, faces, 0.3)):
+        got = fn(half)
+        assert got.dtype == dtype
+        assert torch.equal(got, fn(ref).to(dtype))
+
+
+def test_edge_length_target_tensor():
+    verts, faces = mixed_polygons()
+    target = torch.tensor([0.5, 0.9], dtype=torch.float64, requires_grad=True)
+    batch = torch.stack([verts, 2 * verts])
+    loss = edge_length_loss(batch, faces, target)
+    want = torch.stack([edge_length_loss(verts, faces, 0.5),
+                        edge_length_loss(2 * verts, faces, 0.9)])
+    torch.testing.assert_close(loss, want)
+    loss.sum().backward()
+    lengths = torch.tensor([float((verts[a] - verts[b]).norm()) for a, b in polygon_edges(faces)],
+                           dtype=torch.float64)
+    grad = torch.stack([-2 * (lengths - 0.5).mean(), -2 * (2 * lengths - 0.9).mean()])
+    torch.testing.assert_close(target.grad, grad)
+    with pytest.raises(TypeError, match="target.*float32.*verts.*float64"):
+        edge_length_loss(verts, faces, target.detach().float())
+    with pytest.raises(ValueError, match="target"):
+        edge_length_loss(verts, faces, torch.tensor([0.5, -1.0], dtype=torch.float64))
+    with pytest.raises(ValueError, match="target"):
+        edge_length_loss(verts, faces, float("nan"))
+    with pytest.raises(ShapeError, match="target"):  # was: a raw broadcasting RuntimeError
+        edge_length_loss(batch, faces, torch.ones(3, dtype=torch.float64))
+
+
+def test_mesh_edges_validates_and_accepts_lists():
+    # was: raw torch errors (unpack of a 1-D shape) and no check of face sizes
+    want = mesh_edges(torch.tensor([[0, 1, 2, 3], [1, 4, 2, -1]]))
+    got = mesh_edges([[0, 1, 2, 3], [1, 4, 2]])
+    assert torch.equal(got.edges, want.edges) and torch.equal(got.face_pairs, want.face_pairs)
+    assert torch.equal(got.edges, torch.tensor(polygon_edges([[0, 1, 2, 3], [1, 4, 2]])))
+    empty = mesh_edges(torch.zeros(0, 3, dtype=torch.long))
+    assert empty.edges.shape == (0, 2) and empty.face_pairs.shape == (0, 2)
+    with pytest.raises(ShapeError, match="faces"):
+        mesh_edges(torch.tensor([0, 1, 2]))
+    with pytest.raises(TypeError, match="faces"):
+        mesh_edges(torch.zeros(2, 3))
+    with pytest.raises(ValueError, match="faces"):
+        mesh_edges(torch.tensor([[0, 1, -1]]))
+
+
+@pytest.mark.parametrize("n_verts", [0, 4])
+def test_no_faces_gives_zero_losses(n_verts):
+    verts = torch.randn(2, n_verts, 3, dtype=torch.float64)
+    faces = torch.zeros(0, 3, dtype=torch.long)
+    for method in ("uniform", "cotangent"):
+        assert torch.equal(mesh_laplacian(verts, faces, method), torch.zeros_like(verts))
+        assert torch.equal(laplacian_smoothing_loss(verts, faces, method), verts.new_zeros(2))
+    assert torch.equal(normal_consistency_loss(verts, faces), verts.new_zeros(2))
+    assert torch.equal(edge_length_loss(verts, faces, 0.5), verts.new_zeros(2))

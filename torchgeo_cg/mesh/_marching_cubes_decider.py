@@ -8,8 +8,9 @@ the inside corners are joined, exactly when ``g_a g_c > g_b g_d``: the sign of
 ``D = g_r0 g_r2 - g_r1 g_r3`` over the face's ring ``r0..r3``. ``D`` is formed from the
 same four samples in the same order by both cells sharing the face, so they decide
 identically and the mesh is closed by construction. It has no unit (scaling ``g``
-scales ``D`` by a square) and no epsilon; ``D == 0`` (saddle exactly at ``iso``) counts
-as outside, the tie rule of the samples.
+scales ``D`` by a square; each cell's ``g`` is rescaled by a power of two first, so
+the products neither underflow nor overflow at any field scale) and no epsilon;
+``D == 0`` (saddle exactly at ``iso``) counts as outside, the tie rule of the samples.
 
 Interior decision (the interior test of Marching Cubes 33, Chernyaev 1995, as Lewiner
 et al. 2003 implement it): along each axis, the slices of the cell perpendicular to it
@@ -85,6 +86,18 @@ def interior_decisions(g: torch.Tensor, config: torch.Tensor, tables: Configurat
     return tube
 
 
+def _unit_scaled(g: torch.Tensor) -> torch.Tensor:
+    """``g`` times a power of two per cell (exact) making its largest ``|g|`` ``[0.5, 1)``.
+
+    The decisions read only signs of products of ``g``, which this leaves unchanged,
+    while the products no longer underflow (fields of 1e-200) or overflow (1e200).
+    Cells whose largest ``|g|`` is 0 or not finite are left as they are.
+    """
+    big = g.abs().amax(1, keepdim=True)
+    _, exponent = torch.frexp(torch.where(torch.isfinite(big) & (big > 0), big, 1.0))
+    return g * torch.ldexp(torch.ones_like(big), -exponent)
+
+
 def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tensor,
                     cases: torch.Tensor, real: torch.Tensor):
     """The configuration row of every active cell.
@@ -115,7 +128,10 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
     flat = vol.reshape(-1)
     f = take(flat, (cells[:, None] + corner_delta).view(-1)).view(-1, 8).double()
     iso_c = take(iso_b.double(), cells // (X * Y * Z))
-    g = f - iso_c[:, None]  # (N, 8)
+    # scaled twice by powers of two (exact, signs kept): before the difference, so f - iso
+    # cannot overflow near the top of float64, and after it, for the products
+    f_iso = _unit_scaled(torch.cat([f, iso_c[:, None]], 1))  # (N, 9)
+    g = _unit_scaled(f_iso[:, :8] - f_iso[:, 8:])  # (N, 8)
     case_p = take(cases, pick)
     config = case_p * 64 + face_decisions(g, case_p, tables)
     tube = torch.zeros_like(config)

@@ -376,6 +376,30 @@ def _unit_normals(samples, t, d_v, axes, steps, spacing_v):
     return scaled / torch.where(nonzero, length, torch.ones_like(length))
 
 
+def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
+    """Samples and ``iso`` so large that their differences could overflow (beyond a quarter
+    of the dtype's largest value) are multiplied by a power of two per vertex (exact), which
+    changes neither ``t`` nor the normal's direction. One ``aminmax`` pass checks for it.
+
+    Args:
+        samples: ``(10, V)`` the stencil samples of each vertex; iso_v: ``(V,)``.
+
+    Returns:
+        ``(samples, iso_v)``, rescaled only where needed.
+    """
+    if samples.numel() == 0:
+        return samples, iso_v
+    limit = torch.finfo(samples.dtype).max / 4
+    low, high = torch.aminmax(samples.detach())
+    _, iso_high = torch.aminmax(iso_v.detach().abs())
+    if max(-float(low), float(high), float(iso_high)) <= limit:
+        return samples, iso_v
+    top = torch.maximum(samples.detach().abs().amax(0), iso_v.detach().abs())  # (V,)
+    _, exponent = torch.frexp(torch.where(torch.isfinite(top) & (top > 0), top, 1.0))
+    scale = torch.ldexp(torch.ones_like(top), -exponent)  # (V,) powers of two
+    return samples * scale, iso_v * scale
+
+
 def interpolate(vol, welded: Welded, b_v, args, to_world):
     """Vertex positions and unit normals, in ``args.work`` precision.
 
@@ -394,13 +418,17 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
     flat = vol.reshape(-1)
     samples = take(flat, stencil.view(-1)).view(stencil.shape).to(args.work)  # (10, V)
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)
+    samples, iso_v = _keep_in_range(samples, iso_v)
     delta = math.sqrt(torch.finfo(args.work).eps)
     t = EdgeFraction.apply(samples[0], samples[1], iso_v, delta)  # (V,)
     index_pos = welded.corner_ijk.to(args.work).scatter_add(  # (V, 3) index space
         1, welded.d[:, None], t[:, None])
     spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)
     verts = to_world(index_pos, b_v)
-    normals = _unit_normals(samples, t, welded.d, axes, steps, spacing_v)
+    # normals depend on the ratios of the spacings only: relative spacings in (0, 1]
+    # keep the world gradient from overflowing at a tiny spacing
+    relative_v = spacing_v / spacing_v.amax(-1, keepdim=True)
+    normals = _unit_normals(samples, t, welded.d, axes, steps, relative_v)
     return verts, normals
 
 
@@ -422,6 +450,9 @@ def soft_weights(vol, cell_id, cases, cell_of_face, args) -> torch.Tensor:
     inside_bits = (take(cases, cells)[:, None] >> torch.arange(8, device=device)) & 1
     sign = (2 * inside_bits - 1).to(args.work)  # (C, 8): +1 inside, -1 outside
     b_c = take(cell_id, cells) // (X * Y * Z)
-    logits = sign * (take(args.iso, b_c)[:, None] - f_corners) / take(args.tau, b_c)[:, None]
+    # halves first: iso - f cannot overflow near the top of the float range (a quotient
+    # beyond it is +-inf, which logsigmoid saturates correctly)
+    half_gap = take(args.iso, b_c)[:, None] * 0.5 - f_corners * 0.5
+    logits = sign * (half_gap / take(args.tau, b_c)[:, None]) * 2
     cell_weight = torch.nn.functional.logsigmoid(logits).sum(-1).exp()  # (C,)
     return take(cell_weight, face_to_cell)

@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
 from torchgeo_cg.mesh.io_obj import ObjContent, format_obj, read_obj
 from torchgeo_cg.mesh.io_obj_tags import ObjTags, check_tags
@@ -65,7 +66,23 @@ class Mesh(NamedTuple):
 
 
 def _resolve_dtype(dtype: torch.dtype | None) -> torch.dtype:
-    return torch.get_default_dtype() if dtype is None else dtype
+    """``dtype`` (default: ``torch.get_default_dtype()``), a floating-point dtype."""
+    dtype = torch.get_default_dtype() if dtype is None else dtype
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype: expected a floating-point dtype for verts, got {dtype}")
+    return dtype
+
+
+def _numpy(x: torch.Tensor) -> np.ndarray:
+    """``x`` detached on the CPU as numpy; bfloat16 (which numpy lacks) as float32, exactly."""
+    x = x.detach().cpu()
+    return (x.float() if x.dtype == torch.bfloat16 else x).numpy()
+
+
+def _digits(x: torch.Tensor | None) -> int:
+    """Significant digits that write ``x``'s dtype exactly: 17 (float64) or 9 (float32 and
+    the half types, which float32 holds)."""
+    return 17 if x is not None and x.dtype == torch.float64 else 9
 
 
 def _suffix(path) -> str:
@@ -109,7 +126,7 @@ def _uv_arrays(uvs, uv_faces, faces_fk: torch.Tensor):
     check_tensor(uvs, "uvs")
     check_shape(uvs, ["T", "2"], "uvs")
     check_float(uvs, "uvs")
-    uvs_np = uvs.detach().cpu().numpy()
+    uvs_np = _numpy(uvs)
     if uv_faces is None:
         return uvs_np, None
     uv_fk = pad_faces(uv_faces).cpu()
@@ -132,7 +149,7 @@ def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, n_verts: int
         return ObjTags.empty()._replace(options=dict(options or {}))
     if not isinstance(tags, SubdivisionTags):
         raise TypeError(f"tags: expected a SubdivisionTags, got {type(tags).__name__}")
-    creases, crease_s, corners, corner_s, holes = (t.detach().cpu().numpy() for t in tags)
+    creases, crease_s, corners, corner_s, holes = (_numpy(t) for t in tags)
     if creases.reshape(-1, 2).shape[0] != crease_s.size or corners.size != corner_s.size:
         raise ValueError("tags: one sharpness per crease and per corner expected")
     out = ObjTags(creases.reshape(-1, 2).astype(np.int64), crease_s.astype(np.float64),
@@ -200,8 +217,8 @@ def save_mesh(
         raise TypeError("save_mesh: faces are required unless verts is a Mesh")
     suffix = _suffix(path)
     verts, faces_fk = _mesh_arrays(verts, faces)
-    verts_v3 = verts.detach().cpu().numpy()
-    precision = 17 if verts.dtype == torch.float64 else 9
+    verts_v3 = _numpy(verts)
+    precision = _digits(verts)
     if suffix != ".obj" and (uvs is not None or uv_faces is not None or options or (
             tags is not None and any(t.numel() for t in tags))):
         raise ValueError(f"path: {suffix[1:].upper()} holds no uvs, uv_faces, tags or options; "
@@ -220,7 +237,8 @@ def save_mesh(
     uvs_np, uv_np = _uv_arrays(uvs, uv_faces, faces_fk)
     tag_np = _tag_arrays(tags, options, len(verts_v3), faces_fk.numpy())
     content = ObjContent(verts_v3, faces_fk.numpy(), uvs_np, uv_np, tag_np)
-    text = format_obj(content, precision)
+    text = format_obj(content, precision, uv_precision=_digits(uvs),
+                      tag_precision=_digits(None if tags is None else tags.crease_sharpness))
     with open(path, "w", encoding="utf-8", newline="\n") as fh:
         fh.write(text)
 
@@ -242,8 +260,9 @@ def load_mesh(
 
     Args:
         path: an ``.obj``, ``.ply`` or ``.off`` file.
-        dtype: dtype of ``verts``, ``uvs`` and the tag sharpness (default:
-            ``torch.get_default_dtype()``).
+        dtype: floating dtype of ``verts``, ``uvs`` and the tag sharpness (default:
+            ``torch.get_default_dtype()``); float16/bfloat16 saturate at their largest
+            finite value (never ``inf`` for a finite number in the file).
         device: device of every tensor (default: CPU).
 
     Returns:
@@ -279,8 +298,8 @@ def load_mesh(
     else:
         content = read_obj(data, name)
 
-    def real(a):
-        return None if a is None else torch.from_numpy(a).to(device=device, dtype=dtype)
+    def real(a):  # saturating: a value beyond a half type's range reads as its largest
+        return None if a is None else cast_back(torch.from_numpy(a), dtype).to(device)
 
     def index(a):
         return None if a is None else torch.from_numpy(a).to(device=device)
@@ -300,7 +319,8 @@ def from_trimesh(
     Args:
         mesh: a ``trimesh.Trimesh`` (anything with ``.vertices`` ``(V, 3)`` and
             ``.faces`` ``(F, 3)``).
-        dtype: dtype of ``verts`` (default: ``torch.get_default_dtype()``).
+        dtype: floating dtype of ``verts`` (default: ``torch.get_default_dtype()``);
+            float16/bfloat16 saturate at their largest finite value.
         device: device of both tensors (default: CPU).
 
     Returns:
@@ -317,7 +337,7 @@ def from_trimesh(
             raise TypeError(f"mesh: expected a trimesh.Trimesh, got {type(mesh).__name__}")
     verts = torch.as_tensor(np.asarray(mesh.vertices, dtype=np.float64))
     faces = torch.as_tensor(np.asarray(mesh.faces, dtype=np.int64)).reshape(-1, 3)
-    return Mesh(verts.to(device=device, dtype=_resolve_dtype(dtype)), faces.to(device))
+    return Mesh(cast_back(verts, _resolve_dtype(dtype)).to(device), faces.to(device))
 
 
 def to_trimesh(verts_or_result: Any, faces=None, process: bool = False):
@@ -359,5 +379,5 @@ def to_trimesh(verts_or_result: Any, faces=None, process: bool = False):
     verts, faces_fk = _mesh_arrays(verts, faces)
     tris_t3 = triangulate_faces(faces_fk) if faces_fk.shape[0] else faces_fk.new_zeros(0, 3)
     return trimesh.Trimesh(
-        vertices=verts.detach().cpu().numpy(), faces=tris_t3.numpy(), process=process
+        vertices=_numpy(verts), faces=tris_t3.numpy(), process=process
     )

@@ -268,12 +268,15 @@ def read_obj(data: bytes, name: str) -> ObjContent:
     return ObjContent(verts, faces, uvs, uv_faces, tags)
 
 
-def format_obj(content: ObjContent, precision: int) -> str:
+def format_obj(content: ObjContent, precision: int, *, uv_precision: int | None = None,
+               tag_precision: int | None = None) -> str:
     """OBJ text for ``content``: ``v``, ``vt``, ``f`` and ``t`` lines.
 
     Args:
         content: what to write (``tags`` may be empty).
-        precision: significant digits of the numbers (17 round-trips float64).
+        precision: significant digits of the vertices (17 round-trips float64).
+        uv_precision, tag_precision: the same for the ``vt`` lines and the tag
+            sharpness (default: ``precision``), so each keeps its own dtype's digits.
 
     Example:
         >>> from torchgeo_cg.mesh.io_obj_tags import ObjTags
@@ -287,7 +290,7 @@ def format_obj(content: ObjContent, precision: int) -> str:
     out = _io.StringIO()
     out.write(format_rows("v", content.verts_v3, precision))
     if content.uvs_t2 is not None:
-        out.write(format_rows("vt", content.uvs_t2, precision))
+        out.write(format_rows("vt", content.uvs_t2, uv_precision or precision))
     out.write(format_faces("f", content.faces_fk, 1, content.uv_faces_fk))
-    out.write(format_tags(content.tags, precision))
+    out.write(format_tags(content.tags, tag_precision or precision))
     return out.getvalue()

@@ -44,12 +44,19 @@ Convention:
       working dtype (3.5e-4 in float32, 1.5e-8 in float64), so samples equal to ``iso``
       give neither duplicate vertices nor zero-area faces. Multiplying the field (and
       ``iso``) by any ``s > 0`` leaves vertices and faces unchanged (up to the rounding
-      of the scaled samples). Where the clamp is active the gradient is zero; the
+      of the scaled samples), over the whole finite range of the dtype: decisions and
+      samples near overflow are rescaled by powers of two, and normals depend on the
+      ratios of the spacings only. Where the clamp is active the gradient is zero; the
       derivatives of ``t`` are formed with one division each, so they stay finite at
       any scale.
+    - NaN: a NaN sample is neither inside nor outside, so it raises ``ValueError``
+      (also under a ``mask``), as does a NaN ``iso``; a NaN ``origin`` gives NaN
+      positions. Tensor ``iso``/``origin``/``spacing``/``temperature`` of another float
+      dtype or device follow the volume's (cast; float32 for a half volume).
     - Half precision: float16/bfloat16 volumes are classified as they are (no copy
       of the volume) and interpolated in float32; positions, normals and weights are
-      returned rounded to the input dtype. The no-duplicate/no-zero-area guarantee
+      returned rounded to the input dtype (saturating at its largest finite value, as
+      :func:`~torchgeo_cg.core.cast_back`). The no-duplicate/no-zero-area guarantee
       holds for the float32 positions; after rounding to the half type, vertices
       closer than the half type's resolution to a sample (or to each other) can
       coincide, so it is not guaranteed there (faces and topology are unchanged).
@@ -65,6 +72,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh._marching_cubes_args import parse_arguments
 from torchgeo_cg.mesh._marching_cubes_decider import asymptotic_rows
 from torchgeo_cg.mesh._marching_cubes_steps import (
@@ -190,8 +198,8 @@ def marching_cubes(
     Returns:
         :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3) long, normals
         (V, 3), face_weights (F,), verts_per_mesh (B,), faces_per_mesh (B,))``,
-        packed over the batch (``B = 1`` for an unbatched volume). No surface gives
-        empty tensors of the right shapes and dtypes.
+        packed over the batch (``B = 1`` for an unbatched volume). No surface, or an
+        empty batch (``B = 0``), gives empty tensors of the right shapes and dtypes.
 
     Raises:
         TypeError: ``volume`` is not a float tensor or Volume, an argument has a wrong
@@ -199,7 +207,8 @@ def marching_cubes(
         ShapeError: ``volume`` is not 3D/4D, has a spatial size < 2, or an argument
             has a wrong shape (or length).
         ValueError: ``spacing`` is not finite and positive, ``temperature`` is not
-            positive, or ``ambiguity`` is unknown.
+            positive, ``ambiguity`` is unknown, ``iso`` is NaN, or a sample of ``volume``
+            is NaN (neither inside nor outside; also under a ``mask``).
 
     Example:
         >>> x = torch.linspace(-1.0, 1.0, 5)
@@ -225,6 +234,8 @@ def marching_cubes(
         raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
     vol = args.vol
     B, X, Y, Z = vol.shape
+    if B == 0:
+        return _empty_result(vol)
     with torch.no_grad():
         cell_id, cases_a = classify(vol.detach(), args.iso.detach())
         welded = weld(cell_id, cases_a, (X, Y, Z))
@@ -260,9 +271,17 @@ def marching_cubes(
         face_weights = verts.new_ones(faces.shape[0])
     else:
         face_weights = soft_weights(vol, cell_id, cases_a, cell_of_face, args)
-    out = vol.dtype
-    return MarchingCubesResult(verts.to(out), faces, normals.to(out), face_weights.to(out),
-                               *counts)
+    out = vol.dtype  # half types saturate (a position beyond 65504 is not inf)
+    return MarchingCubesResult(cast_back(verts, out), faces, cast_back(normals, out),
+                               cast_back(face_weights, out), *counts)
+
+def _empty_result(vol: torch.Tensor) -> MarchingCubesResult:
+    """The result of an empty batch: no vertices, no faces, no meshes."""
+    counts = torch.zeros(0, dtype=torch.long, device=vol.device)
+    faces = torch.zeros(0, 3, dtype=torch.long, device=vol.device)
+    return MarchingCubesResult(vol.new_zeros(0, 3), faces, vol.new_zeros(0, 3), vol.new_zeros(0),
+                               counts, counts.clone())
+
 
 def _cell_rows(vol, args, cell_id, cases, ambiguity):
     """Table rows, triangle counts (0 where a cell makes none) and the table, per active cell."""

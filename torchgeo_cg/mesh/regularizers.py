@@ -15,10 +15,15 @@ Convention:
       usual cross product for triangles; faces are wound counter-clockwise seen from
       outside.
     - Vertices used by no face are ignored.
+    - float16/bfloat16 vertices are computed in float32 and the result is returned in
+      the input dtype. NaN in a vertex gives NaN in every result it touches.
 
 Scale (multiplying ``verts`` by ``s``): the Laplacian losses scale as ``s``, the
 normal consistency is invariant, the edge-length loss scales as ``s^2`` (with
-``target`` scaled by ``s``).
+``target`` scaled by ``s``). No threshold is absolute: the scale-invariant parts
+(cotangent weights, normal directions) are computed on the vertices multiplied by a
+power of two per mesh (exact), and lengths are overflow-safe norms, so every finite
+mesh gives finite results.
 """
 
 from __future__ import annotations
@@ -27,9 +32,10 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
-from torchgeo_cg.core.numerics import safe_sqrt
-from torchgeo_cg.mesh.faces import check_faces, triangulate_faces
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
+from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
 
 __all__ = [
     "MeshEdges",
@@ -62,14 +68,32 @@ def _check(verts: torch.Tensor, faces) -> torch.Tensor:
     return check_faces(faces, verts.shape[-2], "faces", allow_duplicates=True)
 
 
+def _unit_scaled(verts: torch.Tensor) -> torch.Tensor:
+    """``verts`` times a power of two per mesh (exact) making the largest coordinate
+    ``[0.5, 1)``: products of coordinates then neither overflow nor underflow, and
+    scale-invariant quantities are unchanged. NaN/inf/zero meshes are left as they are."""
+    if verts.shape[-2] == 0:
+        return verts
+    big = verts.detach().abs().flatten(-2).amax(-1)[..., None, None]  # (*, 1, 1)
+    _, exponent = torch.frexp(torch.where(torch.isfinite(big) & (big > 0), big, 1.0))
+    # a power-of-two factor, then a product (exact; torch.ldexp has no gradient for verts)
+    return verts * torch.ldexp(torch.ones_like(big), -exponent)
+
+
 def mesh_edges(faces: torch.Tensor) -> MeshEdges:
     """Unique undirected edges and adjacent face pairs of padded polygon faces.
 
     Args:
-        faces: ``(F, K)`` long padded with ``-1`` (validated by the caller).
+        faces: ``(F, K)`` long padded with ``-1``, or a list of index lists (each face
+            of at least 3 distinct vertices).
 
     Returns:
         :class:`MeshEdges` ``(edges (E, 2), face_pairs (P, 2))``.
+
+    Raises:
+        TypeError: the faces are not integers. ShapeError: a tensor that is not 2-D.
+        ValueError: a negative index (other than trailing padding) or a face of fewer
+            than 3 vertices.
 
     Example:
         >>> mesh_edges(torch.tensor([[0, 1, 2, 3], [1, 4, 2, -1]]))
@@ -80,6 +104,9 @@ def mesh_edges(faces: torch.Tensor) -> MeshEdges:
                 [2, 3],
                 [2, 4]]), face_pairs=tensor([[0, 1]]))
     """
+    faces = pad_faces(faces)
+    faces = check_faces(faces, int(faces.max()) + 1 if faces.numel() else 0, "faces",
+                        allow_duplicates=True)
     F, K = faces.shape
     with torch.no_grad():
         size_f = (faces >= 0).sum(1)
@@ -107,16 +134,17 @@ def _cotangent_weights(verts: torch.Tensor, faces: torch.Tensor):
     ``alpha, beta`` the angles opposite edge ``ij``; one triangle on boundary edges.
     """
     tris = triangulate_faces(faces)  # (T, 3)
-    corners = verts[..., tris, :]  # (*, T, 3, 3)
+    corners = _unit_scaled(verts)[..., tris, :]  # (*, T, 3, 3), cotangents are unitless
     cots = []
     for k in range(3):  # the angle at corner k is opposite edge (k+1, k+2)
         a = corners[..., (k + 1) % 3, :] - corners[..., k, :]
         b = corners[..., (k + 2) % 3, :] - corners[..., k, :]
-        cross = torch.linalg.cross(a, b).square().sum(-1)
-        sin = safe_sqrt(cross, eps=0.0)
+        sin = safe_norm(torch.linalg.cross(a, b))
         dot = (a * b).sum(-1)
-        # cot = cos / sin; a degenerate triangle (sin == 0) contributes nothing
-        cots.append(torch.where(sin > 0, dot / torch.where(sin > 0, sin, 1.0), 0.0))
+        # cot = cos / sin; a degenerate triangle (sin exactly 0) contributes nothing; NaN
+        # stays NaN
+        zero = sin == 0
+        cots.append(torch.where(zero, 0.0, dot / torch.where(zero, 1.0, sin)))
     cot_tk = torch.stack(cots, -1)  # (*, T, 3)
     i = tris[:, [1, 2, 0]]  # edge opposite corner k: (k+1, k+2)
     j = tris[:, [2, 0, 1]]
@@ -156,6 +184,12 @@ def mesh_laplacian(verts: torch.Tensor, faces, method: str = "uniform") -> torch
     if method not in _METHODS:
         raise ValueError(f"method: expected one of {_METHODS}, got {method!r}")
     faces = _check(verts, faces)
+    dtype = verts.dtype
+    return cast_back(_laplacian(verts.to(working_dtype(dtype)), faces, method), dtype)
+
+
+def _laplacian(verts: torch.Tensor, faces: torch.Tensor, method: str) -> torch.Tensor:
+    """:func:`mesh_laplacian` of checked arguments."""
     V = verts.shape[-2]
     edges = mesh_edges(faces).edges
     src = torch.cat([edges[:, 0], edges[:, 1]])
@@ -172,7 +206,7 @@ def mesh_laplacian(verts: torch.Tensor, faces, method: str = "uniform") -> torch
     wsum = torch.zeros_like(verts[..., 0]).index_add_(-1, csrc, w)  # (*, V)
     pull = torch.zeros_like(verts).index_add_(
         -2, csrc, w[..., None] * (verts[..., cdst, :] - verts[..., csrc, :]))
-    ok = wsum > 0
+    ok = ~(wsum <= 0)  # NaN weights keep the (NaN) cotangent value
     return torch.where(ok[..., None], pull / torch.where(ok, wsum, 1.0)[..., None], uniform)
 
 
@@ -205,23 +239,28 @@ def laplacian_smoothing_loss(verts: torch.Tensor, faces, method: str = "uniform"
         >>> laplacian_smoothing_loss(verts, faces)
         tensor(0.8254)
     """
-    lap = mesh_laplacian(verts, faces, method)
-    faces = check_faces(faces, verts.shape[-2], allow_duplicates=True)
+    if method not in _METHODS:
+        raise ValueError(f"method: expected one of {_METHODS}, got {method!r}")
+    faces = _check(verts, faces)
+    dtype = verts.dtype
+    lap = _laplacian(verts.to(working_dtype(dtype)), faces, method)
     used = torch.zeros(verts.shape[-2], dtype=torch.bool, device=verts.device)
     used[faces[faces >= 0]] = True
-    norms = safe_sqrt(lap.square().sum(-1), eps=0.0)
-    return (norms * used).sum(-1) / used.sum().clamp_min(1)
+    norms = safe_norm(lap)  # overflow-safe; gradient 0 (not NaN) at a zero Laplacian
+    return cast_back((norms * used).sum(-1) / used.sum().clamp_min(1), dtype)
 
 
 def _face_normals(verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-    """Vector areas ``(*, F, 3)``: ``1/2 sum_k v_k x v_{k+1}`` (Newell)."""
+    """Vector areas ``(*, F, 3)``: ``1/2 sum_k (v_k - v_0) x (v_{k+1} - v_0)`` (Newell,
+    relative to the face's first vertex, so a mesh far from the origin keeps its digits)."""
     F, K = faces.shape
     size_f = (faces >= 0).sum(1)
     col = torch.arange(K, device=faces.device)
     nxt = torch.remainder(col[None, :] + 1, size_f.clamp_min(1)[:, None])
     valid = (col[None, :] < size_f[:, None]).to(verts.dtype)
-    a = verts[..., faces.clamp_min(0), :]  # (*, F, K, 3)
-    b = verts[..., faces.gather(1, nxt).clamp_min(0), :]
+    first = verts[..., faces[:, :1], :]  # (*, F, 1, 3)
+    a = verts[..., faces.clamp_min(0), :] - first  # (*, F, K, 3)
+    b = verts[..., faces.gather(1, nxt).clamp_min(0), :] - first
     return 0.5 * (torch.linalg.cross(a, b) * valid[..., None]).sum(-2)
 
 
@@ -250,17 +289,21 @@ def normal_consistency_loss(verts: torch.Tensor, faces) -> torch.Tensor:
         tensor(1.)
     """
     faces = _check(verts, faces)
+    dtype = verts.dtype
     pairs = mesh_edges(faces).face_pairs
-    n = _face_normals(verts, faces)
-    nf, ng = n[..., pairs[:, 0], :], n[..., pairs[:, 1], :]
-    den2 = nf.square().sum(-1) * ng.square().sum(-1)
-    ok = den2 > 0
-    cos = (nf * ng).sum(-1) / safe_sqrt(torch.where(ok, den2, 1.0), eps=0.0)
-    term = torch.where(ok, 1 - cos, 0.0)
-    return term.sum(-1) / max(pairs.shape[0], 1)
+    n = _face_normals(_unit_scaled(verts.to(working_dtype(dtype))), faces)
+    length = safe_norm(n, keepdim=True)
+    zero = length == 0  # an exactly zero area: undefined normal (NaN is not zero)
+    unit = n / torch.where(zero, 1.0, length)
+    cos = (unit[..., pairs[:, 0], :] * unit[..., pairs[:, 1], :]).sum(-1)
+    skip = zero[..., pairs[:, 0], 0] | zero[..., pairs[:, 1], 0]
+    term = torch.where(skip, 0.0, 1 - cos)
+    return cast_back(term.sum(-1) / max(pairs.shape[0], 1), dtype)
 
 
-def edge_length_loss(verts: torch.Tensor, faces, target: float = 0.0) -> torch.Tensor:
+def edge_length_loss(
+    verts: torch.Tensor, faces, target: float | torch.Tensor = 0.0
+) -> torch.Tensor:
     """Mean squared deviation of the edge lengths from ``target``, per mesh.
 
     Formula:
@@ -273,10 +316,16 @@ def edge_length_loss(verts: torch.Tensor, faces, target: float = 0.0) -> torch.T
     Args:
         verts: ``(*, V, 3)``.
         faces: ``(F, K)`` padded polygon or triangle faces.
-        target: the preferred edge length, ``>= 0``.
+        target: the preferred edge length, ``>= 0``: a number, or a float tensor of the
+            dtype of ``verts`` broadcastable to ``(*,)`` (differentiable).
 
     Returns:
         ``(*,)`` one loss per mesh (0 without edges).
+
+    Raises:
+        ValueError: ``target`` is negative or NaN.
+        TypeError: ``target`` is a tensor of another dtype than ``verts``.
+        ShapeError: ``target``'s shape does not broadcast with the batch dims of ``verts``.
 
     Example:
         >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
@@ -284,9 +333,16 @@ def edge_length_loss(verts: torch.Tensor, faces, target: float = 0.0) -> torch.T
         tensor(0.2500)
     """
     faces = _check(verts, faces)
-    if not float(target) >= 0:
-        raise ValueError(f"target: expected a length >= 0, got {target}")
+    dtype = verts.dtype
+    v = verts.to(working_dtype(dtype))
+    # a tensor must have the dtype of verts; a number is taken in the working dtype
+    like = verts if isinstance(target, torch.Tensor) else v
+    target = as_tensor_like(target, like, "target", like_name="verts")
+    if not bool((target.detach() >= 0).all()):
+        raise ValueError(f"target: expected a length >= 0, got {target.detach().tolist()}")
+    check_broadcastable({"verts": verts.shape[:-2], "target": target.shape})
+    target = target.to(v.dtype)[..., None]
     edges = mesh_edges(faces).edges
-    length = safe_sqrt((verts[..., edges[:, 0], :] - verts[..., edges[:, 1], :])
-                       .square().sum(-1), eps=0.0)
-    return (length - target).square().sum(-1) / max(edges.shape[0], 1)
+    length = safe_norm(v[..., edges[:, 0], :] - v[..., edges[:, 1], :])  # (*, E)
+    loss = (length - target).square().sum(-1) / max(edges.shape[0], 1)
+    return cast_back(loss, dtype)
