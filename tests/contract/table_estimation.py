@@ -75,6 +75,11 @@ def _weights(shape, g, dtype):
     return 0.5 + torch.rand(shape, generator=g, dtype=F64)
 
 
+def _small(shape, g, dtype):
+    """Small parameters (corner offsets, sl3 coordinates): a mild, regular homography."""
+    return 0.2 * torch.randn(shape, generator=g, dtype=F64)
+
+
 def _pixel_matrix(shape, g, dtype):
     """``input_from_output`` pixel warps near the identity (a pixel of shift, mild perspective)."""
     m = torch.eye(3, dtype=F64).expand(*shape).clone()
@@ -202,7 +207,8 @@ ENTRIES: list[Entry] = [
                                    o.centroid, o.scale))(T.hartley_normalize(p, w)),
           (Arg("weights", (2, N), _weights, "unitless"), Arg("points", (2, N, 2))),
           out=("unitless", "inv_length", "unitless", "length", "inv_length"),
-          empty=((0, 0), (1, 0)), bad=((2, N + 1), (2, N, 2))),
+          empty=((0, 0), (1, 0)), bad=((2, N + 1), (2, N, 2)),
+          mixed=("follow", 1)),  # weights follow the points (documented)
     Entry("transforms.reprojection_error", lambda s, d, m: T.reprojection_error(m, s, d),
           (SRC, Arg("dst", (2, N, 2), _dst("homography")),
            Arg("matrix", (2, 3, 3), "homography", "matrix")),
@@ -255,13 +261,13 @@ ENTRIES: list[Entry] = [
             bad=((4, size + 1), ()))
       for model, size in (("affine", 6), ("similarity", 4), ("euclidean", 3), ("trs", 5))],
     Entry("transforms.parameters_to_matrix[corners]",
-          lambda p: T.parameters_to_matrix(0.2 * p, "homography", "corners"),
-          (Arg("params", (4, 8), "normal", "unitless"),), out="unitless", empty=(0, 0),
+          lambda p: T.parameters_to_matrix(p, "homography", "corners"),
+          (Arg("params", (4, 8), _small, "unitless"),), out="unitless", empty=(0, 0),
           bad=((4, 9), ())),
     # base @ exp(G): linear in the base
     Entry("transforms.parameters_to_matrix[sl3]",
-          lambda p, b: T.parameters_to_matrix(0.2 * p, "homography", "sl3", b),
-          (Arg("params", (4, 8), "normal", "unitless"),
+          lambda p, b: T.parameters_to_matrix(p, "homography", "sl3", b),
+          (Arg("params", (4, 8), _small, "unitless"),
            Arg("base", (4, 3, 3), "homography", "length")),
           out="length", empty=((0, 0), (1, 0)), bad=((4, 9), ())),
     # --- iterative fits (few steps; converged problems stop early)
