@@ -271,10 +271,12 @@ ENTRIES: list[Entry] = [
            Arg("base", (4, 3, 3), "homography", "length")),
           out="length", empty=((0, 0), (1, 0)), bad=((4, 9), ())),
     # --- iterative fits (few steps; converged problems stop early)
+    # LM in float32 stops at a relative step of sqrt(1000 eps): measured worst 8.1e-5
+    # (30 seeds) against the 1e-4 budget, so rtol32 leaves room
     Entry("transforms.fit_transform",
           lambda s, d: tuple(T.fit_transform(s, d, "homography", "lm", steps=4)),
           (SRC, Arg("dst", (2, N, 2), _dst("homography"))),
-          out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP),
+          out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP, rtol32=3.0),
     Entry("transforms.fit_transform[similarity]",
           lambda s, d: tuple(T.fit_transform(s, d, "similarity", "lm", steps=4)),
           (SRC, Arg("dst", (2, N, 2), _dst("similarity"))),
@@ -294,11 +296,13 @@ ENTRIES: list[Entry] = [
     # --- RANSAC: a seeded generator in the call, so every scale draws the same samples.
     # NaN points are outliers (never sampled, never inliers): "skip"; NaN weights give a
     # NaN matrix ([weights])
+    # the homography ends with LM, which accepts a step only where the cost drops: the
+    # optimum is resolved to ~sqrt(eps) x its conditioning. Measured worst 5.3e-9 (30 seeds)
     Entry("transforms.find_transform_ransac", _ransac("homography"),
           (Arg("src", (2, RANSAC_N, 2), _src),
            Arg("dst", (2, RANSAC_N, 2), _dst("homography", outliers=6))),
           out=("matrix", "index", "index", "index"), empty=PAIR_EMPTY, nan="skip",
-          bad=((2, RANSAC_N, 3), (2,))),
+          bad=((2, RANSAC_N, 3), (2,)), rtol=1e-7),
     Entry("transforms.find_transform_ransac[similarity]", _ransac("similarity"),
           (Arg("src", (2, RANSAC_N, 2), _src),
            Arg("dst", (2, RANSAC_N, 2), _dst("similarity", outliers=6))),
