@@ -460,3 +460,11 @@ def test_fit_transform_low_precision_is_fitted_in_float32(low):
     ref = fit_transform(src.float(), dst.float(), "homography", "lm", steps=4)
     assert fit.matrix.dtype == low and fit.history.shape == ref.history.shape
     assert_close(fit.matrix.float(), ref.matrix.to(low).float())
+
+
+def test_homography_model_of_zero_points_names_the_argument():
+    # the Hartley normalization of zero points was 0 / 0: a NaN matrix
+    with pytest.raises(ShapeError, match="src.*N >= 1"):
+        HomographyModel(src=torch.zeros(0, 2))
+    with pytest.raises(ShapeError, match="dst.*N >= 1"):
+        HomographyModel(batch_shape=(2,), src=torch.ones(2, 3, 2), dst=torch.zeros(2, 0, 2))

@@ -35,6 +35,7 @@ from torchgeo_cg.transforms.estimation import (
     DLT_M_INDEX,
     DLT_M_SIGN,
     check_pair,
+    check_points_nonempty,
     effective_weights,
     hartley_weighted,
     similarity_matrix,
@@ -775,7 +776,8 @@ class HomographyModel(nn.Module):
         parametrization: ``"entries"``, ``"corners"`` or ``"sl3"`` (same default as
             :func:`fit_transform`).
         batch_shape: leading shape of the parameters (one homography per item).
-        src: optional ``(*batch_shape, N, 2)`` points defining ``T_src``.
+        src: optional ``(*batch_shape, N, 2)`` points defining ``T_src`` (``N >= 1``,
+            else ``ShapeError``).
         dst: optional ``(*batch_shape, N, 2)`` points defining ``T_dst``.
         init: optional ``(*batch_shape, 3, 3)`` starting ``dst_from_src``.
         device: device of the parameters (when no tensor is given).
@@ -819,6 +821,7 @@ class HomographyModel(nn.Module):
                 continue
             check_shape(pts, [*map(str, batch_shape), "N", "2"], name)
             check_float(pts, name)
+            check_points_nonempty(pts, name)  # no normalization of zero points (was NaN)
             t = hartley_weighted(pts, torch.ones_like(pts[..., 0])).transform
             t_src, t_dst = (t, t_dst) if name == "src" else (t_src, t)
         self.register_buffer("src_transform", t_src.clone(), persistent=False)
