@@ -144,6 +144,13 @@ def _ransac_weighted(weights, src, dst):
                                          hypotheses_per_round=16))
 
 
+def _fit_robust(src, dst):
+    # the robust scale is a length: a fraction of the data's extent (scales with it)
+    top = float(dst.detach().abs().amax()) if dst.numel() else 1.0
+    return tuple(T.fit_transform(src, dst, "homography", "lm", steps=3,
+                                 parametrization="corners", loss="huber", scale=0.1 * top))
+
+
 def _split_params(model: str):
     """matrix_to_parameters split into (unitless, length) parts where the model mixes them."""
     length = {"affine": [2, 5], "similarity": [2, 3], "euclidean": [1, 2], "trs": [0, 1]}[model]
@@ -218,6 +225,12 @@ ENTRIES: list[Entry] = [
           (SRC, Arg("dst", (2, N, 2), _dst("homography")),
            Arg("matrix", (2, 3, 3), "homography", "matrix")),
           out="area", empty=((0, 0), (1, 0), (2, 0)), bad=BADP),
+    Entry("transforms.reprojection_error[weights]",
+          lambda w, s, d, m: T.reprojection_error(m, s, d, w),
+          (Arg("weights", (2, N), _weights, "unitless"), SRC,
+           Arg("dst", (2, N, 2), _dst("homography")),
+           Arg("matrix", (2, 3, 3), "homography", "matrix")),
+          out="area", empty=((0, 0), (1, 0), (2, 0), (3, 0)), bad=((2, N + 1), (2, N, 2))),
     # --- parameters <-> matrices
     Entry("transforms.matrix_to_parameters", T.matrix_to_parameters, (MAT,), out="h8",
           empty=(0, 0), bad=BADM),
@@ -287,6 +300,27 @@ ENTRIES: list[Entry] = [
            Arg("dst", (2, N, 2), _dst("affine"))),
           out=("matrix", "unitless", "area", "area"), empty=((0, 0), (1, 0), (2, 0)),
           bad=((2, N + 1), (2, N, 2))),
+    # L-BFGS's strong-Wolfe line search compares float32 costs: measured worst 5.3e-4
+    # (24 seeds) in float32; float64 1e-12
+    Entry("transforms.fit_transform[lbfgs]",
+          lambda s, d: tuple(T.fit_transform(s, d, "euclidean", "lbfgs", steps=3)),
+          (SRC, Arg("dst", (2, N, 2), _dst("euclidean"))),
+          out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP, rtol32=20.0),
+    # Adam from a start away from the optimum: a parameter at its optimum (zero gradient)
+    # would be kicked by the sign of rounding noise (Adam's steps are about lr whatever |g|)
+    Entry("transforms.fit_transform[adam]",
+          lambda s, d, init: tuple(T.fit_transform(s, d, "trs", "adam", steps=3, init=init)),
+          (SRC, Arg("dst", (2, N, 2), _dst("similarity")),
+           Arg("init", (2, 3, 3), _trs_matrix, "matrix")),
+          out=("matrix", "unitless", "area", "area"), empty=((0, 0), (1, 0), (2, 0)), bad=BADP),
+    Entry("transforms.fit_transform[sl3]",
+          lambda s, d: tuple(T.fit_transform(s, d, "homography", "lm", steps=3,
+                                             parametrization="sl3", symmetric=True)),
+          (SRC, Arg("dst", (2, N, 2), _dst("homography"))),
+          out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP),
+    Entry("transforms.fit_transform[huber]", _fit_robust,
+          (SRC, Arg("dst", (2, N, 2), _dst("homography", outliers=2))),
+          out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP),
     Entry("transforms.HomographyModel",
           lambda p, init, s, d: T.HomographyModel(batch_shape=tuple(s.shape[:-2]), src=s, dst=d,
                                                   init=init)(p),
@@ -327,6 +361,13 @@ ENTRIES: list[Entry] = [
     # ssd: both images scaled by s scale the loss by s^2 and leave the matrix as it is
     Entry("transforms.register_images",
           lambda s, t: tuple(T.register_images(s, t, "translation", levels=1, iterations=3)),
+          (Arg("source", (2, 1, 12, 12), _source_image),
+           Arg("target", (2, 1, 12, 12), _target_image)),
+          out=("unitless", "area", "area", "index"), empty=((0, 0), (1, 0)),
+          bad=((2, 12, 12), (2, 1, 12))),
+    Entry("transforms.register_images[adam]",
+          lambda s, t: tuple(T.register_images(s, t, "similarity", levels=1, iterations=3,
+                                               optimizer="adam", lr=1e-2)),
           (Arg("source", (2, 1, 12, 12), _source_image),
            Arg("target", (2, 1, 12, 12), _target_image)),
           out=("unitless", "area", "area", "index"), empty=((0, 0), (1, 0)),

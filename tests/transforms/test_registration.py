@@ -261,3 +261,20 @@ def test_nan_pixel_gives_nan_matrix_not_convergence():
     assert torch.isnan(fit.matrix[0]).all() and not bool(fit.converged[0])
     assert_close(fit.matrix[1, :2, 2], torch.tensor([0.5, 0.2], dtype=torch.float64),
                  atol=2e-2, rtol=0)
+
+
+def test_adam_registration_does_not_depend_on_intensity_units():
+    # Adam's absolute eps (1e-8) stalled the ssd descent for intensities ~1e-4 (gradients
+    # ~1e-9): the matrix moved 100x less than for the same images in [0, 1]
+    gen = torch.Generator().manual_seed(26)
+    source = blobs(2, 16, gen)
+    target = shifted(source, 0.6, -0.4)
+    kwargs = {"model": "translation", "levels": 1, "iterations": 20, "optimizer": "adam",
+              "lr": 1e-2}
+    ref = register_images(source, target, **kwargs)
+    for s in (1e-4, 1e4):
+        fit = register_images(source * s, target * s, **kwargs)
+        assert_close(fit.matrix, ref.matrix, rtol=1e-9, atol=1e-12)
+        assert_close(fit.loss, ref.loss * s * s, rtol=1e-9, atol=0.0)
+    assert bool(((ref.matrix[:, :2, 2] - torch.tensor([0.6, -0.4], dtype=torch.float64)).abs()
+                 < (torch.tensor([0.6, 0.4], dtype=torch.float64))).all())  # it moved closer

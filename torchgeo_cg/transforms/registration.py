@@ -428,12 +428,16 @@ def _run_adam(level: _Level, matrix, loss, iterations, tol, history, lr):
     theta = matrix.new_zeros(matrix.shape[0], level.gens.shape[0], requires_grad=True)
     opt = torch.optim.Adam([theta], lr=lr)
     previous = matrix
+    # the ssd is in intensity units squared: descend ssd / mean(template²), unit-free, so
+    # Adam's absolute eps (1e-8) does not stall images of small intensities
+    unit = level.template.square().mean((1, 2, 3)) if loss == "ssd" else None
+    unit = None if unit is None else torch.where(unit > 0, unit, torch.ones_like(unit))
     for _ in range(iterations):
         with torch.enable_grad():
             current = matrix @ _exp_step(level, theta)
             _, _, value = _residual(level, current, loss)
             opt.zero_grad()
-            value.sum().backward()
+            (value if unit is None else value / unit).sum().backward()
         opt.step()
         history.append(value.detach())
         previous = current.detach()
@@ -532,7 +536,9 @@ def register_images(
         tol: convergence threshold on the corner motion of one step, pixels of
             the level (default 0.05: near the optimum each step shrinks the error
             about 5x, so what is left after the last step is ~0.01 px).
-        lr: Adam's learning rate (normalized units: 1 is half the image size).
+        lr: Adam's learning rate (normalized units: 1 is half the image size); Adam
+            descends the ssd divided by the template's mean square, so the result does
+            not depend on the intensity units.
 
     Returns:
         :class:`RegistrationResult` ``(matrix (B, 3, 3), loss (B,),
