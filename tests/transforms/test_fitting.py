@@ -427,11 +427,13 @@ def test_matrix_to_parameters_nan_anywhere_gives_nan(model):
     assert_close(parameters_to_matrix(p[1], model), m[1])  # the clean one is exact
 
 
+@pytest.mark.parametrize("optimizer", ["lm", "lbfgs", "adam"])
 @pytest.mark.parametrize("model", ["similarity", "affine", "translation"])
-def test_fit_transform_empty_batch(model):
-    # the constant parameter Jacobian was taken at theta[:1] (IndexError for B = 0)
+def test_fit_transform_empty_batch(model, optimizer):
+    # lm: the constant parameter Jacobian was taken at theta[:1] (IndexError for B = 0);
+    # lbfgs: torch's L-BFGS raised on an empty parameter
     empty = torch.zeros(0, 6, 2, dtype=torch.float64)
-    fit = fit_transform(empty, empty, model, "lm", steps=2)
+    fit = fit_transform(empty, empty, model, optimizer, steps=2)
     assert fit.matrix.shape == (0, 3, 3) and fit.params.shape == (0, fitting.MODELS[model])
 
 

@@ -558,6 +558,8 @@ def _gauss_newton_step(fn, theta, prob, objective):
 
 
 def _first_order(kind, fn, theta, prob, objective, steps, lr, tol, patience, bar, history):
+    if theta.shape[0] == 0:  # an empty batch: nothing to descend (torch's L-BFGS raises)
+        return theta.detach()
     theta = theta.detach().clone().requires_grad_(True)
     prob_d = _Problem(*(t.detach() for t in prob))
     objective = objective._replace(c2_dst=objective.c2_dst.detach(),
