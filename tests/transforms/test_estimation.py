@@ -563,3 +563,38 @@ def test_zero_points_raise_shape_error_naming_src(fn):
 def test_empty_batch_gives_empty_output(fn):
     empty = torch.zeros(0, 5, 2)
     assert fn(empty, empty).shape == (0, 3, 3)
+
+
+# ------------------------------------------------------------------ contract (i10) regressions
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16], ids=["float16", "bfloat16"])
+@pytest.mark.parametrize("fn", [find_translation, find_affine, find_similarity, find_euclidean,
+                                lambda s, d: reprojection_error(torch.eye(3, dtype=s.dtype), s, d),
+                                lambda s, d: hartley_normalize(s).transform])
+def test_low_precision_is_computed_in_float32(fn, low):
+    # pixel coordinates ~1000: their squares overflow float16 (was NaN / inf); the float32
+    # reference is computed from the same (rounded) inputs
+    gen = torch.Generator().manual_seed(18)
+    src = (torch.rand(2, 10, 2, generator=gen) * 1000).to(low)
+    dst = (src.float() * 1.1 + 5).to(low)
+    out = fn(src, dst)
+    ref = fn(src.float(), dst.float())
+    assert out.dtype == low and torch.isfinite(out).all()
+    assert_close(out.float(), ref, rtol=2e-2, atol=2e-2 * float(ref.abs().amax()))
+
+
+def test_hartley_weights_follow_the_points_dtype():
+    gen = torch.Generator().manual_seed(19)
+    pts = torch.randn(2, 5, 2, generator=gen)
+    w = torch.rand(2, 5, generator=gen, dtype=torch.float64) + 0.5
+    out = hartley_normalize(pts, w)
+    ref = hartley_normalize(pts, w.float())
+    assert all(a.dtype == torch.float32 for a in out)
+    assert_close(out.transform, ref.transform)
+
+
+def test_reprojection_error_mixed_matrix_dtype_names_both():
+    src = torch.zeros(4, 2, dtype=torch.float64)
+    with pytest.raises(TypeError, match="matrix.*float32.*src.*float64"):
+        reprojection_error(torch.eye(3), src, src)

@@ -411,3 +411,62 @@ def test_matrix_to_parameters_of_nan_is_nan(model):
     assert torch.isnan(matrix_to_parameters(torch.full((3, 3), float("nan")), "homography",
                                             "sl3")).all()
     assert (matrix_to_parameters(torch.eye(3), "homography", "sl3") == 0).all()
+
+
+# ------------------------------------------------------------------ contract (i10) regressions
+
+
+@pytest.mark.parametrize("model", ["affine", "similarity", "euclidean", "translation", "trs"])
+def test_matrix_to_parameters_nan_anywhere_gives_nan(model):
+    # a NaN in an entry the model ignores (here the perspective row) was dropped
+    m = torch.eye(3, dtype=torch.float64).repeat(2, 1, 1)
+    m[0, 2, 0] = float("nan")
+    m[1, 0, 2] = 3.0
+    p = matrix_to_parameters(m, model)
+    assert torch.isnan(p[0]).all()
+    assert_close(parameters_to_matrix(p[1], model), m[1])  # the clean one is exact
+
+
+@pytest.mark.parametrize("optimizer", ["lm", "lbfgs", "adam"])
+@pytest.mark.parametrize("model", ["similarity", "affine", "translation"])
+def test_fit_transform_empty_batch(model, optimizer):
+    # lm: the constant parameter Jacobian was taken at theta[:1] (IndexError for B = 0);
+    # lbfgs: torch's L-BFGS raised on an empty parameter
+    empty = torch.zeros(0, 6, 2, dtype=torch.float64)
+    fit = fit_transform(empty, empty, model, optimizer, steps=2)
+    assert fit.matrix.shape == (0, 3, 3) and fit.params.shape == (0, fitting.MODELS[model])
+
+
+def test_parameters_to_matrix_sl3_base_dtype_and_low_precision():
+    params = 0.1 * torch.randn(2, 8, generator=torch.Generator().manual_seed(20))
+    with pytest.raises(TypeError, match="base.*float64.*params.*float32"):
+        parameters_to_matrix(params, "homography", "sl3", torch.eye(3, dtype=torch.float64))
+    # matrix_exp has no float16 kernel on the CPU: computed in float32, returned in float16
+    out = parameters_to_matrix(params.half(), "homography", "sl3")
+    p = params.half().float().unbind(-1)
+    zero = torch.zeros_like(p[0])
+    gen = torch.stack([p[4] + p[5], p[2], p[0], p[3], p[5] - p[4], p[1], p[6], p[7],
+                       -2 * p[5] + zero], -1).unflatten(-1, (3, 3))  # documented generators
+    ref = torch.linalg.matrix_exp(gen)
+    assert out.dtype == torch.float16
+    assert_close(out.float(), ref, rtol=2e-3, atol=2e-3)
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16], ids=["float16", "bfloat16"])
+def test_fit_transform_low_precision_is_fitted_in_float32(low):
+    # raised "value cannot be converted to type c10::Half without overflow" (LM damping)
+    gen = torch.Generator().manual_seed(21)
+    src, dst, _ = random_problem(2, 8, gen, noise=0.1, dtype=torch.float32)
+    src, dst = src.to(low), dst.to(low)
+    fit = fit_transform(src, dst, "homography", "lm", steps=4)
+    ref = fit_transform(src.float(), dst.float(), "homography", "lm", steps=4)
+    assert fit.matrix.dtype == low and fit.history.shape == ref.history.shape
+    assert_close(fit.matrix.float(), ref.matrix.to(low).float())
+
+
+def test_homography_model_of_zero_points_names_the_argument():
+    # the Hartley normalization of zero points was 0 / 0: a NaN matrix
+    with pytest.raises(ShapeError, match="src.*N >= 1"):
+        HomographyModel(src=torch.zeros(0, 2))
+    with pytest.raises(ShapeError, match="dst.*N >= 1"):
+        HomographyModel(batch_shape=(2,), src=torch.ones(2, 3, 2), dst=torch.zeros(2, 0, 2))

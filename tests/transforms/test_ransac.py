@@ -226,3 +226,22 @@ def test_empty_batch_gives_empty_results():
     fit = find_transform_ransac(torch.zeros(0, 10, 2), torch.zeros(0, 10, 2))
     assert fit.matrix.shape == (0, 3, 3) and fit.inliers.shape == (0, 10)
     assert fit.num_inliers.shape == (0,) and fit.rank_ok.shape == (0,)
+
+
+# ------------------------------------------------------------------ contract (i10) regressions
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16], ids=["float16", "bfloat16"])
+def test_low_precision_is_solved_in_float32(low):
+    # raised (LU has no float16 kernel; 1e-12 guards overflow float16): now solved in
+    # float32 from the same rounded points, the matrix returned in the input dtype
+    gen = torch.Generator().manual_seed(22)
+    src, dst, m, _ = problems(2, 60, 0.3, 0.5, gen, "affine")
+    src, dst = src.to(low), dst.to(low)
+    fit = find_transform_ransac(src, dst, "affine", threshold=8.0,
+                                generator=torch.Generator().manual_seed(0))
+    ref = find_transform_ransac(src.float(), dst.float(), "affine", threshold=8.0,
+                                generator=torch.Generator().manual_seed(0))
+    assert fit.matrix.dtype == low and torch.equal(fit.inliers, ref.inliers)
+    assert torch.equal(fit.matrix, ref.matrix.to(low))
+    assert bool(fit.rank_ok.all()) and bool((corner_error(fit.matrix, m) < 8).all())

@@ -7,6 +7,7 @@ import torch
 
 import torchgeo_cg.transforms.registration as registration
 from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.transforms import inverse, register_images, transform_points, warp_image
 
 kornia_tf = pytest.importorskip("kornia.geometry.transform")
@@ -201,3 +202,79 @@ def test_empty_batch_gives_empty_results():
     out = register_images(torch.zeros(0, 1, 32, 32), torch.zeros(0, 1, 32, 32))
     assert out.matrix.shape == (0, 3, 3) and out.loss.shape == (0,)
     assert warp_image(torch.zeros(0, 2, 8, 8), torch.zeros(0, 3, 3)).image.shape == (0, 2, 8, 8)
+
+
+# ------------------------------------------------------------------ contract (i10) regressions
+
+
+def blobs(b, size, gen, dtype=torch.float64):
+    yy, xx = torch.meshgrid(torch.arange(size, dtype=dtype), torch.arange(size, dtype=dtype),
+                            indexing="ij")
+    c = (0.3 + 0.4 * torch.rand(b, 2, 1, 1, generator=gen, dtype=dtype)) * (size - 1)
+    return torch.exp(-((xx - c[:, 0]) ** 2 + (yy - c[:, 1]) ** 2) / (0.1 * size * size))[:, None]
+
+
+def shifted(image, dx, dy):
+    shift = torch.tensor([[1.0, 0, dx], [0, 1.0, dy], [0, 0, 1.0]], dtype=image.dtype)
+    return warp_image(image, torch.linalg.inv(shift)).image
+
+
+@pytest.mark.parametrize("low", [torch.float16, torch.bfloat16], ids=["float16", "bfloat16"])
+def test_low_precision_warp_and_registration_run_in_float32(low):
+    # bfloat16 sample points were off by a pixel at the border (0.13 error); float16
+    # registration raised (no LU kernel)
+    gen = torch.Generator().manual_seed(23)
+    image = blobs(2, 16, gen, torch.float32).to(low)
+    m = torch.tensor([[1.0, 0.02, 0.7], [-0.03, 1.0, -0.4], [1e-3, 0.0, 1.0]]).to(low)
+    out = warp_image(image, m.expand(2, 3, 3))
+    ref = warp_image(image.float(), m.float().expand(2, 3, 3))
+    assert out.image.dtype == low and torch.equal(out.valid, ref.valid)
+    assert_close(out.image.float(), ref.image.to(low).float())
+    target = shifted(image.float(), 0.5, -0.3).to(low)
+    fit = register_images(image, target, "translation", levels=1, iterations=5)
+    ref_fit = register_images(image.float(), target.float(), "translation", levels=1,
+                              iterations=5)
+    assert fit.matrix.dtype == low and fit.loss.dtype == low
+    assert_close(fit.matrix.float(), ref_fit.matrix.to(low).float())
+
+
+def test_ncc_loss_has_no_cancellation_in_float32():
+    # 1 - ZNCC was computed as 1 - cov / sqrt(var var): one ulp of 1 (6e-8) in a 1e-6 loss
+    gen = torch.Generator().manual_seed(24)
+    source = blobs(2, 16, gen)
+    target = 3 * shifted(source, 0.004, 0.003) + 1  # gain and offset: ncc ignores them
+    want = register_images(source, target, "translation", levels=1, iterations=0,
+                           loss="ncc").loss
+    got = register_images(source.float(), target.float(), "translation", levels=1,
+                          iterations=0, loss="ncc").loss
+    assert bool((want > 1e-8).all()) and bool((want < 1e-5).all())
+    assert_close(got.double(), want, rtol=1e-3, atol=0.0)
+
+
+def test_nan_pixel_gives_nan_matrix_not_convergence():
+    # a NaN step was replaced by no step: the matrix stayed finite and "converged"
+    gen = torch.Generator().manual_seed(25)
+    source = blobs(2, 16, gen)
+    target = shifted(source, 0.5, 0.2)
+    source[0, 0, 5, 6] = float("nan")
+    fit = register_images(source, target, "translation", levels=1, iterations=5)
+    assert torch.isnan(fit.matrix[0]).all() and not bool(fit.converged[0])
+    assert_close(fit.matrix[1, :2, 2], torch.tensor([0.5, 0.2], dtype=torch.float64),
+                 atol=2e-2, rtol=0)
+
+
+def test_adam_registration_does_not_depend_on_intensity_units():
+    # Adam's absolute eps (1e-8) stalled the ssd descent for intensities ~1e-4 (gradients
+    # ~1e-9): the matrix moved 100x less than for the same images in [0, 1]
+    gen = torch.Generator().manual_seed(26)
+    source = blobs(2, 16, gen)
+    target = shifted(source, 0.6, -0.4)
+    kwargs = {"model": "translation", "levels": 1, "iterations": 20, "optimizer": "adam",
+              "lr": 1e-2}
+    ref = register_images(source, target, **kwargs)
+    for s in (1e-4, 1e4):
+        fit = register_images(source * s, target * s, **kwargs)
+        assert_close(fit.matrix, ref.matrix, rtol=1e-9, atol=1e-12)
+        assert_close(fit.loss, ref.loss * s * s, rtol=1e-9, atol=0.0)
+    assert bool(((ref.matrix[:, :2, 2] - torch.tensor([0.6, -0.4], dtype=torch.float64)).abs()
+                 < (torch.tensor([0.6, 0.4], dtype=torch.float64))).all())  # it moved closer

@@ -19,6 +19,8 @@ Convention:
     - ``weights`` (optional, ``(*, N)``, non-negative) multiply each
       correspondence's *squared* residual; a weight of 0 removes a point (it is
       also left out of the normalization). As in kornia.
+    - float16/bfloat16 inputs are computed in float32 (``find_homography_dlt`` in
+      float64 unless ``double=False``) and returned in their dtype, saturating.
     - Degenerate input (too few points, collinear or coincident points) never
       gives NaN or inf: the homography is flagged by ``rank_ok``; the affine
       family falls back to the minimum-norm least-squares solution.
@@ -32,7 +34,8 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.core.numerics import safe_sqrt
+from torchgeo_cg.core.coerce import check_same_dtype
+from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
 
 __all__ = [
     "HartleyNormalization",
@@ -120,6 +123,11 @@ def check_pair(src: torch.Tensor, dst: torch.Tensor, weights: torch.Tensor | Non
     return weights
 
 
+def to_working(*tensors: torch.Tensor | None) -> tuple:
+    """The tensors in their working dtype (float16/bfloat16 -> float32); None stays None."""
+    return tuple(None if t is None else t.to(working_dtype(t.dtype)) for t in tensors)
+
+
 def effective_weights(points: torch.Tensor, weights: torch.Tensor | None) -> torch.Tensor:
     """(*, N) non-negative weights; an all-zero (or absent) set becomes all ones."""
     if weights is None:
@@ -183,7 +191,8 @@ def hartley_normalize(points: torch.Tensor, weights: torch.Tensor | None = None)
         ``transform`` maps input points to normalized ones, ``p_n = T @ p``
         (column vectors), ``T = S(s) @ T(-c)``. Zero-weight points do not count;
         an all-zero weight set counts every point. Coincident points (mean
-        distance 0) get ``s = 1``: no NaN, forward or backward.
+        distance 0) get ``s = 1``: no NaN, forward or backward. ``weights``
+        follow the dtype of ``points`` (as in the ``find_*`` functions).
 
     Args:
         points: ``(*, N, 2)`` float points.
@@ -212,7 +221,11 @@ def hartley_normalize(points: torch.Tensor, weights: torch.Tensor | None = None)
     if weights is not None:
         check_shape(weights, ["*", "N"], "weights", sizes={"N": points.shape[-2]})
         check_float(weights, "weights")
-    return hartley_weighted(points, effective_weights(points, weights))
+        weights = weights.to(points.dtype)  # weights follow the points, as in check_pair
+    low = points.dtype
+    points, weights = to_working(points, weights)
+    out = hartley_weighted(points, effective_weights(points, weights))
+    return HartleyNormalization(*(cast_back(t, low) for t in out))
 
 
 # M = Σ w (r1 r1ᵀ + r2 r2ᵀ) for the DLT rows r2 = [P, 0, -u P], r1 = [0, -P, v P] with
@@ -502,7 +515,7 @@ def find_homography_dlt(
     """
     weights = check_pair(src, dst, weights)
     batch, n = src.shape[:-2], src.shape[-2]
-    work = torch.float64 if double else src.dtype
+    work = torch.float64 if double else working_dtype(src.dtype)
     # batch-last layout inside: every entry is a contiguous B-vector (fast on CPU)
     p_in = src.reshape(-1, n, 2).to(work).permute(2, 1, 0)  # (2, N, B)
     q_in = dst.reshape(-1, n, 2).to(work).permute(2, 1, 0)
@@ -555,9 +568,9 @@ def find_homography_dlt(
     den = torch.where(use_h33, h33, fro_safe)
     h = (h / den).permute(2, 0, 1)  # (B, 3, 3)
     return HomographyFit(
-        h.to(src.dtype).reshape(*batch, 3, 3),
+        cast_back(h, src.dtype).reshape(*batch, 3, 3),
         rank_ok.reshape(batch),
-        condition.to(src.dtype).reshape(batch),
+        cast_back(condition, src.dtype).reshape(batch),
     )
 
 
@@ -605,6 +618,8 @@ def find_affine(
                 [0., 0., 1.]])
     """
     weights = check_pair(src, dst, weights)
+    low = src.dtype
+    src, dst, weights = to_working(src, dst, weights)
     w, cs, cd, ps, qs = _centered_stats(src, dst, weights)
     cov_pp = ps.mT @ (ps * w[..., None])  # (*, 2, 2) Σ w p̃ p̃ᵀ
     cov_qp = qs.mT @ (ps * w[..., None])  # (*, 2, 2) Σ w q̃ p̃ᵀ
@@ -623,7 +638,7 @@ def find_affine(
     pinv = torch.where(torch.isnan(tr)[..., None, None], tr[..., None, None], pinv)  # NaN kept
     lin = cov_qp @ pinv  # (*, 2, 2)
     t = cd - (lin @ cs[..., None]).squeeze(-1)
-    return _affine_from(lin, t)
+    return cast_back(_affine_from(lin, t), low)
 
 
 def _rotation_scale(src, dst, weights):
@@ -671,12 +686,13 @@ def find_similarity(
                 [ 0.,  0.,  1.]])
     """
     weights = check_pair(src, dst, weights)
-    cs, cd, dot, cross, var = _rotation_scale(src, dst, weights)
+    low = src.dtype
+    cs, cd, dot, cross, var = _rotation_scale(*to_working(src, dst, weights))
     ok = var != 0  # NaN passes through
     var_safe = torch.where(ok, var, torch.ones_like(var))
     zero = torch.zeros_like(var)
-    return _from_cos_sin(torch.where(ok, dot / var_safe, zero),
-                         torch.where(ok, cross / var_safe, zero), cs, cd)
+    return cast_back(_from_cos_sin(torch.where(ok, dot / var_safe, zero),
+                                   torch.where(ok, cross / var_safe, zero), cs, cd), low)
 
 
 def find_euclidean(
@@ -707,13 +723,14 @@ def find_euclidean(
                 [ 0.,  0.,  1.]])
     """
     weights = check_pair(src, dst, weights)
-    cs, cd, dot, cross, _ = _rotation_scale(src, dst, weights)
+    low = src.dtype
+    cs, cd, dot, cross, _ = _rotation_scale(*to_working(src, dst, weights))
     length = point_norm(dot, cross)  # scale-free: only exactly (0, 0) is undefined
     ok = length != 0  # NaN passes through
     length_safe = torch.where(ok, length, torch.ones_like(length))
     cos = torch.where(ok, dot / length_safe, torch.ones_like(dot))
     sin = torch.where(ok, cross / length_safe, torch.zeros_like(dot))
-    return _from_cos_sin(cos, sin, cs, cd)
+    return cast_back(_from_cos_sin(cos, sin, cs, cd), low)
 
 
 def find_translation(
@@ -740,10 +757,12 @@ def find_translation(
                 [0., 0., 1.]])
     """
     weights = check_pair(src, dst, weights)
+    low = src.dtype
+    src, dst, weights = to_working(src, dst, weights)
     w = effective_weights(src, weights)
     t = _weighted_mean(dst - src, w)
     eye = torch.eye(2, dtype=src.dtype, device=src.device).expand(*t.shape[:-1], 2, 2)
-    return _affine_from(eye, t)
+    return cast_back(_affine_from(eye, t), low)
 
 
 def reprojection_error(
@@ -782,11 +801,13 @@ def reprojection_error(
 
     weights = check_pair(src, dst, weights)
     check_shape(matrix, ["*", "3", "3"], "matrix")
-    check_float(matrix, "matrix")
+    check_same_dtype({"src": src, "matrix": check_float(matrix, "matrix")})
+    low = src.dtype
+    matrix, src, dst, weights = to_working(matrix, src, dst, weights)
     w = effective_weights(src, weights)
     fwd = (transform_points(matrix, src) - dst).square().sum(-1)
     err = (fwd * w).sum(-1) / w.sum(-1)
     if symmetric:
         bwd = (transform_points(inverse(matrix), dst) - src).square().sum(-1)
         err = err + (bwd * w).sum(-1) / w.sum(-1)
-    return err
+    return cast_back(err, low)

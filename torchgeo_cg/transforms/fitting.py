@@ -29,10 +29,13 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.coerce import check_same_dtype
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.estimation import (
     DLT_M_INDEX,
     DLT_M_SIGN,
     check_pair,
+    check_points_nonempty,
     effective_weights,
     hartley_weighted,
     similarity_matrix,
@@ -139,7 +142,9 @@ def parameters_to_matrix(
     """The normalized-frame transform ``Ĥ`` of ``params`` for ``model``.
 
     Convention:
-        Column vectors; ``params = 0`` is the identity (or ``base``).
+        Column vectors; ``params = 0`` is the identity (or ``base``). ``base``
+        must have the dtype of ``params`` (else ``TypeError`` naming both);
+        float16/bfloat16 are computed in float32 and returned in their dtype.
 
         - ``homography`` / ``entries``: ``Ĥ = I + [p0..p7, 0]`` row-major (``h33 = 1``).
         - ``homography`` / ``corners``: ``p`` moves the images of the corners
@@ -171,6 +176,16 @@ def parameters_to_matrix(
     _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
     check_shape(params, ["*", str(MODELS[model])], "params")
     check_float(params, "params")
+    if base is not None:
+        check_shape(base, ["*", "3", "3"], "base")
+        check_same_dtype({"params": params, "base": check_float(base, "base")})
+    work = working_dtype(params.dtype)  # float16/bfloat16: computed in float32
+    out = _parameters_to_matrix(params.to(work), model, parametrization,
+                                None if base is None else base.to(work))
+    return cast_back(out, params.dtype)
+
+
+def _parameters_to_matrix(params, model, parametrization, base):
     p = params.unbind(-1)
     one, zero = torch.ones_like(p[0]), torch.zeros_like(p[0])
     if model == "homography":
@@ -210,7 +225,9 @@ def matrix_to_parameters(
         Exact for matrices of the model's class; other matrices are projected
         (e.g. the rotation of a ``euclidean`` model is the polar angle of the
         linear part). For ``sl3`` the parameters are zero: pass ``matrix`` as
-        ``base`` instead. ``h33`` is divided out first.
+        ``base`` instead. ``h33`` is divided out first (unless it is exactly 0).
+        A NaN or inf entry anywhere gives NaN parameters, also for an entry the
+        model ignores. float16/bfloat16 are computed in float32.
 
     Args:
         matrix: ``(*, 3, 3)`` normalized-frame transforms.
@@ -229,9 +246,16 @@ def matrix_to_parameters(
     _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
     check_shape(matrix, ["*", "3", "3"], "matrix")
     check_float(matrix, "matrix")
-    h33 = matrix[..., 2, 2]
-    h33 = torch.where(h33 == 0, torch.ones_like(h33), h33)  # only 0 is undefined; NaN stays
-    m = matrix / h33[..., None, None]
+    work = working_dtype(matrix.dtype)  # float16/bfloat16: computed in float32
+    m = matrix.to(work)
+    h33 = m[..., 2, 2]
+    m = m / torch.where(h33 == 0, torch.ones_like(h33), h33)[..., None, None]  # NaN stays
+    # a non-finite entry anywhere makes every parameter NaN, also those a model ignores
+    poison = (m * 0).sum((-2, -1))[..., None]
+    return cast_back(_matrix_to_parameters(m, model, parametrization) + poison, matrix.dtype)
+
+
+def _matrix_to_parameters(m: torch.Tensor, model: str, parametrization: str) -> torch.Tensor:
     eye = torch.eye(3, dtype=m.dtype, device=m.device)
     if model == "homography":
         if parametrization == "entries":
@@ -239,8 +263,7 @@ def matrix_to_parameters(
         if parametrization == "corners":
             corners = torch.tensor(_CORNERS, dtype=m.dtype, device=m.device)
             return (transform_points(m, corners.expand(*m.shape[:-2], 4, 2)) - corners).flatten(-2)
-        # zeros (the matrix goes into ``base``), NaN where the matrix has NaN
-        return m.new_zeros(*m.shape[:-2], 8) + (m * 0).sum((-2, -1))[..., None]
+        return m.new_zeros(*m.shape[:-2], 8)  # zeros: the matrix goes into ``base``
     if model == "affine":
         return (m - eye)[..., :2, :].flatten(-2)
     t = m[..., :2, 2]
@@ -490,8 +513,8 @@ def _lm(fn, theta, prob, objective, steps, mu0, tol, bar, history):
         if fn.model == "homography" and fn.parametrization == "entries":
             a, g = jtj[:, :8, :8], jtr[:, :8, None]  # d vec(Ĥ) / dθ selects 8 entries
         elif fn.linear:  # one constant (9, P) Jacobian: plain GEMMs, no tiny bmm
-            if constant_jac is None:
-                constant_jac = _param_jacobian(fn, theta[:1].detach())[0]
+            if constant_jac is None:  # constant: taken at θ = 0 (also for an empty batch)
+                constant_jac = _param_jacobian(fn, theta.new_zeros(1, theta.shape[-1]))[0]
             d = constant_jac
             a = (jtj @ d).mT @ d  # (B, P, P)
             g = (jtr @ d)[..., None]  # (B, P, 1)
@@ -535,6 +558,8 @@ def _gauss_newton_step(fn, theta, prob, objective):
 
 
 def _first_order(kind, fn, theta, prob, objective, steps, lr, tol, patience, bar, history):
+    if theta.shape[0] == 0:  # an empty batch: nothing to descend (torch's L-BFGS raises)
+        return theta.detach()
     theta = theta.detach().clone().requires_grad_(True)
     prob_d = _Problem(*(t.detach() for t in prob))
     objective = objective._replace(c2_dst=objective.c2_dst.detach(),
@@ -628,8 +653,9 @@ def fit_transform(
         (``init``, e.g. from :func:`find_transform_ransac`): Cauchy and Tukey
         are not convex. ``init=None``
         starts from the identity of the normalized frame (which maps the src
-        centroid to the dst centroid). Differentiable with respect to ``src``,
-        ``dst`` and ``weights``: ``"lm"`` is unrolled (exact derivative of the
+        centroid to the dst centroid). float16/bfloat16 inputs are fitted in
+        float32 and the results returned in their dtype. Differentiable with
+        respect to ``src``, ``dst`` and ``weights``: ``"lm"`` is unrolled (exact derivative of the
         result); ``"adam"`` and ``"lbfgs"`` run detached and, only when an
         input requires grad, end with one Gauss-Newton step that carries the
         implicit-function gradient (exact at a zero-residual optimum; the
@@ -670,6 +696,13 @@ def fit_transform(
         (True, True)
     """
     weights = check_pair(src, dst, weights)
+    if working_dtype(src.dtype) != src.dtype:  # float16/bfloat16: fitted in float32
+        work = working_dtype(src.dtype)
+        fit = fit_transform(src.to(work), dst.to(work), model, optimizer, steps,
+                            None if init is None else check_float(init, "init").to(work),
+                            parametrization, loss, None if weights is None else weights.to(work),
+                            lr, tol, patience, progress, scale, symmetric)
+        return FitResult(*(cast_back(t, src.dtype) for t in fit))
     _check_choice(model, MODELS, "model")
     _check_choice(optimizer, _DEFAULT_STEPS, "optimizer")
     _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
@@ -745,7 +778,8 @@ class HomographyModel(nn.Module):
         parametrization: ``"entries"``, ``"corners"`` or ``"sl3"`` (same default as
             :func:`fit_transform`).
         batch_shape: leading shape of the parameters (one homography per item).
-        src: optional ``(*batch_shape, N, 2)`` points defining ``T_src``.
+        src: optional ``(*batch_shape, N, 2)`` points defining ``T_src`` (``N >= 1``,
+            else ``ShapeError``).
         dst: optional ``(*batch_shape, N, 2)`` points defining ``T_dst``.
         init: optional ``(*batch_shape, 3, 3)`` starting ``dst_from_src``.
         device: device of the parameters (when no tensor is given).
@@ -789,6 +823,7 @@ class HomographyModel(nn.Module):
                 continue
             check_shape(pts, [*map(str, batch_shape), "N", "2"], name)
             check_float(pts, name)
+            check_points_nonempty(pts, name)  # no normalization of zero points (was NaN)
             t = hartley_weighted(pts, torch.ones_like(pts[..., 0])).transform
             t_src, t_dst = (t, t_dst) if name == "src" else (t_src, t)
         self.register_buffer("src_transform", t_src.clone(), persistent=False)

@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.estimation import (
     adjugate3,
     check_pair,
@@ -390,7 +391,8 @@ def find_transform_ransac(
         inliers) get ``rank_ok = False`` and a finite matrix (the identity if
         no hypothesis was valid). Reproducible: all randomness comes from
         ``generator``. Not differentiable (refit the inliers with
-        :func:`fit_transform` for gradients).
+        :func:`fit_transform` for gradients). float16/bfloat16 inputs are
+        solved in float32 and the matrix is returned in their dtype.
 
     Args:
         src: ``(*, N, 2)`` source points.
@@ -428,6 +430,13 @@ def find_transform_ransac(
     weights = check_pair(src, dst, weights)
     _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
               lo_iterations, min_inliers)
+    if working_dtype(src.dtype) != src.dtype:  # float16/bfloat16: solved in float32
+        work = working_dtype(src.dtype)
+        fit = find_transform_ransac(src.to(work), dst.to(work), model, threshold, confidence,
+                                    max_iterations,
+                                    None if weights is None else weights.to(work), generator,
+                                    hypotheses_per_round, lo_iterations, min_inliers)
+        return fit._replace(matrix=cast_back(fit.matrix, src.dtype))
     m = SAMPLE_SIZES[model]
     min_inliers = 3 * m + 2 if min_inliers is None else min_inliers
     batch, n = src.shape[:-2], src.shape[-2]

@@ -36,6 +36,7 @@ import torch
 import torch.nn.functional as F
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = ["WarpedImage", "RegistrationResult", "REGISTRATION_MODELS", "warp_image",
            "register_images"]
@@ -171,6 +172,8 @@ def warp_image(
         is ``warp_image(image, inverse(M), dsize).image``. Samples outside the
         input are 0 and flagged in ``valid``; a point mapped to infinity is
         invalid. Differentiable with respect to ``image`` and ``matrix``.
+        float16/bfloat16 are computed in float32 (the sample points need the
+        digits) and the image is returned in the input dtype.
 
     Args:
         image: ``(B, C, H, W)`` float images (``H, W >= 2``).
@@ -203,7 +206,9 @@ def warp_image(
     if matrix.dtype != image.dtype:
         raise TypeError(f"matrix: expected the dtype of image ({image.dtype}), got {matrix.dtype}")
     out_hw = tuple(image.shape[-2:]) if size is None else (int(size[0]), int(size[1]))
-    return _warp(image, matrix, out_hw)
+    work = working_dtype(image.dtype)  # float16/bfloat16: sampled in float32
+    out = _warp(image.to(work), matrix.to(work), out_hw)
+    return out._replace(image=cast_back(out.image, image.dtype))
 
 
 def _level_scale(like: torch.Tensor) -> torch.Tensor:
@@ -309,9 +314,23 @@ def _residual(level: _Level, matrix: torch.Tensor, loss: str):
     cov, var_t, var_w = (dw * dt).sum((1, 2)), dt.square().sum((1, 2)), dw.square().sum((1, 2))
     alpha = cov / torch.where(var_t > 0, var_t, torch.ones_like(var_t))
     alpha = torch.where(alpha != 0, alpha, torch.ones_like(alpha))  # gain undefined: none
-    den = (var_t * var_w).sqrt()
-    zncc = cov / torch.where(den > 0, den, torch.ones_like(den))
-    return dw / alpha[:, None, None] - dt, m, 1 - zncc
+    return dw / alpha[:, None, None] - dt, m, _one_minus_zncc(dw, dt, var_w, var_t)
+
+
+def _one_minus_zncc(dw, dt, var_w, var_t) -> torch.Tensor:
+    """``1 - ZNCC`` (B,) of centred images (B, C, n) as ``‖ŵ - t̂‖² / 2`` of the unit images.
+
+    The same value as ``1 - cov / sqrt(var_w var_t)`` without its cancellation near a
+    perfect match (which left one ulp of 1, 6e-8 in float32, in a loss of 1e-4); 1 where
+    an image is constant (ZNCC undefined, taken as 0). NaN stays NaN.
+    """
+    nw, nt = var_w.sqrt(), var_t.sqrt()
+    flat = (nw == 0) | (nt == 0)
+    one = torch.ones_like(nw)
+    diff = dw / torch.where(flat, one, nw)[:, None, None] - dt / torch.where(flat, one, nt)[
+        :, None, None]
+    value = torch.where(flat, one, 0.5 * torch.einsum("bcn,bcn->b", diff, diff))
+    return value + (nw + nt) * 0  # NaN in either image wins over "constant"
 
 
 def _hessian(level: _Level, m: torch.Tensor) -> torch.Tensor:
@@ -344,7 +363,9 @@ def _gn_step(level: _Level, hess: torch.Tensor, r: torch.Tensor) -> torch.Tensor
     trace = hess.diagonal(dim1=-2, dim2=-1).sum(-1)
     damp = 1e-9 * torch.where(trace > 0, trace, torch.ones_like(trace)) / p
     sol, _ = torch.linalg.solve_ex(hess + damp[:, None, None] * eye, grad)
-    return torch.where(torch.isfinite(sol), sol, torch.zeros_like(sol))
+    # a singular system of finite values takes no step; NaN images give a NaN step
+    finite = torch.isfinite(hess).all(-1).all(-1) & torch.isfinite(grad).all(-1)
+    return torch.where(torch.isfinite(sol) | ~finite[:, None], sol, torch.zeros_like(sol))
 
 
 def _corner_motion(step: torch.Tensor, h: int, w: int) -> torch.Tensor:
@@ -407,12 +428,16 @@ def _run_adam(level: _Level, matrix, loss, iterations, tol, history, lr):
     theta = matrix.new_zeros(matrix.shape[0], level.gens.shape[0], requires_grad=True)
     opt = torch.optim.Adam([theta], lr=lr)
     previous = matrix
+    # the ssd is in intensity units squared: descend ssd / mean(template²), unit-free, so
+    # Adam's absolute eps (1e-8) does not stall images of small intensities
+    unit = level.template.square().mean((1, 2, 3)) if loss == "ssd" else None
+    unit = None if unit is None else torch.where(unit > 0, unit, torch.ones_like(unit))
     for _ in range(iterations):
         with torch.enable_grad():
             current = matrix @ _exp_step(level, theta)
             _, _, value = _residual(level, current, loss)
             opt.zero_grad()
-            value.sum().backward()
+            (value if unit is None else value / unit).sum().backward()
         opt.step()
         history.append(value.detach())
         previous = current.detach()
@@ -493,6 +518,8 @@ def register_images(
         which makes the result invariant to a global brightness and contrast
         change, and reports ``1 - ZNCC``. Not differentiable (the steps run
         without autograd); differentiate :func:`warp_image` instead.
+        float16/bfloat16 images are registered in float32 and the results
+        returned in their dtype.
 
     Args:
         source: ``(B, C, H, W)`` float images (the template, sampled on its grid).
@@ -509,7 +536,9 @@ def register_images(
         tol: convergence threshold on the corner motion of one step, pixels of
             the level (default 0.05: near the optimum each step shrinks the error
             about 5x, so what is left after the last step is ~0.01 px).
-        lr: Adam's learning rate (normalized units: 1 is half the image size).
+        lr: Adam's learning rate (normalized units: 1 is half the image size); Adam
+            descends the ssd divided by the template's mean square, so the result does
+            not depend on the intensity units.
 
     Returns:
         :class:`RegistrationResult` ``(matrix (B, 3, 3), loss (B,),
@@ -535,6 +564,12 @@ def register_images(
     if not (math.isfinite(tol) and tol > 0):
         raise ValueError(f"tol: expected a finite positive number of pixels, got {tol!r}")
     init, mask = _check_inputs(source, target, init, mask)
+    if working_dtype(source.dtype) != source.dtype:  # float16/bfloat16: fitted in float32
+        work = working_dtype(source.dtype)
+        fit = register_images(source.to(work), target.to(work), model, levels, iterations,
+                              init.to(work), mask, loss, optimizer, tol, lr)
+        return fit._replace(**{k: cast_back(getattr(fit, k), source.dtype)
+                               for k in ("matrix", "loss", "history")})
     its = _iterations(iterations, levels, optimizer)
     while levels > 1 and min(source.shape[-2:]) >> (levels - 1) < 8:
         levels -= 1
