@@ -10,6 +10,9 @@
 - Markers (registered in ``pyproject.toml``): ``slow`` for tests over ~5 s and
   ``grad`` for float64 gradchecks. CI (``.ci/run``) runs everything; locally,
   ``pytest -m "not slow"`` skips the slow ones.
+- Under pytest-xdist (``-n auto``, as the README's command runs) every worker uses one
+  torch thread: the workers already fill the cores, and oversubscribed OpenMP threads
+  made small ops 10-100x slower on 2 shared cores.
 - Hypothesis profiles, chosen with ``HYPOTHESIS_PROFILE``: ``ci`` (the default, 40
   examples) and ``thorough`` (500 examples, for a nightly or a release check).
 """
@@ -34,6 +37,9 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+if os.environ.get("PYTEST_XDIST_WORKER"):  # the workers share the cores: no oversubscription
+    torch.set_num_threads(1)
 
 
 @pytest.fixture(params=available_devices())

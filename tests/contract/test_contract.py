@@ -26,6 +26,8 @@ from tests.contract.conftest import CONTRACT_EXAMPLES
 from tests.contract.table import EXEMPT, PENDING, TABLE, apply_law, generate
 from torchgeo_cg.core.check import ShapeError
 
+pytestmark = pytest.mark.usefixtures("one_thread")  # tiny inputs: threads only add overhead
+
 F32, F64 = torch.float32, torch.float64
 ENTRIES = {e.name: e for e in TABLE}
 NAMES = list(ENTRIES)
