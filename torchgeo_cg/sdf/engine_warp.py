@@ -153,9 +153,10 @@ if wp is not None:  # kernels exist only with the optional extra
     @wp.kernel
     def _closest_face_kernel(
         mesh_ids: wp.array(dtype=wp.uint64),
-        points32: wp.array(dtype=wp.vec3),
-        points64: wp.array(dtype=wp.vec3d),
+        order: wp.array(dtype=wp.int32),
+        sorted_points: wp.array(dtype=wp.vec3d),
         corners: wp.array(dtype=wp.vec3d),
+        planes: wp.array(dtype=wp.vec3d),
         ring_start: wp.array(dtype=wp.int32),
         ring_faces: wp.array(dtype=wp.int32),
         normals: wp.array(dtype=wp.vec3d),
@@ -163,36 +164,43 @@ if wp is not None:  # kernels exist only with the optional extra
         points_per_mesh: int,
         faces_per_mesh: int,
         mode: int,
-        out_face: wp.array(dtype=wp.int32),
+        out_face: wp.array(dtype=wp.int64),
         out_sdf: wp.array(dtype=wp.float64),
     ):
-        i = wp.tid() + first
+        k = wp.tid() + first  # the k-th point in Morton order, row i of the input
+        i = order[k]
         item = i // points_per_mesh
-        query = wp.mesh_query_point_no_sign(mesh_ids[item], points32[i], 1.0e30)
+        p = sorted_points[k]
+        p32 = wp.vec3(wp.float32(p[0]), wp.float32(p[1]), wp.float32(p[2]))
+        query = wp.mesh_query_point_no_sign(mesh_ids[item], p32, 1.0e30)
         best = query.face
-        p = points64[i]
-        base = 3 * item * faces_per_mesh
+        face0 = item * faces_per_mesh
+        base = 3 * face0
         best_d2 = _triangle_d2(p, corners[base + 3 * best], corners[base + 3 * best + 1],
                                corners[base + 3 * best + 2])
+        bound = best_d2 * wp.float64(1.000001)  # above any rounding of the plane distance
         f0 = best
         for j in range(ring_start[f0], ring_start[f0 + 1]):  # float64 check of the 1-ring
             g = ring_faces[j]
-            d2 = _triangle_d2(p, corners[base + 3 * g], corners[base + 3 * g + 1],
-                              corners[base + 3 * g + 2])
-            if d2 < best_d2 or (d2 == best_d2 and g < best):
-                best_d2 = d2
-                best = g
-        out_face[i] = best
+            h = _dot3(p - corners[base + 3 * g], planes[face0 + g])
+            if h * h <= bound:  # the plane distance is a lower bound of the face's
+                d2 = _triangle_d2(p, corners[base + 3 * g], corners[base + 3 * g + 1],
+                                  corners[base + 3 * g + 2])
+                if d2 < best_d2 or (d2 == best_d2 and g < best):
+                    best_d2 = d2
+                    best = g
+                    bound = best_d2 * wp.float64(1.000001)
+        out_face[k] = wp.int64(best)
         if mode > 0:  # the distance (and sign) on that face, evaluated here in float64
-            k = base + 3 * best
-            d2, q, feature = _closest_on_triangle(p, corners[k], corners[k + 1],
-                                                  corners[k + 2])
+            c = base + 3 * best
+            d2, q, feature = _closest_on_triangle(p, corners[c], corners[c + 1],
+                                                  corners[c + 2])
             dist = wp.sqrt(d2)
             if mode == 2:
-                n = normals[7 * (item * faces_per_mesh + best) + feature]
+                n = normals[7 * (face0 + best) + feature]
                 if _dot3(p - q, n) < wp.float64(0.0):
                     dist = -dist
-            out_sdf[i] = dist
+            out_sdf[k] = dist
 
 
 class WarpSearch:
@@ -204,15 +212,17 @@ class WarpSearch:
         meshes: the ``wp.Mesh`` of every batch item; ``mesh_ids`` their ids (``wp.array``).
         verts32: ``(B V, 3)`` float32 vertices the BVHs are built on.
         corners: ``(B T 3, 3)`` float64 triangle corners.
+        planes: ``(B T, 3)`` float64 unit face normals (zero for degenerate faces).
         tris: ``(T, 3)`` long triangles.
         ring_start, ring_faces: int32 CSR, the other faces sharing a vertex with each face.
         num_vertices: ``V``.
     """
 
-    def __init__(self, meshes, mesh_ids, verts32, corners, tris, ring_start, ring_faces,
-                 num_vertices):
+    def __init__(self, meshes, mesh_ids, verts32, corners, planes, tris, ring_start,
+                 ring_faces, num_vertices):
         self.meshes, self.mesh_ids, self.verts32 = meshes, mesh_ids, verts32
-        self.corners, self.tris, self.num_vertices = corners, tris, num_vertices
+        self.corners, self.planes = corners, planes
+        self.tris, self.num_vertices = tris, num_vertices
         self.ring_start, self.ring_faces = ring_start, ring_faces
         self._normals = None
 
@@ -255,9 +265,10 @@ def morton_order(points_n3: torch.Tensor) -> torch.Tensor:
         >>> morton_order(torch.tensor([[1.0, 1.0, 1.0], [0.0, 0.0, 0.0], [0.9, 1.0, 1.0]]))
         tensor([1, 2, 0])
     """
-    lo, hi = points_n3.amin(0), points_n3.amax(0)
-    span = torch.where(hi > lo, hi - lo, torch.ones_like(hi))
-    x, y, z = ((points_n3 - lo) / span * 1023).int().t().contiguous()  # 30-bit keys: int32
+    lo, hi = torch.aminmax(points_n3, dim=0)
+    step = 1023 / torch.where(hi > lo, hi - lo, torch.ones_like(hi))
+    cells = torch.addcmul(-lo * step, points_n3, step).to(torch.int32)  # 30-bit keys: int32
+    x, y, z = cells.unbind(1)
     key = _spread_bits(x) | (_spread_bits(y) << 1) | (_spread_bits(z) << 2)
     return torch.argsort(key)
 
@@ -320,13 +331,18 @@ def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSea
     device = wp.device_from_torch(verts_bv3.device)
     verts32 = verts_bv3.detach().reshape(B * V, 3).float().contiguous()
     tris = tris_t3.to(verts_bv3.device)
-    corners = verts_bv3.detach().double()[:, tris].reshape(-1, 3).contiguous()
+    tri = verts_bv3.detach().double()[:, tris]  # (B, T, 3, 3)
+    corners = tri.reshape(-1, 3).contiguous()
+    normal = torch.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :], dim=-1)
+    length = torch.linalg.vector_norm(normal, dim=-1, keepdim=True)
+    planes = torch.where(length > 0, normal / torch.where(length > 0, length, 1.0), 0.0)
     ring_start, ring_faces = face_rings(tris, V)
     indices = wp.from_torch(tris.to(torch.int32).reshape(-1).contiguous(), dtype=wp.int32)
     meshes = [wp.Mesh(points=wp.from_torch(verts32[b * V:(b + 1) * V], dtype=wp.vec3),
                       indices=indices) for b in range(B)]  # Warp builds one BVH per call
     ids = wp.array([m.id for m in meshes], dtype=wp.uint64, device=device)
-    return WarpSearch(meshes, ids, verts32, corners, tris, ring_start, ring_faces, V)
+    return WarpSearch(meshes, ids, verts32, corners, planes.reshape(-1, 3).contiguous(), tris,
+                      ring_start, ring_faces, V)
 
 
 def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, mode: int = 0,
@@ -359,28 +375,28 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, mode: int =
     """
     B, N = points_bn3.shape[:2]
     device = wp.device_from_torch(points_bn3.device)
-    order = morton_order(points_bn3.detach().reshape(B * N, 3))
-    if B > 1:  # rows of mesh b stay rows of mesh b
+    p64 = points_bn3.detach().reshape(B * N, 3).double().contiguous()
+    order = morton_order(p64)
+    if B > 1:  # rows of mesh b stay together: one BVH at a time
         order = order[torch.argsort(torch.div(order, N, rounding_mode="floor"), stable=True)]
-    p64 = points_bn3.detach().reshape(B * N, 3).double()[order].contiguous()
-    face = torch.empty(B * N, dtype=torch.int32, device=points_bn3.device)
-    sdf = torch.empty(B * N if mode else 0, dtype=torch.float64, device=points_bn3.device)
+    faces_sorted = torch.empty(B * N, dtype=torch.long, device=points_bn3.device)
+    sdf_sorted = torch.empty(B * N if mode else 0, dtype=torch.float64,
+                             device=points_bn3.device)
     normals = search.normals() if mode == 2 else search.corners[:0]
-    args = [search.mesh_ids, wp.from_torch(p64.float(), dtype=wp.vec3),
-            wp.from_torch(p64, dtype=wp.vec3d), wp.from_torch(search.corners, dtype=wp.vec3d),
-            wp.from_torch(search.ring_start), wp.from_torch(search.ring_faces),
-            wp.from_torch(normals, dtype=wp.vec3d)]
-    outs = [wp.from_torch(face), wp.from_torch(sdf)]
+    args = [search.mesh_ids, wp.from_torch(order.to(torch.int32)),
+            wp.from_torch(p64.index_select(0, order), dtype=wp.vec3d),
+            wp.from_torch(search.corners, dtype=wp.vec3d),
+            wp.from_torch(search.planes, dtype=wp.vec3d), wp.from_torch(search.ring_start),
+            wp.from_torch(search.ring_faces), wp.from_torch(normals, dtype=wp.vec3d)]
+    outs = [wp.from_torch(faces_sorted), wp.from_torch(sdf_sorted)]
     T = search.tris.shape[0]
     for s in tqdm(range(0, B * N, block), disable=not progress, desc="mesh_sdf search",
                   unit="block"):
         wp.launch(_closest_face_kernel, dim=min(block, B * N - s), device=device,
                   inputs=[*args, s, N, T, mode, *outs])
     wp.synchronize_device(device)
-    face_ids = torch.empty_like(face, dtype=torch.long)
-    face_ids[order] = face.long()
+    face_ids = torch.empty_like(faces_sorted).index_copy_(0, order, faces_sorted)
     if not mode:
         return WarpAnswer(face_ids.reshape(B, N), None)
-    out = torch.empty_like(sdf)
-    out[order] = sdf
-    return WarpAnswer(face_ids.reshape(B, N), out.reshape(B, N))
+    sdf = torch.empty_like(sdf_sorted).index_copy_(0, order, sdf_sorted)
+    return WarpAnswer(face_ids.reshape(B, N), sdf.reshape(B, N))
