@@ -27,6 +27,8 @@ Decisions are computed in float64 (float32 or half samples are exact in it).
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from torchgeo_cg.mesh._marching_cubes_steps import take
@@ -98,6 +100,25 @@ def _unit_scaled(g: torch.Tensor) -> torch.Tensor:
     return g * torch.ldexp(torch.ones_like(big), -exponent)
 
 
+def _decider_values(f: torch.Tensor, iso_c: torch.Tensor) -> torch.Tensor:
+    """``g = f - iso`` per cell, in a range where products of up to four ``g`` neither
+    underflow nor overflow.
+
+    One pass checks the plain difference: when every nonzero ``|g|`` lies in
+    ``[2**-250, 2**250]`` (the usual case) it is used as is. Otherwise the cells are
+    scaled twice by powers of two (exact, signs kept): before the difference, so
+    ``f - iso`` cannot overflow near the top of float64, and after it, for the products.
+    """
+    g = f - iso_c[:, None]
+    if g.numel():
+        a = g.abs()
+        low = torch.where(a > 0, a, math.inf).amin()
+        if float(low) >= 2.0**-250 and float(a.amax()) <= 2.0**250:
+            return g
+    f_iso = _unit_scaled(torch.cat([f, iso_c[:, None]], 1))  # (N, 9)
+    return _unit_scaled(f_iso[:, :8] - f_iso[:, 8:])
+
+
 def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tensor,
                     cases: torch.Tensor, real: torch.Tensor):
     """The configuration row of every active cell.
@@ -128,10 +149,7 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
     flat = vol.reshape(-1)
     f = take(flat, (cells[:, None] + corner_delta).view(-1)).view(-1, 8).double()
     iso_c = take(iso_b.double(), cells // (X * Y * Z))
-    # scaled twice by powers of two (exact, signs kept): before the difference, so f - iso
-    # cannot overflow near the top of float64, and after it, for the products
-    f_iso = _unit_scaled(torch.cat([f, iso_c[:, None]], 1))  # (N, 9)
-    g = _unit_scaled(f_iso[:, :8] - f_iso[:, 8:])  # (N, 8)
+    g = _decider_values(f, iso_c)  # (N, 8)
     case_p = take(cases, pick)
     config = case_p * 64 + face_decisions(g, case_p, tables)
     tube = torch.zeros_like(config)
