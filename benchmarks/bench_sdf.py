@@ -104,7 +104,7 @@ def _torus(quick: bool):
     return mesh, V, F, points
 
 
-def _one_thread_rate(fn, n: int, reps: int = 1) -> float:
+def _one_thread_rate(fn, n: int, reps: int = 5) -> float:
     """Points per second of ``fn`` at 1 thread, median of ``reps`` runs (after a warm-up)."""
     prev = torch.get_num_threads()
     torch.set_num_threads(1)

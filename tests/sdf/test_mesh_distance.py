@@ -641,3 +641,15 @@ def test_top_of_the_float_range(dtype, s, sign):
     V, P = (TET_V * s).to(dtype), (TET_P[rows] * s).to(dtype)
     r = M.mesh_sdf(V, TET_F, P, sign=sign, backend="torch").sdf
     assert_close(r.double() / s, TET_SDF[rows], atol=1e-6, rtol=0)
+
+
+@pytest.mark.parametrize("dtype, far", [(torch.float32, 1e6), (torch.float64, 1e15)])
+def test_closest_point_of_a_far_point_above_a_face(dtype, far):
+    """Hand-derived: below the face z = 0 of the tetrahedron, at (0.1, 0.2, -far), the
+    closest point is (0.1, 0.2, 0) and the distance is far (within 1/eps mesh sizes)."""
+    p = torch.tensor([[0.1, 0.2, -far]], dtype=dtype)
+    r = M.mesh_sdf(TET_V.to(dtype), TET_F, p, return_closest=True)
+    want = torch.tensor([[0.1, 0.2, 0.0]], dtype=dtype)
+    eps = torch.finfo(dtype).eps
+    assert_close(r.closest_points, want, atol=16 * eps, rtol=0)  # to the mesh size
+    assert_close(r.sdf, torch.tensor([far], dtype=dtype), rtol=4 * eps, atol=0)

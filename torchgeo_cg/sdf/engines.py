@@ -106,12 +106,14 @@ def new_cache_key(owner: object) -> int:
 
 
 def _scaled(verts_bv3: torch.Tensor, points_bn3: torch.Tensor):
-    """Vertices and points divided by the mesh's power-of-two scale (exact); non-finite
-    points are searched at the origin (their distance comes out NaN anyway)."""
+    """Vertices and points divided by the mesh's power-of-two scale (exact); the points in
+    float64, as every search reads them, with far ones pulled in
+    (:func:`~torchgeo_cg.sdf.mesh_search.pull_in_far_points`); non-finite points are
+    searched at the origin (their distance comes out NaN anyway)."""
     if not bool(torch.isfinite(verts_bv3).all()):
         raise ValueError("vertices: expected finite coordinates, got NaN or inf")
     scale = power_of_two_scale(verts_bv3)
-    points = points_bn3.to(verts_bv3.dtype) / scale
+    points = points_bn3.to(torch.float64) / scale.to(torch.float64)
     points = torch.where(torch.isfinite(points).all(-1, keepdim=True), points, 0.0)
     return verts_bv3 / scale, pull_in_far_points(points)
 

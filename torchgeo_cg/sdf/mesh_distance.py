@@ -487,10 +487,10 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
     scale = power_of_two_scale(verts_bv3).to(dtype)  # (B, 1, 1)
     vn, pn = verts_bv3.to(dtype) / scale, points_bn3 / scale
     tri = gather_triangles(vn, tris_t3, face_ids_bn)  # (B, N, 3, 3)
-    near = pull_in_far_points(pn)  # squared distances stay finite; measured from pn below
+    near = pull_in_far_points(pn)  # the feature as seen from far; measured from pn below
     cp = closest_point_on_triangle(near, tri[..., 0, :], tri[..., 1, :], tri[..., 2, :])
     diff = pn - cp.points
-    dist = hypot(*diff.unbind(-1))  # overflow-safe; zero gradient at exactly 0
+    dist = hypot(*diff.unbind(-1))  # overflow-safe (far points); zero gradient at exactly 0
     if sign == "pseudonormal":
         with torch.no_grad():
             if normals_bt73 is None:

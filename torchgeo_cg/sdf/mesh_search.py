@@ -76,15 +76,16 @@ def power_of_two_scale(x_bk3: torch.Tensor) -> torch.Tensor:
 
 def far_radius(dtype: torch.dtype) -> float:
     """The radius beyond which a scaled point (mesh inside ``[-1, 1]``) is "far":
-    ``1 / (256 eps)`` of ``dtype`` (2**44 in float64, 2**15 in float32). There the
-    rounding of a distance reaches 1/256 of the mesh, so which feature is closest cannot
-    be resolved any further, while squared distances are far from overflowing.
+    ``1 / eps`` of ``dtype`` (2**52 in float64, 2**23 in float32). There the input's own
+    rounding reaches the size of the mesh, so which feature is closest, and where on it,
+    cannot be resolved any further; squared distances and the closest-point products stay
+    far from overflow and underflow.
 
     Example:
-        >>> far_radius(torch.float64) == 2.0**44, far_radius(torch.float32) == 2.0**15
+        >>> far_radius(torch.float64) == 2.0**52, far_radius(torch.float32) == 2.0**23
         (True, True)
     """
-    return 1.0 / (256.0 * torch.finfo(dtype).eps)
+    return 1.0 / torch.finfo(dtype).eps
 
 
 def pull_in_far_points(points_bn3: torch.Tensor) -> torch.Tensor:
@@ -97,7 +98,7 @@ def pull_in_far_points(points_bn3: torch.Tensor) -> torch.Tensor:
 
     Example:
         >>> pull_in_far_points(torch.tensor([[[1e30, 0.0, 0.0], [1.0, 2.0, 3.0]]]))
-        tensor([[[3.2768e+04, 0.0000e+00, 0.0000e+00],
+        tensor([[[8.3886e+06, 0.0000e+00, 0.0000e+00],
                  [1.0000e+00, 2.0000e+00, 3.0000e+00]]])
     """
     radius = far_radius(points_bn3.dtype)
