@@ -123,13 +123,13 @@ def render_markdown(results_dir: Path = RESULTS) -> str:
 
 
 def median_of_runs(runs: list[list[Measurement]]) -> list[Measurement]:
-    """Per row (case, threads), the run with the median ratio (its times kept), with every
+    """Per row (case, threads, peer), the run with the median ratio (its times kept), with every
     run's ratio in ``extra["ratio_runs"]``: same-code runs of one area differ by up to 10%
     on a shared machine (page faults, neighbours), more than a single run can resolve."""
     rows: dict[tuple, list[Measurement]] = {}
     for measured in runs:
         for m in measured:
-            rows.setdefault((m.case, m.threads), []).append(m)
+            rows.setdefault((m.case, m.threads, m.peer_name), []).append(m)
     out = []
     for ms in rows.values():
         if len(ms) == 1 or any(m.ratio is None for m in ms):

@@ -6,8 +6,8 @@ from benchmarks.harness import Measurement
 from benchmarks.run import median_of_runs
 
 
-def _m(case: str, ratio: float | None, ours: float) -> Measurement:
-    return Measurement(case, 1, ours, 0.0, None if ratio is None else 1.0, None, "peer",
+def _m(case: str, ratio: float | None, ours: float, peer: str = "peer") -> Measurement:
+    return Measurement(case, 1, ours, 0.0, None if ratio is None else 1.0, None, peer,
                        ratio, None, None, {"k": 1})
 
 
@@ -20,3 +20,8 @@ def test_median_run_per_row_keeps_its_times_and_lists_every_ratio():
     assert a.extra == {"k": 1, "ratio_runs": [1.0, 3.0, 2.0]}
     assert (b.case, b.ours_ms) == ("b", 5.0)  # no ratio to order by: the first run
     assert median_of_runs(runs[:1])[0].extra == {"k": 1}  # one run: unchanged
+
+
+def test_rows_of_one_case_against_several_peers_stay_apart():
+    rows = median_of_runs([[_m("a", 1.0, 10.0, "p1"), _m("a", 2.0, 10.0, "p2")]])
+    assert [(m.peer_name, m.ratio) for m in rows] == [("p1", 1.0), ("p2", 2.0)]
