@@ -64,6 +64,17 @@ if wp is not None:  # kernels exist only with the optional extra
 
 
     @wp.func
+    def _nearer_edge(p: wp.vec3d, u: wp.vec3d, v: wp.vec3d, edge: int, best: wp.float64,
+                     t_best: wp.float64, q: wp.vec3d, code: int):
+        """The candidate ``(squared distance, t, point, code)`` after edge ``uv`` (code
+        ``edge``) is tried: it replaces the current one only when strictly nearer."""
+        d2, t, qe = _segment(p, u, v)
+        if d2 < best:
+            return d2, t, qe, edge
+        return best, t_best, q, code
+
+
+    @wp.func
     def _closest_on_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
         """Squared distance, closest point and feature code (0 face, 1-3 edges ab, bc,
         ca, 4-6 vertices a, b, c) of triangle ``abc`` to ``p``, with the operations of
@@ -91,24 +102,9 @@ if wp is not None:  # kernels exist only with the optional extra
                              a[2] + bv * e0[2] + bw * e1[2])
                 d = p - q
                 best = _dot3(d, d)
-        d2, t, qe = _segment(p, a, b)
-        if d2 < best:
-            best = d2
-            t_best = t
-            q = qe
-            code = 1
-        d2, t, qe = _segment(p, b, c)
-        if d2 < best:
-            best = d2
-            t_best = t
-            q = qe
-            code = 2
-        d2, t, qe = _segment(p, c, a)
-        if d2 < best:
-            best = d2
-            t_best = t
-            q = qe
-            code = 3
+        best, t_best, q, code = _nearer_edge(p, a, b, 1, best, t_best, q, code)
+        best, t_best, q, code = _nearer_edge(p, b, c, 2, best, t_best, q, code)
+        best, t_best, q, code = _nearer_edge(p, c, a, 3, best, t_best, q, code)
         feature = code
         if code > 0 and t_best <= wp.float64(0.0):
             feature = 3 + code  # the edge's start vertex: a, b, c
