@@ -178,6 +178,36 @@ def _chain(next_vertex: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch
 SADDLE_RULES = ("asymptotic", "low", "high")
 
 
+def _parse_arguments(field, iso, origin, spacing, fully_connected):
+    """Validated ``(field, values (B, H, W) in the working dtype, iso, origin (2,),
+    spacing (2,))`` of :func:`marching_squares` (its Raises section)."""
+    field, origin, spacing = _frame(field, origin, spacing)
+    if not isinstance(field, torch.Tensor):
+        raise TypeError(f"field: expected a float tensor or a Volume, got {type(field).__name__}")
+    check_float(field, "field")
+    sizes = check_shape(field, ["*", "H", "W"], "field")
+    height, width = sizes["H"], sizes["W"]
+    if height < 2 or width < 2:
+        raise ShapeError(
+            f"field: expected H, W >= 2, got shape {tuple(field.shape)}")
+    if fully_connected not in SADDLE_RULES:
+        raise ValueError(f"fully_connected: expected one of {SADDLE_RULES}, "
+                         f"got {fully_connected!r}")
+    if isinstance(iso, torch.Tensor):
+        iso = float(iso)
+    if isinstance(iso, bool) or not isinstance(iso, (numbers.Real, np.generic)):
+        raise TypeError(f"iso: expected a number, got {type(iso).__name__}")
+    iso = float(iso)
+    if math.isnan(iso):
+        raise ValueError("iso: expected a number, got NaN")
+    values = field.reshape(-1, height, width).to(working_dtype(field.dtype))  # (B, H, W)
+    origin = _pair(origin, values, "origin")
+    spacing = _pair(spacing, values, "spacing")
+    if not bool((torch.isfinite(spacing) & (spacing > 0)).all()):
+        raise ValueError(f"spacing: expected finite positive values, got {spacing.tolist()}")
+    return field, values, iso, origin, spacing
+
+
 def marching_squares(
     field: torch.Tensor | Volume,
     iso: float = 0.0,
@@ -229,30 +259,9 @@ def marching_squares(
         >>> result.lengths, result.closed
         (tensor([5]), tensor([True]))
     """
-    field, origin, spacing = _frame(field, origin, spacing)
-    if not isinstance(field, torch.Tensor):
-        raise TypeError(f"field: expected a float tensor or a Volume, got {type(field).__name__}")
-    check_float(field, "field")
-    sizes = check_shape(field, ["*", "H", "W"], "field")
-    height, width = sizes["H"], sizes["W"]
-    if height < 2 or width < 2:
-        raise ShapeError(
-            f"field: expected H, W >= 2, got shape {tuple(field.shape)}")
-    if fully_connected not in SADDLE_RULES:
-        raise ValueError(f"fully_connected: expected one of {SADDLE_RULES}, "
-                         f"got {fully_connected!r}")
-    if isinstance(iso, torch.Tensor):
-        iso = float(iso)
-    if isinstance(iso, bool) or not isinstance(iso, (numbers.Real, np.generic)):
-        raise TypeError(f"iso: expected a number, got {type(iso).__name__}")
-    iso = float(iso)
-    if math.isnan(iso):
-        raise ValueError("iso: expected a number, got NaN")
-    values = field.reshape(-1, height, width).to(working_dtype(field.dtype))  # (B, H, W)
-    origin = _pair(origin, values, "origin")
-    spacing = _pair(spacing, values, "spacing")
-    if not bool((torch.isfinite(spacing) & (spacing > 0)).all()):
-        raise ValueError(f"spacing: expected finite positive values, got {spacing.tolist()}")
+    field, values, iso, origin, spacing = _parse_arguments(field, iso, origin, spacing,
+                                                           fully_connected)
+    height, width = values.shape[-2:]
     n_h = height * (width - 1)  # edges along axis 1 ("horizontal" in index space)
     n_edges = n_h + (height - 1) * width
     with torch.no_grad():
