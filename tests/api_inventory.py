@@ -32,8 +32,8 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.core": [
         "ShapeError", "Volume", "as_tensor_like", "cast_back", "check_broadcastable",
         "check_float", "check_same_dtype", "check_shape", "check_spacing", "check_tensor",
-        "clamp_away_from_zero", "hypot", "index_to_world", "safe_div", "safe_norm", "safe_sqrt",
-        "working_dtype", "world_to_index"
+        "clamp_away_from_zero", "hypot", "index_to_world", "power_of_two_scale", "safe_div",
+        "safe_norm", "safe_sqrt", "working_dtype", "world_to_index"
     ],
     "torchgeo_cg.core.check": [
         "ShapeError", "check_broadcastable", "check_float", "check_shape", "check_tensor",
@@ -44,8 +44,8 @@ INVENTORY: dict[str, list[str]] = {
         "Volume", "check_spacing", "edge_fraction", "index_to_world", "world_to_index"
     ],
     "torchgeo_cg.core.numerics": [
-        "cast_back", "clamp_away_from_zero", "hypot", "safe_div", "safe_norm", "safe_sqrt",
-        "working_dtype"
+        "cast_back", "clamp_away_from_zero", "hypot", "power_of_two_scale", "safe_div",
+        "safe_norm", "safe_sqrt", "working_dtype"
     ],
     "torchgeo_cg.core.testing": [
         "DTYPES", "TOLERANCES", "assert_close", "available_devices", "tolerance"
@@ -185,7 +185,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.sdf.mesh_search": [
         "FaceGrid", "TorchSearch", "build_torch_search", "face_table", "far_radius", "pair_d2",
-        "power_of_two_scale", "pull_in_far_points", "torch_closest_faces"
+        "pull_in_far_points", "torch_closest_faces"
     ],
     "torchgeo_cg.sdf.operators": [
         "Difference", "Intersection", "Product", "Rotate", "Scale", "SmoothIntersection",

@@ -23,6 +23,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.grid import edge_fraction
+from torchgeo_cg.core.numerics import power_of_two_scale
 from torchgeo_cg.mesh._marching_cubes_tables import corner_tables
 
 __all__ = [
@@ -357,9 +358,8 @@ def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
     if max(-float(low), float(high), float(iso_high)) <= limit:
         return samples, iso_v
     top = torch.maximum(samples.detach().abs().amax(0), iso_v.detach().abs())  # (V,)
-    _, exponent = torch.frexp(torch.where(torch.isfinite(top) & (top > 0), top, 1.0))
-    scale = torch.ldexp(torch.ones_like(top), -exponent)  # (V,) powers of two
-    return samples * scale, iso_v * scale
+    scale = power_of_two_scale(top)  # (V,)
+    return samples / scale, iso_v / scale
 
 
 def interpolate(vol, welded: Welded, b_v, args, to_world):
