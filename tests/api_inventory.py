@@ -31,13 +31,13 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.core": [
         "ShapeError", "Volume", "as_tensor_like", "cast_back", "check_broadcastable",
-        "check_float", "check_same_dtype", "check_shape", "check_spacing", "check_tensor",
+        "check_choice", "check_float", "check_same_dtype", "check_shape", "check_spacing", "check_tensor",
         "clamp_away_from_zero", "hypot", "index_to_world", "power_of_two_scale", "safe_div",
         "safe_norm", "safe_sqrt", "working_dtype", "world_to_index"
     ],
     "torchgeo_cg.core.check": [
-        "ShapeError", "check_broadcastable", "check_float", "check_shape", "check_tensor",
-        "format_shape"
+        "ShapeError", "check_broadcastable", "check_choice", "check_float", "check_shape",
+        "check_tensor", "format_shape"
     ],
     "torchgeo_cg.core.coerce": ["as_tensor_like", "check_same_dtype"],
     "torchgeo_cg.core.grid": [

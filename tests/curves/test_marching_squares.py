@@ -8,6 +8,7 @@ import torch
 from skimage.measure import find_contours
 
 from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.curves import (
     figure_eight_implicit,
     grid_2d,
@@ -15,7 +16,6 @@ from torchgeo_cg.curves import (
     marching_squares,
 )
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
-from torchgeo_cg.core.grid import Volume
 
 
 def _directed_edges(polylines) -> np.ndarray:

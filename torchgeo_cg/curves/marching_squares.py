@@ -48,7 +48,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.grid import Volume, edge_fraction
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
@@ -189,9 +189,7 @@ def _parse_arguments(field, iso, origin, spacing, fully_connected):
     if height < 2 or width < 2:
         raise ShapeError(
             f"field: expected H, W >= 2, got shape {tuple(field.shape)}")
-    if fully_connected not in SADDLE_RULES:
-        raise ValueError(f"fully_connected: expected one of {SADDLE_RULES}, "
-                         f"got {fully_connected!r}")
+    check_choice(fully_connected, SADDLE_RULES, "fully_connected")
     if isinstance(iso, torch.Tensor):
         iso = float(iso)
     if isinstance(iso, bool) or not isinstance(iso, (numbers.Real, np.generic)):

@@ -51,7 +51,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.check import check_choice, check_float, check_shape, check_tensor
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import (
     CREASE_METHODS,
@@ -149,20 +149,17 @@ class _Topology(NamedTuple):
 
 
 def _check_triangle_rule(triangle_rule: str) -> str:
-    if triangle_rule not in TRIANGLE_RULES:
-        raise ValueError(f"triangle_rule: expected one of {TRIANGLE_RULES}, got {triangle_rule!r}")
+    check_choice(triangle_rule, TRIANGLE_RULES, "triangle_rule")
     return triangle_rule
 
 
 def _check_crease_method(crease_method: str) -> str:
-    if crease_method not in CREASE_METHODS:
-        raise ValueError(f"crease_method: expected one of {CREASE_METHODS}, got {crease_method!r}")
+    check_choice(crease_method, CREASE_METHODS, "crease_method")
     return crease_method
 
 
 def _check_boundary(boundary: str) -> str:
-    if boundary not in _BOUNDARY_MODES:
-        raise ValueError(f"boundary: expected one of {_BOUNDARY_MODES}, got {boundary!r}")
+    check_choice(boundary, _BOUNDARY_MODES, "boundary")
     return boundary
 
 

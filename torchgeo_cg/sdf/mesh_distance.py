@@ -44,6 +44,7 @@ from torch import nn
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
+    check_choice,
     check_float,
     check_shape,
     check_tensor,
@@ -450,9 +451,7 @@ def resolve_sign(sign: str, tris_t3: torch.Tensor, num_vertices: int) -> str:
         >>> resolve_sign("none", torch.tensor([[0, 1, 2]]), 3)
         'none'
     """
-    if sign not in ("auto", "pseudonormal", "winding", "none"):
-        raise ValueError(f"sign: expected 'auto', 'pseudonormal', 'winding' or 'none', "
-                         f"got {sign!r}")
+    check_choice(sign, ("auto", "pseudonormal", "winding", "none"), "sign")
     if sign != "auto":
         return sign
     if is_watertight(tris_t3, num_vertices):
@@ -611,7 +610,7 @@ def _has_far_points(verts_bv3: torch.Tensor, points_bn3: torch.Tensor) -> bool:
     (rare; a cheap check)."""
     if points_bn3.numel() == 0:
         return False
-    scale = power_of_two_scale(verts_bv3.detach().abs().amax((1, 2), keepdim=True)).to(torch.float64)
+    scale = power_of_two_scale(verts_bv3.abs().amax((1, 2), keepdim=True)).to(torch.float64)
     top = (points_bn3.detach().abs().amax(-1) / scale[..., 0]).nan_to_num(0.0)
     try:
         return bool((top > far_radius(torch.float64)).any())

@@ -25,8 +25,9 @@ Algorithm (no Python loop over points, faces or batch items):
 Convention:
     Inputs are ``tri (B, F, 3, 3)`` float64 corners and ``points (B, N, 3)`` float64,
     on the CPU, finite, already scaled by a power of two into a unit-sized box (see
-    :func:`torchgeo_cg.core.numerics.power_of_two_scale` of the mesh): scaling by a power of two is exact, so the face chosen
-    is the one of the unscaled problem, and squared distances cannot overflow.
+    :func:`torchgeo_cg.core.numerics.power_of_two_scale` of the mesh): scaling by a power
+    of two is exact, so the face chosen is the one of the unscaled problem, and squared
+    distances cannot overflow.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.estimation import (
@@ -84,12 +84,6 @@ class FitResult(NamedTuple):
     params: torch.Tensor
     loss: torch.Tensor
     history: torch.Tensor
-
-
-def _check_choice(value: str, choices, name: str) -> str:
-    if value not in choices:
-        raise ValueError(f"{name}: expected one of {sorted(choices)}, got {value!r}")
-    return value
 
 
 # ---------------------------------------------------------------- parametrizations
@@ -172,8 +166,8 @@ def parameters_to_matrix(
                 [0., 1., 2.],
                 [0., 0., 1.]])
     """
-    _check_choice(model, MODELS, "model")
-    _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
+    check_choice(model, MODELS, "model")
+    check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
     check_shape(params, ["*", str(MODELS[model])], "params")
     check_float(params, "params")
     if base is not None:
@@ -242,8 +236,8 @@ def matrix_to_parameters(
         >>> matrix_to_parameters(m, "trs")
         tensor([0.1000, 0.2000, 0.3000, 0.4000, 0.5000])
     """
-    _check_choice(model, MODELS, "model")
-    _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
+    check_choice(model, MODELS, "model")
+    check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
     check_shape(matrix, ["*", "3", "3"], "matrix")
     check_float(matrix, "matrix")
     work = working_dtype(matrix.dtype)  # float16/bfloat16: computed in float32
@@ -703,10 +697,10 @@ def fit_transform(
                             parametrization, loss, None if weights is None else weights.to(work),
                             lr, tol, patience, progress, scale, symmetric)
         return FitResult(*(cast_back(t, src.dtype) for t in fit))
-    _check_choice(model, MODELS, "model")
-    _check_choice(optimizer, _DEFAULT_STEPS, "optimizer")
-    _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
-    _check_choice(loss, (*LOSSES, "transfer", "symmetric"), "loss")
+    check_choice(model, MODELS, "model")
+    check_choice(optimizer, _DEFAULT_STEPS, "optimizer")
+    check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
+    check_choice(loss, (*LOSSES, "transfer", "symmetric"), "loss")
     scale = float(scale)
     if not (math.isfinite(scale) and scale > 0):
         raise ValueError(f"scale: expected a finite positive number of pixels, got {scale!r}")
@@ -804,7 +798,7 @@ class HomographyModel(nn.Module):
         dtype: torch.dtype | None = None,
     ) -> None:
         super().__init__()
-        _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
+        check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
         self.parametrization = parametrization
         given = [(name, t) for name, t in (("src", src), ("dst", dst), ("init", init))
                  if t is not None]
