@@ -31,8 +31,8 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.core": [
         "ShapeError", "Volume", "as_tensor_like", "cast_back", "check_broadcastable",
-        "check_choice", "check_float", "check_same_dtype", "check_shape", "check_spacing", "check_tensor",
-        "clamp_away_from_zero", "hypot", "index_to_world", "power_of_two_scale", "safe_div",
+        "check_choice", "check_float", "check_same_dtype", "check_shape", "check_spacing",
+        "check_tensor", "clamp_away_from_zero", "hypot", "index_to_world", "power_of_two_scale", "safe_div",
         "safe_norm", "safe_sqrt", "working_dtype", "world_to_index"
     ],
     "torchgeo_cg.core.check": [
@@ -89,7 +89,8 @@ INVENTORY: dict[str, list[str]] = {
         "LimitFrames", "LoopSubdivision", "MarchingCubes", "MarchingCubesResult", "Mesh",
         "MeshEdges", "SubdivisionOperator", "SubdivisionTags", "apply_operator",
         "bilinear_operator", "catmull_clark", "catmull_clark_operator", "check_faces",
-        "edge_length_loss", "face_sizes", "face_varying_operator", "face_varying_subdivide",
+        "check_mesh", "edge_length_loss", "face_sizes", "face_varying_operator",
+        "face_varying_subdivide",
         "from_trimesh", "laplacian_smoothing_loss", "limit_frames", "limit_positions",
         "load_mesh", "loop_operator", "loop_subdivide", "marching_cubes", "mesh_edges",
         "mesh_laplacian", "normal_consistency_loss", "pad_faces", "save_mesh", "to_trimesh",
@@ -107,7 +108,8 @@ INVENTORY: dict[str, list[str]] = {
         "face_varying_subdivide", "face_varying_tags", "value_mesh"
     ],
     "torchgeo_cg.mesh.faces": [
-        "check_faces", "face_sizes", "pad_faces", "triangulate_faces", "unpad_faces"
+        "check_faces", "check_mesh", "face_sizes", "pad_faces", "triangulate_faces",
+        "unpad_faces"
     ],
     "torchgeo_cg.mesh.io": ["Mesh", "from_trimesh", "load_mesh", "save_mesh", "to_trimesh"],
     "torchgeo_cg.mesh.io_obj": ["OBJ_STATEMENTS", "ObjContent", "format_obj", "read_obj"],
@@ -178,14 +180,11 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.sdf.level_set": ["LevelSetPoints", "zero_level_set"],
     "torchgeo_cg.sdf.mesh_distance": [
-        "FEATURES", "MeshSDF", "MeshSDFResult", "TriangleClosestPoint", "batch_mesh_points",
-        "check_mesh", "closest_point_on_triangle", "evaluate_sdf", "gather_triangles",
-        "is_watertight", "mesh_sdf", "pseudo_normals", "resolve_sign", "search_and_evaluate",
-        "winding_number"
+        "MeshSDF", "MeshSDFResult", "is_watertight", "mesh_sdf", "winding_number"
     ],
     "torchgeo_cg.sdf.mesh_search": [
-        "FaceGrid", "TorchSearch", "build_torch_search", "face_table", "far_radius", "pair_d2",
-        "pull_in_far_points", "torch_closest_faces"
+        "FaceGrid", "TorchSearch", "build_torch_search", "far_radius", "pull_in_far_points",
+        "torch_closest_faces"
     ],
     "torchgeo_cg.sdf.operators": [
         "Difference", "Intersection", "Product", "Rotate", "Scale", "SmoothIntersection",
@@ -199,7 +198,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.sdf.sampler": [
         "SDFSampler", "SDFSamples", "load_samples", "sample_mesh_surface", "save_samples",
-        "triangle_mesh", "worker_seed"
+        "worker_seed"
     ],
     "torchgeo_cg.transforms": [
         "AffineDecomposition", "FitResult", "FixedTransform", "HartleyNormalization",

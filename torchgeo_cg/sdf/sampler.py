@@ -44,7 +44,7 @@ import torch
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
-from torchgeo_cg.mesh.faces import check_faces, triangulate_faces
+from torchgeo_cg.mesh.faces import check_mesh
 from torchgeo_cg.sdf.engines import resolve_backend
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
@@ -52,7 +52,6 @@ __all__ = [
     "SDFSamples",
     "SDFSampler",
     "sample_mesh_surface",
-    "triangle_mesh",
     "worker_seed",
     "save_samples",
     "load_samples",
@@ -69,38 +68,6 @@ class SDFSamples(NamedTuple):
 
     points: torch.Tensor
     sdf: torch.Tensor
-
-
-def triangle_mesh(vertices, faces) -> tuple[torch.Tensor, torch.Tensor]:
-    """Validate a mesh ``(vertices (*, V, 3), faces)`` and return it with triangle faces.
-
-    Convention:
-        Polygons are fan-triangulated (see the module docstring).
-
-    Args:
-        vertices: ``(*, V, 3)`` float, finite.
-        faces: ``(F, 3)`` triangles or ``(F, K)`` polygons padded with ``-1`` (tensor,
-            array or list of index lists).
-
-    Returns:
-        ``vertices`` and ``(T, 3)`` long triangles.
-
-    Example:
-        >>> v, f = triangle_mesh(torch.rand(4, 3), [[0, 1, 2, 3]])
-        >>> f
-        tensor([[0, 1, 2],
-                [0, 2, 3]])
-    """
-    check_float(vertices, "vertices")
-    check_shape(vertices, ["*", "V", "3"], "vertices")
-    faces = check_faces(faces, vertices.shape[-2], "faces", allow_duplicates=True,
-                        allow_degenerate=True)
-    if vertices.shape[-2] == 0 or faces.shape[0] == 0:
-        raise ValueError(f"mesh: expected a non-empty mesh, got {vertices.shape[-2]} vertices "
-                         f"and {faces.shape[0]} faces")
-    if not bool(torch.isfinite(vertices).all()):
-        raise ValueError("vertices: expected finite coordinates, got NaN or inf")
-    return vertices, triangulate_faces(faces).to(vertices.device)
 
 
 def worker_seed(seed: int | None) -> int | None:
@@ -157,7 +124,7 @@ def sample_mesh_surface(
         >>> bool((p[:, 2] == 0).all() and (p[:, 0] + p[:, 1] <= 1).all())
         True
     """
-    vertices, tris = triangle_mesh(vertices, faces)
+    tris = check_mesh(vertices, faces, finite=True)
     if isinstance(n, bool) or not isinstance(n, int) or n < 0:
         raise ValueError(f"n: expected a non-negative int, got {n!r}")
     corners = vertices[..., tris, :]  # (*, T, 3, 3)
@@ -214,7 +181,7 @@ def _mesh_source(source):
     verts = verts if isinstance(verts, torch.Tensor) else torch.as_tensor(np.asarray(verts))
     if not isinstance(faces, torch.Tensor) and not isinstance(faces, list):
         faces = torch.as_tensor(np.asarray(faces))
-    return triangle_mesh(verts, faces)
+    return verts, check_mesh(verts, faces, finite=True)
 
 
 class SDFSampler:
