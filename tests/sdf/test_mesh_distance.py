@@ -494,7 +494,7 @@ def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
     assert len(builds) == 1  # the second query reused the structure
     assert torch.equal(first.sdf, ref.sdf)
     assert_close(second.sdf, ref.sdf.flip(0), atol=1e-14, rtol=0)  # an engine's own float64
-    module.vertices.mul_(2.0)  # an in-place edit rebuilds
+    module.verts.mul_(2.0)  # an in-place edit rebuilds
     assert_close(module(p).sdf, ref2.sdf, atol=1e-12, rtol=0)
     assert len(builds) == 2
     twin = copy.deepcopy(module)

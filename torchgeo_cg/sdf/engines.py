@@ -110,7 +110,7 @@ def _scaled(verts_bv3: torch.Tensor, points_bn3: torch.Tensor):
     (:func:`~torchgeo_cg.sdf.mesh_search.pull_in_far_points`); non-finite points are
     searched at the origin (their distance comes out NaN anyway)."""
     if not bool(torch.isfinite(verts_bv3).all()):
-        raise ValueError("vertices: expected finite coordinates, got NaN or inf")
+        raise ValueError("verts: expected finite coordinates, got NaN or inf")
     scale = power_of_two_scale(verts_bv3.abs().amax((1, 2), keepdim=True))
     points = points_bn3.to(torch.float64) / scale.to(torch.float64)
     points = torch.where(torch.isfinite(points).all(-1, keepdim=True), points, 0.0)

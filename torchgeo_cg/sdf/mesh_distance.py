@@ -114,7 +114,7 @@ def is_watertight(faces: torch.Tensor, num_vertices: int | None = None) -> bool:
 
 
 def winding_number(
-    vertices: torch.Tensor,
+    verts: torch.Tensor,
     faces: torch.Tensor,
     points: torch.Tensor,
     chunk: int = 1 << 22,
@@ -136,7 +136,7 @@ def winding_number(
         the batch would give. Polygon faces are fan-triangulated.
 
     Args:
-        vertices: ``(V, 3)`` or ``(*, V, 3)``.
+        verts: ``(V, 3)`` or ``(*, V, 3)``.
         faces: ``(F, K)`` integer, ``K >= 3`` (padded with ``-1``).
         points: ``(*, N, 3)``.
         chunk: maximal number of point-face pairs per step.
@@ -153,11 +153,11 @@ def winding_number(
         >>> winding_number(verts, tet, torch.tensor([[0.1, 0.1, 0.1], [1.0, 1.0, 1.0]])).abs()
         tensor([1., 0.])
     """
-    tris = check_mesh(vertices, faces)
+    tris = check_mesh(verts, faces)
     check_float(points, "points")
     check_shape(points, ["*", "N", "3"], "points")
     resolve_backend(backend)
-    verts_bv3, points_bn3, lead = _batch_mesh_points(vertices, points)
+    verts_bv3, points_bn3, lead = _batch_mesh_points(verts, points)
     work = working_dtype(points.dtype)  # float16/bfloat16: computed in float32
     with torch.no_grad():
         scale = power_of_two_scale(verts_bv3.to(work).abs().amax((1, 2), keepdim=True))
@@ -166,11 +166,11 @@ def winding_number(
     return cast_back((total / (4.0 * math.pi)).reshape(lead), points.dtype)
 
 
-def _batch_mesh_points(vertices: torch.Tensor, points: torch.Tensor):
+def _batch_mesh_points(verts: torch.Tensor, points: torch.Tensor):
     """Flatten a mesh batch and a point batch to ``(B, V, 3)``, ``(B, N, 3)`` and the result's
     leading shape ``(*, N)``.
 
-    Unbatched ``vertices (V, 3)`` give ``B = 1`` and all points in one item; batched
+    Unbatched ``verts (V, 3)`` give ``B = 1`` and all points in one item; batched
     vertices broadcast their batch dims against those of ``points``.
 
     Example:
@@ -178,13 +178,13 @@ def _batch_mesh_points(vertices: torch.Tensor, points: torch.Tensor):
         >>> v.shape, p.shape, lead
         (torch.Size([2, 4, 3]), torch.Size([2, 5, 3]), (2, 5))
     """
-    V, N = vertices.shape[-2], points.shape[-2]
-    if vertices.dim() == 2:
-        return (vertices[None], points.reshape(1, points.shape[:-1].numel(), 3),
+    V, N = verts.shape[-2], points.shape[-2]
+    if verts.dim() == 2:
+        return (verts[None], points.reshape(1, points.shape[:-1].numel(), 3),
                 tuple(points.shape[:-1]))
-    batch = check_broadcastable({"vertices": vertices.shape[:-2], "points": points.shape[:-2]})
+    batch = check_broadcastable({"verts": verts.shape[:-2], "points": points.shape[:-2]})
     B = math.prod(batch)
-    verts = vertices.expand(*batch, V, 3).reshape(B, V, 3)
+    verts = verts.expand(*batch, V, 3).reshape(B, V, 3)
     pts = points.expand(*batch, N, 3).reshape(B, N, 3)
     return verts, pts, (*batch, N)
 
@@ -281,7 +281,7 @@ def _cast_result(result: MeshSDFResult, dtype: torch.dtype) -> MeshSDFResult:
 
 
 def mesh_sdf(
-    vertices: torch.Tensor,
+    verts: torch.Tensor,
     faces: torch.Tensor,
     points: torch.Tensor,
     sign: str = "auto",
@@ -295,9 +295,9 @@ def mesh_sdf(
         Negative inside; faces wound counter-clockwise seen from outside. Distances are
         Euclidean and exact up to floating point (the search is exhaustive, not
         approximate). ``sdf`` and ``closest_points`` are differentiable w.r.t. ``points``
-        and ``vertices`` (the face choice and the sign are piecewise constant), also
+        and ``verts`` (the face choice and the sign are piecewise constant), also
         under ``torch.func.vmap``/``jacrev``. Batched meshes share one topology:
-        ``vertices (*, V, 3)`` with ``points (*, N, 3)`` (batch dims broadcast) gives what
+        ``verts (*, V, 3)`` with ``points (*, N, 3)`` (batch dims broadcast) gives what
         a loop over the batch would. Polygon faces ``(F, K)`` padded with ``-1`` are
         fan-triangulated (:func:`~torchgeo_cg.mesh.faces.triangulate_faces`); face ids
         index those triangles. Scale-free: every guard is relative to the mesh's box
@@ -318,9 +318,9 @@ def mesh_sdf(
     ``"auto"`` picks the fastest installed engine, else torch.
 
     Args:
-        vertices: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
+        verts: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
         faces: ``(F, 3)`` (or ``(F, K)`` polygons padded with ``-1``) integer indices
-            into ``vertices``; ``F >= 1``.
+            into ``verts``; ``F >= 1``.
         points: ``(*, N, 3)`` float query points.
         sign: ``"auto"`` (pseudo-normal if watertight, else a warning and winding
             numbers), ``"pseudonormal"``, ``"winding"`` or ``"none"`` (unsigned).
@@ -347,16 +347,16 @@ def mesh_sdf(
         >>> r.sdf, r.face_ids
         (tensor([-0.1000,  2.0000]), tensor([3, 0]))
     """
-    tris = check_mesh(vertices, faces)
+    tris = check_mesh(verts, faces)
     check_float(points, "points")
     check_shape(points, ["*", "N", "3"], "points")
     if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: computed in float32
         work = working_dtype(points.dtype)
-        return _cast_result(mesh_sdf(vertices.to(work), faces, points.to(work), sign,
+        return _cast_result(mesh_sdf(verts.to(work), faces, points.to(work), sign,
                                     return_closest, backend, progress), points.dtype)
-    sign = _resolve_sign(sign, tris, vertices.shape[-2])
+    sign = _resolve_sign(sign, tris, verts.shape[-2])
     engine = resolve_backend(backend)
-    verts_bv3, points_bn3, lead = _batch_mesh_points(vertices, points)
+    verts_bv3, points_bn3, lead = _batch_mesh_points(verts, points)
     sdf, closest, face_ids = _search_and_evaluate(verts_bv3, tris, points_bn3, engine, sign,
                                                  return_closest, -1, progress)
     return MeshSDFResult(sdf.reshape(lead), closest.reshape(*lead, 3) if return_closest else None,
@@ -405,17 +405,17 @@ class MeshSDF(nn.Module):
     """:func:`mesh_sdf` against a fixed mesh, its search structure (the engine's BVH or the
     torch grids) built once and reused by every query.
 
-    The mesh is stored as buffers (``vertices``, ``faces``: the triangles), so the module
+    The mesh is stored as buffers (``verts``, ``faces``: the triangles), so the module
     follows ``.to()``, ``state_dict`` and ``deepcopy``; the structure is rebuilt only when
     the vertices change (new data or an in-place edit) or move.
 
     Convention:
         As :func:`mesh_sdf` (negative inside, outward counter-clockwise faces, same
         defaults, same dtype policy: results have the dtype of the query points).
-        ``vertices`` may be batched ``(*, V, 3)``.
+        ``verts`` may be batched ``(*, V, 3)``.
 
     Args:
-        vertices: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
+        verts: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
         faces: ``(F, K)`` integer (polygons are fan-triangulated).
         sign: as :func:`mesh_sdf` (``"auto"`` is resolved here, once).
         backend: ``"auto"``, ``"torch"`` or an engine name.
@@ -427,14 +427,14 @@ class MeshSDF(nn.Module):
         tensor([-0.1000])
     """
 
-    def __init__(self, vertices: torch.Tensor, faces: torch.Tensor, sign: str = "auto",
+    def __init__(self, verts: torch.Tensor, faces: torch.Tensor, sign: str = "auto",
                  backend: str = "auto") -> None:
         super().__init__()
-        tris = check_mesh(vertices, faces)
-        self.sign = _resolve_sign(sign, tris, vertices.shape[-2])
+        tris = check_mesh(verts, faces)
+        self.sign = _resolve_sign(sign, tris, verts.shape[-2])
         resolve_backend(backend)
         self.backend = backend
-        self.register_buffer("vertices", vertices.detach().clone())
+        self.register_buffer("verts", verts.detach().clone())
         self.register_buffer("faces", tris.clone())
         self._search_key = (None, -1)
 
@@ -451,12 +451,12 @@ class MeshSDF(nn.Module):
         check_shape(points, ["*", "N", "3"], "points")
         if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: in float32
             work = working_dtype(points.dtype)
-            return _cast_result(mesh_sdf(self.vertices.to(work), self.faces, points.to(work),
+            return _cast_result(mesh_sdf(self.verts.to(work), self.faces, points.to(work),
                                         self.sign, return_closest, self.backend, progress),
                                points.dtype)
         engine = resolve_backend(self.backend)
-        verts_bv3, points_bn3, lead = _batch_mesh_points(self.vertices, points)
-        same_meshes = verts_bv3.shape[0] == self.vertices.shape[:-2].numel()
+        verts_bv3, points_bn3, lead = _batch_mesh_points(self.verts, points)
+        same_meshes = verts_bv3.shape[0] == self.verts.shape[:-2].numel()
         key = self._cache_key() if same_meshes else -1  # broadcast copies are not cached
         sdf, closest, face_ids = _search_and_evaluate(verts_bv3, self.faces, points_bn3, engine,
                                                      self.sign, return_closest, key, progress)
