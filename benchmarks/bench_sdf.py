@@ -270,11 +270,11 @@ def _without_engines():
 
 
 def _sampler_case(quick: bool) -> Case:
-    import torchgeo_cg.mesh.data as shipped
-    from torchgeo_cg.mesh import catmull_clark, load_mesh, triangulate_faces
+    from torchgeo_cg.mesh import catmull_clark, triangulate_faces
+    from torchgeo_cg.mesh.data import rabbit
     from torchgeo_cg.sdf import SDFSampler, available_engines
 
-    mesh = load_mesh(os.path.join(os.path.dirname(shipped.__file__), "rabbit.obj"))
+    mesh = rabbit()
     verts, faces = catmull_clark(mesh.verts.double(), mesh.faces, levels=2)
     tris = triangulate_faces(faces)
     n = 100_000 if quick else 500_000

@@ -16,19 +16,19 @@ from __future__ import annotations
 
 import argparse
 import time
-from importlib.resources import files
 
 import torch
 from torch import nn
 
-from torchgeo_cg.mesh import load_mesh, marching_cubes, save_mesh, triangulate_faces
+from torchgeo_cg.mesh import data as sample_data
+from torchgeo_cg.mesh import marching_cubes, save_mesh, triangulate_faces
 from torchgeo_cg.points import chamfer_distance
 from torchgeo_cg.sdf import SDFSampler, grid_points, grid_spacing, sample_mesh_surface
 
 
 def normalized_control_mesh() -> tuple[torch.Tensor, torch.Tensor]:
     """The shipped quad control mesh, centred and scaled into the unit sphere."""
-    mesh = load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj")
+    mesh = sample_data.rabbit()
     lo, hi = mesh.verts.amin(0), mesh.verts.amax(0)
     verts = mesh.verts - (lo + hi) / 2
     return verts / verts.norm(dim=-1).max(), mesh.faces

@@ -32,8 +32,8 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.core": [
         "ShapeError", "Volume", "as_tensor_like", "cast_back", "check_broadcastable",
         "check_choice", "check_float", "check_same_dtype", "check_shape", "check_spacing",
-        "check_tensor", "clamp_away_from_zero", "hypot", "index_to_world", "power_of_two_scale", "safe_div",
-        "safe_norm", "safe_sqrt", "working_dtype", "world_to_index"
+        "check_tensor", "clamp_away_from_zero", "hypot", "index_to_world", "power_of_two_scale",
+        "safe_div", "safe_norm", "safe_sqrt", "working_dtype", "world_to_index"
     ],
     "torchgeo_cg.core.check": [
         "ShapeError", "check_broadcastable", "check_choice", "check_float", "check_shape",
@@ -101,7 +101,7 @@ INVENTORY: dict[str, list[str]] = {
         "CREASE_METHODS", "SubdivisionRules", "child_tags", "component_labels",
         "decrement_sharpness", "limit_rules", "subdivision_rules", "vertex_rule"
     ],
-    "torchgeo_cg.mesh.data": [],
+    "torchgeo_cg.mesh.data": ["mri_phantom", "rabbit", "rabbit_path"],
     "torchgeo_cg.mesh.data.make_rabbit": ["cube_sphere", "extrude", "main", "make_rabbit"],
     "torchgeo_cg.mesh.face_varying": [
         "FVAR_INTERPOLATIONS", "FaceVaryingSubdivision", "ValueMesh", "face_varying_operator",
@@ -249,7 +249,7 @@ INVENTORY: dict[str, list[str]] = {
         "GlyphFit", "GlyphPieces", "fit_glyph", "glyph_pieces", "glyph_polygon",
         "plot_glyph_fit"
     ],
-    "torchgeo_cg.viz.marching_cubes": ["mri_phantom"],
+    "torchgeo_cg.viz.marching_cubes": [],
     "torchgeo_cg.viz.registration": ["plot_registration", "plot_robust_fit"],
     "torchgeo_cg.viz.registry": ["GalleryFigure", "figure", "registered_figures"],
     "torchgeo_cg.viz.sdf": [],

@@ -18,9 +18,10 @@ from hypothesis import strategies as st
 from tests.mesh._cc_reference import reference_levels
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.mesh import subdivision as sd
 from torchgeo_cg.mesh.faces import face_sizes, pad_faces, unpad_faces
-from torchgeo_cg.mesh.io import load_mesh, to_trimesh
+from torchgeo_cg.mesh.io import to_trimesh
 from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
     SubdivisionOperator,
@@ -230,9 +231,7 @@ def test_closed_stays_watertight(name):
 
 
 def test_rabbit_loads_and_subdivides():
-    from importlib.resources import files
-
-    rabbit = load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj", dtype=torch.float64)
+    rabbit = sample_data.rabbit(dtype=torch.float64)
     assert 200 <= rabbit.faces.shape[0] <= 600 and rabbit.faces.shape[1] == 4
     v, f = catmull_clark(rabbit.verts, rabbit.faces, levels=2)
     mesh = to_trimesh(v, f)

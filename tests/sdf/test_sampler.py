@@ -12,6 +12,7 @@ from scipy import stats
 
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 from torchgeo_cg.sdf.primitives import Torus, sphere, torus
 from torchgeo_cg.sdf.sampler import (
@@ -125,11 +126,8 @@ def test_bad_input():
 # --- polygon meshes, batches, DataLoader workers, progress (issues 10, 11, 15) ----------
 
 def _control_mesh():
-    from importlib.resources import files
 
-    from torchgeo_cg.mesh import load_mesh
-
-    return load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj", dtype=torch.float64)
+    return sample_data.rabbit(dtype=torch.float64)
 
 
 def test_quad_control_mesh_is_triangulated():

@@ -17,10 +17,8 @@ _SKIP = {"registry", "gallery", "style"}  # helpers, not figure modules
 
 def load_figure_modules() -> list[str]:
     """Import every figure module of :mod:`torchgeo_cg.viz` (needs matplotlib)."""
-    import torchgeo_cg.viz as viz
-
     names = []
-    for info in pkgutil.iter_modules(viz.__path__):
+    for info in pkgutil.iter_modules([str(Path(__file__).parent)]):
         if info.name in _SKIP or info.name.startswith("_"):
             continue
         importlib.import_module(f"torchgeo_cg.viz.{info.name}")
