@@ -2,13 +2,13 @@
 
 This module holds the entries of the numeric core (core, homogeneous transforms,
 curves, SDF primitives, operators and grids) and gathers the areas' tables
-(``table_<area>.py``: ``ENTRIES``, ``PENDING``, ``EXEMPT`` each) into :data:`TABLE`,
-:data:`PENDING` and :data:`EXEMPT`. The vocabulary (``Arg``, ``Entry``, laws,
+(``table_<area>.py``: ``ENTRIES`` and ``EXEMPT`` each) into :data:`TABLE` and
+:data:`EXEMPT`. The vocabulary (``Arg``, ``Entry``, laws,
 generators) is in ``spec.py``.
 
-Names not in the table are in :data:`PENDING` (not yet under contract, with the
-reason) or :data:`EXEMPT` (result types, exceptions, validators and figures: no
-geometry). The completeness test fails for any public name in none of the three.
+Public callables not in the table are in :data:`EXEMPT` (result types, exceptions,
+validators and figures: no geometry). The completeness test fails for any public
+callable in neither.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from tests.contract import (
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
 from torchgeo_cg.curves.bernstein import bernstein_basis
 
-__all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
+__all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
 AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision)
 
@@ -382,9 +382,6 @@ CORE_TABLE: list[Entry] = [
 ]
 
 TABLE: list[Entry] = CORE_TABLE + [e for area in AREAS for e in area.ENTRIES]
-
-#: Public names not yet under contract (name -> (owner, reason)).
-PENDING: dict[str, tuple[str, str]] = {k: v for area in AREAS for k, v in area.PENDING.items()}
 
 #: Public names with no geometry to put under contract (name -> reason).
 EXEMPT: dict[str, str] = {

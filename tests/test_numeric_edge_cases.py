@@ -1,6 +1,6 @@
-"""Regression tests: every measured case of issue 10's "Why" that lives in core,
-transforms (homogeneous/modules/decompose), curves (bezier/parametric) and sdf
-(primitives/operators/grid/gradients/level_set)."""
+"""Numeric edge cases across core, transforms (homogeneous/modules/decompose), curves
+(bezier/parametric) and sdf (primitives/operators/grid/gradients/level_set): every
+scale, float16, NaN, overflow, empty input, parameter validation and mixed dtypes."""
 
 import math
 
