@@ -1,4 +1,4 @@
-"""Catmull-Clark subdivision as a sparse operator built once from the topology (report 1.5).
+"""Catmull-Clark (OpenSubdiv "Catmark") subdivision as a sparse operator built once (report 1.5).
 
 The topology (faces) gives a sparse matrix ``S`` of shape ``(V1, V0)`` whose
 rows are OpenSubdiv's Catmark stencils; the geometry is refined by one sparse
@@ -33,8 +33,8 @@ Convention:
       ``boundary="edge_only"`` (OpenSubdiv ``VTX_BOUNDARY_EDGE_ONLY``, the default).
       Non-manifold vertices (several face fans) are corners, except along an
       interior non-manifold crease (OpenSubdiv).
-    - Tags (:class:`~torchgeo_cg.mesh.tags.SubdivisionTags`): creases and corners
-      with OpenSubdiv's semi-sharp rules (:mod:`torchgeo_cg.mesh.creasing`), decayed
+    - Tags (:class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags`): creases and corners
+      with OpenSubdiv's semi-sharp rules (OpenSubdiv's rules), decayed
       from level to level by ``crease_method``; holes keep their vertices and rules
       but have no child faces (``operator.faces`` omits them, ``operator.child_faces``
       and ``operator.child_tags`` carry everything to the next level).
@@ -46,168 +46,32 @@ Convention:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import torch
-from torch import nn
 
-from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
-from torchgeo_cg.mesh.creasing import (
-    CREASE_METHODS,
-    child_tags,
-    limit_rules,
-    subdivision_rules,
-)
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix, weights_dtype
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision._creasing import child_tags, subdivision_rules
+from torchgeo_cg.mesh.subdivision._levels import SubdivisionModule
+from torchgeo_cg.mesh.subdivision._topology import (
+    check_boundary,
+    check_crease_method,
+    mesh_topology,
+)
+from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
+from torchgeo_cg.mesh.subdivision.stencils import stencil_matrix, weights_dtype
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
-__all__ = [
-    "SubdivisionOperator",
-    "catmull_clark_operator",
-    "apply_operator",
-    "catmull_clark",
-    "CatmullClark",
-    "limit_positions",
-    "catmark_limit_stencils",
-    "mesh_topology",
-]
+__all__ = ["catmull_clark_operator", "catmull_clark", "CatmullClark"]
 
-_BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")
 TRIANGLE_RULES = ("catmark", "smooth")
-
-
-class SubdivisionOperator(NamedTuple):
-    """One level of subdivision, built once from the topology.
-
-    Attributes:
-        stencils: the ``(V1, V0)`` stencil matrix ``S`` (``V1 = S @ V0``) and its
-            transpose as plain CSR tensors (:class:`~torchgeo_cg.mesh.stencils.StencilMatrix`).
-        faces: ``(F1, 4)`` long output quads (Loop: ``(F1, 3)`` triangles).
-        num_vertices_in: ``V0``.
-        num_vertices_out: ``V1 = V0 + F0 + E0`` (Loop: ``V0 + E0``).
-        num_faces_in: ``F0`` (Catmark face points start at row ``V0``).
-        num_edges_in: ``E0`` (edge points start at row ``V0 + F0``; Loop: ``V0``).
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
-        scheme: ``"catmark"`` or ``"loop"``, the rules that built it.
-        child_faces: every child face, holes' children included (what the next level
-            is built from); ``faces`` is this without the holes' children.
-        child_tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` of the refined
-            mesh (child creases with their decayed sharpness, corners, holes as rows
-            of ``child_faces``), or ``None`` for an untagged mesh without holes.
-
-    The properties ``matrix`` and ``matrix_t`` give ``S`` and ``S^T`` as
-    ``torch.sparse_csr`` tensors (built on use; they share the stencils' memory).
-
-    Example:
-        >>> op = catmull_clark_operator([[0, 1, 2]], 3)  # rows: 3 vertex, 1 face, 3 edge points
-        >>> op.matrix.shape, op.faces.tolist(), op.scheme
-        (torch.Size([7, 3]), [[0, 4, 3, 5], [1, 6, 3, 4], [2, 5, 3, 6]], 'catmark')
-    """
-
-    stencils: StencilMatrix
-    faces: torch.Tensor
-    num_vertices_in: int
-    num_vertices_out: int
-    num_faces_in: int
-    num_edges_in: int
-    boundary: str
-    scheme: str = "catmark"
-    child_faces: torch.Tensor | None = None
-    child_tags: SubdivisionTags | None = None
-
-    @property
-    def matrix(self) -> torch.Tensor:
-        """``(V1, V0)`` sparse CSR stencil matrix."""
-        return self.stencils.sparse()
-
-    @property
-    def matrix_t(self) -> torch.Tensor:
-        """``(V0, V1)`` sparse CSR transpose (what backward applies)."""
-        return self.stencils.sparse_t()
-
-
-class _Topology(NamedTuple):
-    """Corner/edge/vertex tables of a padded polygon mesh (all 1-D, long or bool)."""
-
-    face_c: torch.Tensor  # (C,) face of each corner, corners in face-major order
-    pos_c: torch.Tensor  # (C,) position of the corner in its face
-    vert_c: torch.Tensor  # (C,) vertex at the corner
-    next_c: torch.Tensor  # (C,) next vertex in the face (half-edge vert_c -> next_c)
-    prev_corner_c: torch.Tensor  # (C,) index of the previous corner of the same face
-    size_c: torch.Tensor  # (C,) size of the corner's face
-    edge_c: torch.Tensor  # (C,) edge of the half-edge vert_c -> next_c
-    edge_lo_e: torch.Tensor  # (E,) smaller endpoint
-    edge_hi_e: torch.Tensor  # (E,) larger endpoint
-    sharp_e: torch.Tensor  # (E,) bool: not exactly two faces
-    valence_v: torch.Tensor  # (V,) number of edges
-    num_faces_v: torch.Tensor  # (V,) number of incident faces
-    kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
 
 
 def _check_triangle_rule(triangle_rule: str) -> str:
     if triangle_rule not in TRIANGLE_RULES:
         raise ValueError(f"triangle_rule: expected one of {TRIANGLE_RULES}, got {triangle_rule!r}")
     return triangle_rule
-
-
-def _check_crease_method(crease_method: str) -> str:
-    if crease_method not in CREASE_METHODS:
-        raise ValueError(f"crease_method: expected one of {CREASE_METHODS}, got {crease_method!r}")
-    return crease_method
-
-
-def _check_boundary(boundary: str) -> str:
-    if boundary not in _BOUNDARY_MODES:
-        raise ValueError(f"boundary: expected one of {_BOUNDARY_MODES}, got {boundary!r}")
-    return boundary
-
-
-def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "edge_only"
-                  ) -> _Topology:
-    """Corner, edge and vertex tables of ``(F, K)`` padded faces (sort/unique/bincount).
-
-    Example:
-        >>> topo = mesh_topology(torch.tensor([[0, 1, 2]]), 3)
-        >>> topo.edge_lo_e.tolist(), topo.edge_hi_e.tolist(), topo.valence_v.tolist()
-        ([0, 0, 1], [1, 2, 2], [2, 2, 2])
-    """
-    V = num_vertices
-    valid_fk = faces_fk >= 0
-    size_f = valid_fk.sum(1)
-    F, K = faces_fk.shape
-    if bool(valid_fk.all()):  # no padding (pure triangles or quads): skip nonzero
-        face_c = torch.arange(F, device=faces_fk.device).repeat_interleave(K)
-        pos_c = torch.arange(K, device=faces_fk.device).repeat(F)
-    else:
-        face_c, pos_c = torch.nonzero(valid_fk, as_tuple=True)  # face-major, then position
-    size_c = size_f[face_c]
-    start_c = (torch.cumsum(size_f, 0) - size_f)[face_c]
-    vert_c = faces_fk[face_c, pos_c]
-    next_c = faces_fk[face_c, (pos_c + 1) % size_c]
-    prev_corner_c = start_c + (pos_c - 1) % size_c
-    lo_c, hi_c = torch.minimum(vert_c, next_c), torch.maximum(vert_c, next_c)
-    key_e, edge_c = torch.unique(lo_c * max(V, 1) + hi_c, return_inverse=True)
-    E = key_e.numel()
-    edge_lo_e, edge_hi_e = key_e // max(V, 1), key_e % max(V, 1)
-    sharp_e = torch.bincount(edge_c, minlength=E) != 2
-    ends = torch.cat([edge_lo_e, edge_hi_e])
-    valence_v = torch.bincount(ends, minlength=V)
-    sharp_v = torch.bincount(ends[torch.cat([sharp_e, sharp_e])], minlength=V)
-    num_faces_v = torch.bincount(vert_c, minlength=V)
-    kind_v = torch.ones(V, dtype=torch.long, device=faces_fk.device)
-    kind_v[sharp_v == 2] = 2
-    if boundary == "edge_and_corner":
-        kind_v[(sharp_v == 2) & (valence_v == 2)] = 3
-    kind_v[sharp_v > 2] = 3
-    kind_v[valence_v == 0] = 0
-    return _Topology(
-        face_c, pos_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
-        sharp_e, valence_v, num_faces_v, kind_v,
-    )
 
 
 def catmull_clark_operator(
@@ -237,8 +101,8 @@ def catmull_clark_operator(
             become holes).
         device: device of the operator (default: that of ``faces``, CPU for lists).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
-            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
         triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (OpenSubdiv's
             ``TRI_SUB_SMOOTH`` edge weights next to triangles).
@@ -255,7 +119,7 @@ def catmull_clark_operator(
         TypeError: ``dtype`` is not a floating-point dtype.
 
     Example:
-        >>> from torchgeo_cg.mesh.tags import SubdivisionTags
+        >>> from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
         >>> quad = [[0, 1, 2, 3]]
         >>> op = catmull_clark_operator(quad, 4)
         >>> op.num_vertices_out, op.faces.shape
@@ -268,8 +132,8 @@ def catmull_clark_operator(
         >>> holed.faces.shape, holed.child_faces.shape, holed.child_tags.holes.tolist()
         (torch.Size([0, 4]), torch.Size([4, 4]), [0, 1, 2, 3])
     """
-    _check_boundary(boundary)
-    _check_crease_method(crease_method)
+    check_boundary(boundary)
+    check_crease_method(crease_method)
     _check_triangle_rule(triangle_rule)
     with torch.no_grad():
         faces_fk = check_faces(faces, num_vertices)
@@ -377,39 +241,6 @@ def _catmark_vertex_entries(faces_fk, topo, rules, wdtype):
     ]
 
 
-def _check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:
-    check_tensor(verts, name)
-    check_shape(verts, ["*", "V", "D"], name, {"V": num_vertices})
-    check_float(verts, name)
-
-
-def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
-    """Refine per-vertex data with one operator: ``(*, V0, D) -> (*, V1, D)``.
-
-    Convention:
-        Rows are vertices (``verts[..., i, :]`` is vertex ``i``); ``D`` is any
-        width, so positions, UVs and features refine alike. Differentiable in
-        ``verts``; backward applies ``S^T`` from ``operator.stencils``. The
-        weights are cast to ``verts``' dtype and device when they differ. Works
-        under ``torch.compile(fullgraph=True)``, ``torch.func.vmap`` and ``jacrev``.
-
-    Args:
-        operator: from :func:`catmull_clark_operator`.
-        verts: ``(*, V0, D)`` float.
-
-    Returns:
-        ``(*, V1, D)``.
-
-    Example:
-        >>> op = catmull_clark_operator([[0, 1, 2]], 3)
-        >>> apply_operator(op, torch.tensor([[0., 0.], [3., 0.], [0., 3.]]))[3:5]
-        tensor([[1.0000, 1.0000],
-                [1.5000, 0.0000]])
-    """
-    _check_verts(verts, operator.num_vertices_in)
-    return apply_stencils(operator.stencils, verts)
-
-
 def catmull_clark(
     verts: torch.Tensor,
     faces: torch.Tensor | Sequence[Sequence[int]],
@@ -433,7 +264,7 @@ def catmull_clark(
         boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
             boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
             become holes).
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None`` (see
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None`` (see
             :func:`catmull_clark_operator`); carried from level to level.
         crease_method: ``"uniform"`` (default) or ``"chaikin"``.
         triangle_rule: ``"catmark"`` (default) or ``"smooth"``.
@@ -470,104 +301,7 @@ def catmull_clark(
     return module(verts), module.faces
 
 
-class _SubdivisionModule(nn.Module):
-    """Shared machinery: one cached operator per level, applied by sparse matmuls."""
-
-    scheme = ""  # the subclass's scheme name
-
-    @staticmethod
-    def _build_operator(faces, num_vertices, boundary, dtype=None, tags=None,
-                        crease_method="uniform") -> SubdivisionOperator:
-        raise NotImplementedError
-
-    def __init__(
-        self,
-        faces: torch.Tensor | Sequence[Sequence[int]],
-        num_vertices: int,
-        levels: int = 1,
-        boundary: str = "edge_only",
-        device: torch.device | str | None = None,
-        dtype: torch.dtype | None = None,
-        tags: SubdivisionTags | None = None,
-        crease_method: str = "uniform",
-        **options: str,
-    ) -> None:
-        super().__init__()
-        if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
-            raise ValueError(f"levels: expected an int >= 0, got {levels!r}")
-        _check_boundary(boundary)
-        _check_crease_method(crease_method)
-        self.levels, self.boundary, self.crease_method = levels, boundary, crease_method
-        self.num_vertices_in = num_vertices
-        faces_fk = check_faces(faces, num_vertices)
-        if device is not None:
-            faces_fk = faces_fk.to(device)
-        self.register_buffer("faces_0", faces_fk, persistent=False)
-        count = num_vertices
-        self.sizes: list[tuple[int, int, int, int]] = []  # (V_in, V_out, F_in, E_in)
-        self._child_tag_levels: list[bool] = []
-        level_boundary = boundary
-        for level in range(levels):  # loop over levels only
-            op = self._build_operator(faces_fk, count, level_boundary, dtype=dtype, tags=tags,
-                                      crease_method=crease_method, **options)
-            for field, tensor in zip(StencilMatrix._fields, op.stencils):
-                self.register_buffer(f"{field}_{level}", tensor, persistent=False)
-            self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
-            self.register_buffer(f"child_faces_{level + 1}", op.child_faces, persistent=False)
-            self._child_tag_levels.append(op.child_tags is not None)
-            if op.child_tags is not None:
-                for field, tensor in zip(SubdivisionTags._fields, op.child_tags):
-                    self.register_buffer(f"tags_{field}_{level + 1}", tensor, persistent=False)
-            self.sizes.append(
-                (op.num_vertices_in, op.num_vertices_out, op.num_faces_in, op.num_edges_in)
-            )
-            faces_fk, count, tags = op.child_faces, op.num_vertices_out, op.child_tags
-            # OpenSubdiv applies boundary "none" (boundary faces become holes) at the base
-            # level only; the children of those holes are holes of the next levels
-            level_boundary = "edge_only" if boundary == "none" else boundary
-        self.num_vertices_out = count
-
-    @property
-    def faces(self) -> torch.Tensor:
-        """``(F_L, 4)`` (Loop: ``(F_L, 3)``) long faces of the last level (input faces,
-        padded, when ``levels = 0``)."""
-        return getattr(self, f"faces_{self.levels}")
-
-    def operator(self, level: int) -> SubdivisionOperator:
-        """The cached :class:`SubdivisionOperator` of step ``level`` (0-based)."""
-        if not 0 <= level < self.levels:
-            raise IndexError(f"level: expected 0 <= level < {self.levels}, got {level}")
-        v_in, v_out, f_in, e_in = self.sizes[level]
-        tags = None
-        if self._child_tag_levels[level]:
-            tags = SubdivisionTags(
-                *(getattr(self, f"tags_{f}_{level + 1}") for f in SubdivisionTags._fields)
-            )
-        boundary = "edge_only" if level and self.boundary == "none" else self.boundary
-        return SubdivisionOperator(
-            self._stencils(level), getattr(self, f"faces_{level + 1}"),
-            v_in, v_out, f_in, e_in, boundary, self.scheme,
-            getattr(self, f"child_faces_{level + 1}"), tags,
-        )
-
-    def _stencils(self, level: int) -> StencilMatrix:
-        return StencilMatrix(*(getattr(self, f"{f}_{level}") for f in StencilMatrix._fields))
-
-    def forward(self, verts: torch.Tensor) -> torch.Tensor:
-        _check_verts(verts, self.num_vertices_in)
-        for level in range(self.levels):
-            verts = apply_stencils(self._stencils(level), verts)
-        return verts
-
-    def extra_repr(self) -> str:
-        return (
-            f"levels={self.levels}, boundary={self.boundary!r}, "
-            f"num_vertices={self.num_vertices_in} -> {self.num_vertices_out}"
-        )
-
-
-
-class CatmullClark(_SubdivisionModule):
+class CatmullClark(SubdivisionModule):
     """Catmull-Clark subdivision, ``levels`` steps, operators built once and cached.
 
     Convention:
@@ -586,8 +320,8 @@ class CatmullClark(_SubdivisionModule):
             become holes).
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
-            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
         triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (OpenSubdiv's
             ``TRI_SUB_SMOOTH`` edge weights next to triangles).
@@ -625,102 +359,3 @@ class CatmullClark(_SubdivisionModule):
         self.triangle_rule = triangle_rule
 
 
-def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
-    """Exact limit-surface positions of the refined vertices: ``L @ S @ verts``.
-
-    ``S`` is ``operator.stencils``; ``L`` applies the limit masks of the operator's
-    scheme on the refined mesh ``operator.faces``. Catmark (Halstead et al. 1993):
-    smooth vertex of valence ``n``: ``(n^2 V + 4 sum e_i + sum d_i) / (n (n + 5))``
-    (``e_i`` edge neighbours, ``d_i`` the opposite corner of each incident quad).
-    Loop: smooth vertex ``(1 - n chi) V + chi sum e_i``, ``chi = 1 / (n + 3 / (8 beta))``
-    with Loop's ``beta`` (OpenSubdiv's ``assignSmoothLimitMask``). Both schemes:
-    boundary/crease vertex ``(a + 4 V + b) / 6`` (the cubic B-spline limit of the
-    crease rule), corners and unreferenced vertices ``V``.
-
-    Convention:
-        Same classification and ``boundary`` mode as the operator. Because the
-        vertex points come first, ``out[..., :V0, :]`` are the limit positions of
-        the original control vertices. Differentiable in ``verts``.
-
-    Args:
-        operator: from :func:`catmull_clark_operator` or
-            :func:`~torchgeo_cg.mesh.loop.loop_operator`.
-        verts: ``(*, V0, D)`` float control data at the operator's input level.
-
-    Returns:
-        ``(*, V1, D)`` limit positions of the vertices of ``operator.faces``.
-
-    Raises:
-        ValueError: the operator's scheme has no limit masks here (only
-            ``"catmark"`` and ``"loop"`` do).
-
-    Example:
-        >>> square = torch.tensor([[0., 0.], [1., 0.], [1., 1.], [0., 1.]])
-        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, boundary="edge_and_corner")
-        >>> limit_positions(op, square)[4:6]  # centre, then the middle of the bottom edge
-        tensor([[0.5000, 0.5000],
-                [0.5000, 0.0000]])
-    """
-    _check_verts(verts, operator.num_vertices_in)
-    wdtype = operator.stencils.weights.dtype
-    faces = operator.faces if operator.child_faces is None else operator.child_faces
-    args = (faces, operator.num_vertices_out, operator.boundary, wdtype, operator.child_tags)
-    if operator.scheme == "catmark":
-        limit = catmark_limit_stencils(*args)
-    elif operator.scheme == "loop":
-        from torchgeo_cg.mesh.loop import loop_limit_stencils  # loop builds on this module
-
-        limit = loop_limit_stencils(*args)
-    else:
-        raise ValueError(
-            f"operator: limit_positions has limit masks for the 'catmark' and 'loop' "
-            f"schemes, got an operator of scheme {operator.scheme!r}"
-        )
-    return apply_stencils(limit, apply_stencils(operator.stencils, verts))
-
-
-def catmark_limit_stencils(
-    faces_q4: torch.Tensor,
-    num_vertices: int,
-    boundary: str,
-    dtype: torch.dtype,
-    tags: SubdivisionTags | None = None,
-) -> StencilMatrix:
-    """``(V, V)`` Catmark limit masks of an all-quad mesh (see :func:`limit_positions`).
-
-    Example:
-        >>> catmark_limit_stencils(torch.tensor([[0, 1, 2, 3]]), 4, "edge_only",
-        ...                        torch.float64).dense()[0] * 6
-        tensor([4., 1., 0., 1.], dtype=torch.float64)
-    """
-    V1 = num_vertices
-    with torch.no_grad():
-        topo = mesh_topology(faces_q4, V1, boundary)
-        dev, wdtype = faces_q4.device, dtype
-        n_v = topo.valence_v.to(wdtype).clamp(min=1)
-        m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
-        rule_v, sharp_e = limit_rules(topo, V1, faces_q4.shape[0], tags, boundary, wdtype)
-        kind_v = rule_v + 1  # 1 smooth, 2 crease, 3 corner
-        smooth_v, crease_v = kind_v == 1, kind_v == 2
-        self_v = torch.where(smooth_v, n_v / (n_v + 5), 1.0 - crease_v.to(wdtype) / 3.0)
-        v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
-        nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
-        sharp_side = torch.cat([sharp_e, sharp_e])
-        kind_side = kind_v[v_side]
-        w_side = torch.where(
-            kind_side == 1,
-            4.0 / (n_v[v_side] * (n_v[v_side] + 5)),
-            ((kind_side == 2) & sharp_side).to(wdtype) / 6.0,
-        )
-        # opposite corner of each quad corner: two steps along the face
-        diag_c = topo.vert_c[topo.prev_corner_c[topo.prev_corner_c]]
-        v_c = topo.vert_c
-        w_c = torch.where(smooth_v[v_c], 1.0 / (m_v[v_c] * (n_v[v_c] + 5)), 0.0)
-        arange_v = torch.arange(V1, device=dev)
-        limit = stencil_matrix(
-            torch.cat([arange_v, v_side, v_c]),
-            torch.cat([arange_v, nbr_side, diag_c]),
-            torch.cat([self_v.to(wdtype), w_side.to(wdtype), w_c.to(wdtype)]),
-            (V1, V1),
-        )
-    return limit
