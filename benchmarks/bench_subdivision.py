@@ -22,9 +22,9 @@ import io
 import torch
 
 from benchmarks.harness import Case
-from torchgeo_cg.mesh.loop import loop_operator
 from torchgeo_cg.mesh.subdivision import CatmullClark, apply_operator, catmull_clark_operator
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision.loop import loop_operator
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 
 def _pymeshlab_cc(verts_np, faces_np, levels):

@@ -91,17 +91,8 @@ INVENTORY: dict[str, list[str]] = {
         "mesh_laplacian", "normal_consistency_loss", "pad_faces", "save_mesh", "to_trimesh",
         "triangulate_faces", "unpad_faces"
     ],
-    "torchgeo_cg.mesh.bilinear": ["bilinear_operator"],
-    "torchgeo_cg.mesh.creasing": [
-        "CREASE_METHODS", "SubdivisionRules", "child_tags", "component_labels",
-        "decrement_sharpness", "limit_rules", "subdivision_rules", "vertex_rule"
-    ],
     "torchgeo_cg.mesh.data": [],
     "torchgeo_cg.mesh.data.make_rabbit": ["cube_sphere", "extrude", "main", "make_rabbit"],
-    "torchgeo_cg.mesh.face_varying": [
-        "FVAR_INTERPOLATIONS", "FaceVaryingSubdivision", "ValueMesh", "face_varying_operator",
-        "face_varying_subdivide", "face_varying_tags", "value_mesh"
-    ],
     "torchgeo_cg.mesh.faces": [
         "check_faces", "face_sizes", "pad_faces", "triangulate_faces", "unpad_faces"
     ],
@@ -119,10 +110,6 @@ INVENTORY: dict[str, list[str]] = {
         "first_chars", "format_faces", "format_rows", "gather_lines", "line_tokens",
         "parse_numbers", "read_text"
     ],
-    "torchgeo_cg.mesh.limit": ["LimitFrames", "limit_frames"],
-    "torchgeo_cg.mesh.loop": [
-        "LoopSubdivision", "loop_beta", "loop_limit_stencils", "loop_operator", "loop_subdivide"
-    ],
     "torchgeo_cg.mesh.marching_cubes": [
         "AMBIGUITY_RULES", "MarchingCubes", "MarchingCubesResult", "marching_cubes"
     ],
@@ -130,12 +117,26 @@ INVENTORY: dict[str, list[str]] = {
         "MeshEdges", "edge_length_loss", "laplacian_smoothing_loss", "mesh_edges",
         "mesh_laplacian", "normal_consistency_loss"
     ],
-    "torchgeo_cg.mesh.stencils": ["StencilMatrix", "apply_stencils", "stencil_matrix"],
     "torchgeo_cg.mesh.subdivision": [
-        "CatmullClark", "SubdivisionOperator", "apply_operator", "catmark_limit_stencils",
-        "catmull_clark", "catmull_clark_operator", "limit_positions", "mesh_topology"
+        "CatmullClark", "FVAR_INTERPOLATIONS", "FaceVaryingSubdivision", "INFINITELY_SHARP",
+        "LimitFrames", "LoopSubdivision", "SubdivisionOperator", "SubdivisionTags",
+        "apply_operator", "bilinear_operator", "catmull_clark", "catmull_clark_operator",
+        "face_varying_operator", "face_varying_subdivide", "limit_frames", "limit_positions",
+        "loop_operator", "loop_subdivide"
     ],
-    "torchgeo_cg.mesh.tags": ["INFINITELY_SHARP", "SubdivisionTags"],
+    "torchgeo_cg.mesh.subdivision.bilinear": ["bilinear_operator"],
+    "torchgeo_cg.mesh.subdivision.catmark": [
+        "CatmullClark", "catmull_clark", "catmull_clark_operator"
+    ],
+    "torchgeo_cg.mesh.subdivision.face_varying": [
+        "FVAR_INTERPOLATIONS", "FaceVaryingSubdivision", "face_varying_operator",
+        "face_varying_subdivide"
+    ],
+    "torchgeo_cg.mesh.subdivision.limit": ["LimitFrames", "limit_frames", "limit_positions"],
+    "torchgeo_cg.mesh.subdivision.loop": ["LoopSubdivision", "loop_operator", "loop_subdivide"],
+    "torchgeo_cg.mesh.subdivision.operator": ["SubdivisionOperator", "apply_operator"],
+    "torchgeo_cg.mesh.subdivision.stencils": ["StencilMatrix", "apply_stencils", "stencil_matrix"],
+    "torchgeo_cg.mesh.subdivision.tags": ["INFINITELY_SHARP", "SubdivisionTags"],
     "torchgeo_cg.points": [
         "ChamferDistance", "ChamferResult", "KNNResult", "chamfer_distance", "knn"
     ],

@@ -190,10 +190,10 @@ SPECS: dict[str, Spec] = {
         lambda: MarchingCubes(iso=0.0), _sphere_volume, batched=False,
         tensor_of=lambda out: out.verts,
     ),
-    "torchgeo_cg.mesh.subdivision.CatmullClark": Spec(
+    "torchgeo_cg.mesh.subdivision.catmark.CatmullClark": Spec(
         lambda: CatmullClark(_CUBE_F, 8, levels=1, tags=_CUBE_TAGS), _cube_sample
     ),
-    "torchgeo_cg.mesh.face_varying.FaceVaryingSubdivision": Spec(
+    "torchgeo_cg.mesh.subdivision.face_varying.FaceVaryingSubdivision": Spec(
         lambda: FaceVaryingSubdivision(_CUBE_F, [[4 * f + k for k in range(4)] for f in range(6)],
                                        8, 24, levels=1, tags=_CUBE_TAGS), _rand(24, 2)
     ),
@@ -204,7 +204,7 @@ SPECS: dict[str, Spec] = {
         ChamferDistance, _rand(2, 6, 3), batched=False,  # data-dependent search: no vmap
         call=lambda module, x: module(x[0], x[1]), tensor_of=lambda out: out.loss,
     ),
-    "torchgeo_cg.mesh.loop.LoopSubdivision": Spec(
+    "torchgeo_cg.mesh.subdivision.loop.LoopSubdivision": Spec(
         lambda: LoopSubdivision(_OCTA_F, 6, levels=1), _rand(6, 3)
     ),
     "torchgeo_cg.sdf.primitives.Sphere": Spec(lambda: Sphere(0.7, center=[0.1, 0.0, 0.2]), _P3),
