@@ -15,7 +15,7 @@ from torchgeo_cg.curves import (
     marching_squares,
 )
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.grid import Volume
 
 
 def _directed_edges(polylines) -> np.ndarray:

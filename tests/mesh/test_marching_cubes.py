@@ -24,7 +24,7 @@ from torchgeo_cg.mesh._marching_cubes_tables import (
     TRIANGLES,
     face_segments,
 )
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.grid import Volume
 
 skimage_measure = pytest.importorskip("skimage.measure")
 trimesh = pytest.importorskip("trimesh")
