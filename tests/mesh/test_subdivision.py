@@ -18,7 +18,6 @@ from hypothesis import strategies as st
 from tests.mesh._cc_reference import reference_levels
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
-from torchgeo_cg.mesh import subdivision as sd
 from torchgeo_cg.mesh.faces import face_sizes, pad_faces, unpad_faces
 from torchgeo_cg.mesh.io import load_mesh, to_trimesh
 from torchgeo_cg.mesh.subdivision import (
@@ -97,13 +96,6 @@ CLOSED = ["cube", "tetrahedron", "pyramid", "pentagon_prism", "hexagon_prism"]
 
 
 # ----------------------------------------------------------------------------- exact values
-
-def test_public_surface():
-    assert set(sd.__all__) == {
-        "SubdivisionOperator", "catmull_clark_operator", "apply_operator", "catmull_clark",
-        "CatmullClark", "limit_positions", "catmark_limit_stencils", "mesh_topology",
-    }
-
 
 def test_unit_cube_one_level_exact(dtype, device):
     v = torch.tensor(CUBE_V, dtype=dtype, device=device)

@@ -43,13 +43,6 @@ def random_problem(batch, n, gen, noise=0.0, dtype=torch.float64):
 pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
-def test_public_surface():
-    assert set(fitting.__all__) == {
-        "FitResult", "LOSSES", "MODELS", "PARAMETRIZATIONS", "fit_transform",
-        "parameters_to_matrix", "matrix_to_parameters", "HomographyModel",
-    }
-
-
 # ------------------------------------------------------------------ quality targets
 
 
