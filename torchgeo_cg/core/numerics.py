@@ -79,7 +79,7 @@ def cast_back(x: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
 
 
 def power_of_two_scale(magnitude: torch.Tensor) -> torch.Tensor:
-    """The power of two ``2**e`` just above each ``magnitude``: ``magnitude / 2**e`` is in ``[0.5, 1)``.
+    """The power of two ``2**e`` just above ``magnitude``: ``magnitude / 2**e`` in ``[0.5, 1)``.
 
     Dividing data by the scale of its largest magnitude is exact (no rounding), leaves
     every ratio, sign and direction unchanged, and brings the data into ``[-1, 1]``, where

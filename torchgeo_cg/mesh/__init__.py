@@ -2,6 +2,7 @@
 
 from torchgeo_cg.mesh.faces import (
     check_faces,
+    check_mesh,
     face_sizes,
     pad_faces,
     triangulate_faces,
@@ -40,7 +41,9 @@ from torchgeo_cg.mesh.subdivision import (
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
 __all__ += ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
-__all__ += ["pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces"]
+__all__ += [
+    "pad_faces", "face_sizes", "check_faces", "check_mesh", "triangulate_faces", "unpad_faces"
+]
 __all__ += [
     "SubdivisionOperator",
     "catmull_clark_operator",

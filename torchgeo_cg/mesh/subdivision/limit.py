@@ -176,7 +176,8 @@ def limit_frames(operator: SubdivisionOperator, verts: torch.Tensor) -> LimitFra
 
 def _power_of_two_scaled(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """``(x / scale, scale)`` with ``scale`` the power of two just above each item's largest
-    magnitude (exact division, :func:`~torchgeo_cg.core.numerics.power_of_two_scale`). Tangent masks are differences (rows sum to 0), so ``4 a -
+    magnitude (exact division, :func:`~torchgeo_cg.core.numerics.power_of_two_scale`).
+    Tangent masks are differences (rows sum to 0), so ``4 a -
     4 b`` of points near the largest float would overflow although the tangent is finite;
     on the scaled data it cannot. Empty, zero and non-finite items keep ``scale = 1``."""
     if x.shape[-2] * x.shape[-1] == 0:
