@@ -32,3 +32,80 @@ def test_safe_div_mismatched_operands():
     _raises_naming(lambda: safe_div(torch.ones(3), torch.ones(4), eps=1e-8), "num", "den")
     out = safe_div(torch.ones(3, 1, dtype=F64), torch.full((4,), 2.0, dtype=F64))
     assert out.shape == (3, 4) and bool((out == 0.5).all())
+
+
+# ----------------------------------------------------------------------------- curves
+
+from torchgeo_cg.curves import (  # noqa: E402
+    PchipInterpolator,
+    cardinal_tangents,
+    hermite,
+    hermite_spline,
+    implicit_circle,
+    pchip_interpolate,
+    split_bezier,
+)
+
+
+def _knots(*batch, k=5):
+    return torch.arange(float(k), dtype=F64).expand(*batch, k)
+
+
+def test_hermite_t_of_a_wrong_leading_shape():
+    p = torch.zeros(3, 2, dtype=F64)
+    _raises_naming(lambda: hermite(p, p, p, p, torch.rand(4, 5, dtype=F64)), "t (4)", "(3)")
+    _raises_naming(lambda: hermite(p, torch.zeros(4, 2, dtype=F64), p, p,
+                                   torch.rand(5, dtype=F64)), "p0 (3)", "p1 (4)")
+    assert hermite(p, p, p, p, torch.rand(1, 5, dtype=F64)).shape == (3, 5, 2)
+
+
+def test_split_bezier_t0_of_a_mismatched_batch():
+    cp = torch.randn(3, 4, 2, dtype=F64)
+    _raises_naming(lambda: split_bezier(cp, torch.rand(5, dtype=F64)),
+                   "control_points (3)", "t0 (5)")
+    left, right = split_bezier(cp, torch.rand(2, 1, dtype=F64))
+    assert left.shape == right.shape == (2, 3, 4, 2)
+
+
+def test_pchip_xq_or_x_of_a_mismatched_batch():
+    y = torch.randn(3, 5, dtype=F64)
+    _raises_naming(lambda: pchip_interpolate(_knots(), y, torch.rand(4, 7, dtype=F64)),
+                   "xq (4)", "y (3)")
+    _raises_naming(lambda: pchip_interpolate(_knots(4), y, torch.rand(7, dtype=F64)),
+                   "x (4)", "y (3)")
+    _raises_naming(lambda: PchipInterpolator(_knots(4), y), "x (4)", "y (3)")
+    _raises_naming(lambda: PchipInterpolator(_knots(), y)(torch.rand(4, 7, dtype=F64)),
+                   "xq (4)", "y (3)")
+    assert PchipInterpolator(_knots(), y)(torch.rand(1, 7, dtype=F64)).shape == (3, 7)
+
+
+def test_hermite_spline_with_expanded_tangents():
+    y = torch.randn(3, 5, dtype=F64)
+    x = torch.rand(7, dtype=F64)
+    tangents = torch.randn(2, 1, 5, dtype=F64).expand(2, 3, 5)
+    got = hermite_spline(_knots(), y, tangents, x)
+    want = hermite_spline(_knots(), y.expand(2, 3, 5).contiguous(), tangents.contiguous(),
+                          x.expand(2, 3, 7).contiguous())
+    assert got.shape == (2, 3, 7)
+    torch.testing.assert_close(got, want)
+    _raises_naming(lambda: hermite_spline(_knots(), y, torch.randn(4, 5, dtype=F64), x),
+                   "values (3)", "tangents (4)")
+    _raises_naming(lambda: hermite_spline(_knots(), y, y, torch.rand(4, 7, dtype=F64)),
+                   "values (3)", "x (4)")
+
+
+def test_cardinal_tangents_on_an_empty_batch():
+    assert cardinal_tangents(_knots(0), torch.randn(0, 5, dtype=F64)).shape == (0, 5)
+    assert cardinal_tangents(_knots(), torch.randn(0, 5, dtype=F64)).shape == (0, 5)
+    _raises_naming(lambda: cardinal_tangents(_knots(0), torch.randn(3, 5, dtype=F64)),
+                   "knots (0)", "values (3)")
+    _raises_naming(lambda: cardinal_tangents(_knots(3), torch.randn(0, 5, dtype=F64)),
+                   "knots (3)", "values (0)")
+
+
+def test_implicit_circle_with_an_empty_batch_centre():
+    xy = torch.randn(10, 2, dtype=F64)
+    _raises_naming(lambda: implicit_circle(xy, torch.randn(0, 2, dtype=F64)),
+                   "xy (10)", "center (0)")
+    assert implicit_circle(xy[:0], torch.randn(0, 2, dtype=F64)).shape == (0,)
+    assert implicit_circle(xy, torch.randn(1, 2, dtype=F64)).shape == (10,)
