@@ -109,3 +109,31 @@ def test_implicit_circle_with_an_empty_batch_centre():
                    "xy (10)", "center (0)")
     assert implicit_circle(xy[:0], torch.randn(0, 2, dtype=F64)).shape == (0,)
     assert implicit_circle(xy, torch.randn(1, 2, dtype=F64)).shape == (10,)
+
+
+# ----------------------------------------------------------------------------- sdf
+
+from torchgeo_cg.sdf import SDFSampler, sphere  # noqa: E402
+
+
+def test_sdf_sampler_callable_with_an_empty_batch_of_bounds():
+    box = torch.tensor([[-1.0, -1, -1], [1, 1, 1]], dtype=F64)
+    for bounds in (box.expand(0, 2, 3), box.expand(3, 2, 3)):
+        with pytest.raises(ShapeError, match=re.escape("bounds: expected one box (2, 3)")):
+            SDFSampler(sphere, bounds=bounds, seed=0)
+    assert SDFSampler(sphere, bounds=box, seed=0).sample(10).points.shape == (10, 3)
+
+
+def test_sdf_sampler_mesh_bounds_of_another_batch():
+    verts = torch.tensor([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1],
+                          [0, 0, -1]], dtype=F64)
+    faces = torch.tensor([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5],
+                          [3, 1, 5], [0, 3, 5]])
+    box = torch.tensor([[-2.0, -2, -2], [2, 2, 2]], dtype=F64)
+    _raises_naming(lambda: SDFSampler((verts.expand(2, 6, 3), faces), bounds=box.expand(3, 2, 3)),
+                   "vertices (2)", "bounds (3)")
+    with pytest.raises(ShapeError, match="bounds"):
+        SDFSampler((verts, faces), bounds=box.expand(3, 2, 3))
+    out = SDFSampler((verts.expand(2, 6, 3), faces), bounds=box.expand(1, 2, 3), seed=0,
+                     backend="torch").sample(20)
+    assert out.points.shape == (2, 20, 3)
