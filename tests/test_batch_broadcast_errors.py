@@ -137,3 +137,16 @@ def test_sdf_sampler_mesh_bounds_of_another_batch():
     out = SDFSampler((verts.expand(2, 6, 3), faces), bounds=box.expand(1, 2, 3), seed=0,
                      backend="torch").sample(20)
     assert out.points.shape == (2, 20, 3)
+
+
+def test_winding_number_chunk_must_be_positive():
+    from torchgeo_cg.sdf import winding_number
+
+    tet = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=F64)
+    points = torch.tensor([[0.1, 0.1, 0.1], [1.0, 1.0, 1.0]], dtype=F64)
+    for chunk in (0, -5, 2.5, True):
+        with pytest.raises(ValueError, match="chunk"):
+            winding_number(verts, tet, points, chunk=chunk)
+    torch.testing.assert_close(winding_number(verts, tet, points, chunk=1).abs(),
+                               torch.tensor([1.0, 0.0], dtype=F64))
