@@ -372,7 +372,7 @@ CORE_TABLE: list[Entry] = [
           (Arg("volume", (2, 4, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive"),
            Arg("tol", (), "positive")),
           out=("length", "index", "index", "index"), empty=(0, 0), mixed=("follow", 0),
-          bad=((5, 3),), nan="skip"),
+          bad=((5, 3),), nan="raise"),
     # --- sdf: gradients
     Entry("sdf.sdf_gradient", lambda p: S.sdf_gradient(S.sphere, p), (PTS3,), out="unitless",
           bad=((2, 6), ())),
