@@ -211,10 +211,12 @@ INVENTORY: dict[str, list[str]] = {
         "solar_system",
         "transform_points", "translation", "warp_image"
     ],
+    "torchgeo_cg.transforms.averaging": ["rotation_mean"],
     "torchgeo_cg.transforms.decompose": ["AffineDecomposition", "decompose_affine"],
     "torchgeo_cg.transforms.correspondences": [
         "HartleyNormalization", "hartley_normalize", "reprojection_error"
     ],
+    "torchgeo_cg.transforms.euler": ["euler_to_matrix", "matrix_to_euler"],
     "torchgeo_cg.transforms.estimation": [
         "find_affine", "find_euclidean", "find_similarity", "find_translation"
     ],
@@ -239,7 +241,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.transforms.robust": ["LOSSES", "robust_loss", "robust_weights"],
     "torchgeo_cg.transforms.rotations": [
-        "axis_angle_to_matrix", "axis_angle_to_quaternion", "matrix_to_axis_angle",
+        "euler_to_matrix", "matrix_to_euler", "rotation_mean", "axis_angle_to_matrix", "axis_angle_to_quaternion", "matrix_to_axis_angle",
         "matrix_to_quaternion", "matrix_to_rotation_6d", "quaternion_apply",
         "quaternion_conjugate", "quaternion_multiply", "quaternion_slerp",
         "quaternion_to_axis_angle", "quaternion_to_matrix", "random_rotations",

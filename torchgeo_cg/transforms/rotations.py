@@ -25,8 +25,26 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
+from torchgeo_cg.transforms._so3 import (
+    canonical,
+    exp_map,
+    hat,
+    left_jacobian,
+    left_jacobian_inverse,
+    matrix_from_quat,
+    qmul,
+    quat_from_matrix,
+    quat_from_rotvec,
+    rotvec_from_quat,
+    sinc,
+)
+from torchgeo_cg.transforms.averaging import rotation_mean
+from torchgeo_cg.transforms.euler import euler_to_matrix, matrix_to_euler
 
 __all__ = [
+    "euler_to_matrix",
+    "matrix_to_euler",
+    "rotation_mean",
     "quaternion_to_matrix",
     "matrix_to_quaternion",
     "axis_angle_to_matrix",
@@ -63,43 +81,6 @@ def _mat(x: torch.Tensor, size: int, name: str) -> torch.Tensor:
     return x.to(working_dtype(x.dtype))
 
 
-def _series_threshold(dtype: torch.dtype, power: int) -> float:
-    """Angle below which a series truncated after its ``θ^power`` term is exact to rounding."""
-    return float(torch.finfo(dtype).eps) ** (1.0 / (power + 2))
-
-
-def _sinc(theta: torch.Tensor) -> torch.Tensor:
-    """``sin θ / θ`` with its series near 0 (exact limit and gradient at 0)."""
-    small = theta.abs() < _series_threshold(theta.dtype, 4)
-    safe = torch.where(small, torch.ones_like(theta), theta)
-    t2 = theta * theta
-    return torch.where(small, 1 - t2 / 6 * (1 - t2 / 20), torch.sin(safe) / safe)
-
-
-def _one_minus_cos(theta: torch.Tensor) -> torch.Tensor:
-    """``(1 - cos θ) / θ² = ½ (sin(θ/2) / (θ/2))²``, accurate for every θ."""
-    return 0.5 * _sinc(0.5 * theta).square()
-
-
-def _poly(t2: torch.Tensor, coefficients: list[float]) -> torch.Tensor:
-    out = torch.full_like(t2, coefficients[-1])
-    for c in reversed(coefficients[:-1]):
-        out = out * t2 + c
-    return out
-
-
-def _theta_minus_sin(theta: torch.Tensor) -> torch.Tensor:
-    """``(θ - sin θ) / θ³``: its Taylor series (to θ^16, exact in float64) below 1."""
-    small = theta.abs() < 1.0
-    safe = torch.where(small, torch.ones_like(theta), theta)
-    coefficients, fact = [], 6.0  # (-1)^k / (2k + 3)!
-    for k in range(8):
-        coefficients.append((-1) ** k / fact)
-        fact *= (2 * k + 4) * (2 * k + 5)
-    series = _poly(theta * theta, coefficients)
-    return torch.where(small, series, (safe - torch.sin(safe)) / (safe * safe * safe))
-
-
 def so3_hat(omega: torch.Tensor) -> torch.Tensor:
     """The skew matrix ``[ω]×`` with ``[ω]× p = ω × p``.
 
@@ -116,17 +97,7 @@ def so3_hat(omega: torch.Tensor) -> torch.Tensor:
                 [-2.,  1.,  0.]])
     """
     check_shape(omega, ["*", "3"], "omega")
-    x, y, z = omega.unbind(-1)
-    zero = torch.zeros_like(x)
-    return torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], -1).unflatten(-1, (3, 3))
-
-
-def _exp(omega: torch.Tensor) -> torch.Tensor:
-    theta = safe_norm(omega)
-    k = so3_hat(omega)
-    a, b = _sinc(theta), _one_minus_cos(theta)
-    eye = torch.eye(3, dtype=omega.dtype, device=omega.device)
-    return eye + a[..., None, None] * k + b[..., None, None] * (k @ k)
+    return hat(omega)
 
 
 def so3_exp(omega: torch.Tensor) -> torch.Tensor:
@@ -155,7 +126,7 @@ def so3_exp(omega: torch.Tensor) -> torch.Tensor:
                 [ 0.,  0.,  1.]])
     """
     w = _vec(omega, 3, "omega")
-    return cast_back(_exp(w), omega.dtype)
+    return cast_back(exp_map(w), omega.dtype)
 
 
 def axis_angle_to_matrix(axis_angle: torch.Tensor) -> torch.Tensor:
@@ -177,37 +148,7 @@ def axis_angle_to_matrix(axis_angle: torch.Tensor) -> torch.Tensor:
                 [0., 0., 1.]])
     """
     w = _vec(axis_angle, 3, "axis_angle")
-    return cast_back(_exp(w), axis_angle.dtype)
-
-
-def _canonical(q: torch.Tensor) -> torch.Tensor:
-    """``q`` or ``-q``: ``w > 0``, or at ``w = 0`` the largest ``|x|, |y|, |z|`` positive."""
-    w, v = q[..., 0], q[..., 1:]
-    pivot = v.gather(-1, v.abs().argmax(-1, keepdim=True))[..., 0]
-    flip = (w < 0) | ((w == 0) & (pivot < 0))
-    return torch.where(flip[..., None], -q, q)
-
-
-def _quat_from_matrix(m: torch.Tensor) -> torch.Tensor:
-    """Shepperd (1978): the best-conditioned of the four quaternion pivots."""
-    r = m.flatten(-2).unbind(-1)
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
-    t = torch.stack([1 + r00 + r11 + r22, 1 + r00 - r11 - r22, 1 - r00 + r11 - r22,
-                     1 - r00 - r11 + r22], -1)  # (*, 4): 4 w², 4 x², 4 y², 4 z²
-    best = t.argmax(-1, keepdim=True)  # >= 1 for a rotation: no division near zero
-    chosen = torch.zeros_like(t, dtype=torch.bool).scatter(-1, best, True)
-    s = torch.where(chosen, t, torch.ones_like(t)).sqrt()  # unused pivots fed a safe 1
-    a, b, c = r21 - r12, r02 - r20, r10 - r01  # 4 w (x, y, z)
-    d, e, f = r01 + r10, r02 + r20, r12 + r21  # 4 (xy, xz, yz)
-    cand = torch.stack([
-        torch.stack([t[..., 0], a, b, c], -1),
-        torch.stack([a, t[..., 1], d, e], -1),
-        torch.stack([b, d, t[..., 2], f], -1),
-        torch.stack([c, e, f, t[..., 3]], -1),
-    ], -2) / (2 * s[..., None])  # row k: the quaternion from pivot k (times 2)
-    q = cand.gather(-2, best[..., None].expand(*best.shape[:-1], 1, 4))[..., 0, :]
-    q = q / safe_norm(q, keepdim=True).clamp_min(torch.finfo(q.dtype).tiny)
-    return _canonical(q)
+    return cast_back(exp_map(w), axis_angle.dtype)
 
 
 def matrix_to_quaternion(matrix: torch.Tensor) -> torch.Tensor:
@@ -233,18 +174,7 @@ def matrix_to_quaternion(matrix: torch.Tensor) -> torch.Tensor:
         tensor([0., 0., 1., 0.])
     """
     m = _mat(matrix, 3, "matrix")
-    return cast_back(_quat_from_matrix(m), matrix.dtype)
-
-
-def _matrix_from_quat(q: torch.Tensor) -> torch.Tensor:
-    w, x, y, z = q.unbind(-1)
-    two_s = 2.0 / (q * q).sum(-1)  # unit quaternions give 2; others are normalized
-    rows = [
-        1 - two_s * (y * y + z * z), two_s * (x * y - z * w), two_s * (x * z + y * w),
-        two_s * (x * y + z * w), 1 - two_s * (x * x + z * z), two_s * (y * z - x * w),
-        two_s * (x * z - y * w), two_s * (y * z + x * w), 1 - two_s * (x * x + y * y),
-    ]
-    return torch.stack(rows, -1).unflatten(-1, (3, 3))
+    return cast_back(quat_from_matrix(m), matrix.dtype)
 
 
 def quaternion_to_matrix(quaternion: torch.Tensor) -> torch.Tensor:
@@ -268,13 +198,7 @@ def quaternion_to_matrix(quaternion: torch.Tensor) -> torch.Tensor:
                 [ 0.,  0., -1.]])
     """
     q = _vec(quaternion, 4, "quaternion")
-    return cast_back(_matrix_from_quat(q), quaternion.dtype)
-
-
-def _quat_from_rotvec(w: torch.Tensor) -> torch.Tensor:
-    theta = safe_norm(w, keepdim=True)
-    half = 0.5 * _sinc(0.5 * theta)  # sin(θ/2) / θ
-    return _canonical(torch.cat([torch.cos(0.5 * theta), half * w], -1))
+    return cast_back(matrix_from_quat(q), quaternion.dtype)
 
 
 def axis_angle_to_quaternion(axis_angle: torch.Tensor) -> torch.Tensor:
@@ -293,21 +217,7 @@ def axis_angle_to_quaternion(axis_angle: torch.Tensor) -> torch.Tensor:
         tensor([0., 1., 0., 0.], dtype=torch.float64)
     """
     w = _vec(axis_angle, 3, "axis_angle")
-    return cast_back(_quat_from_rotvec(w), axis_angle.dtype)
-
-
-def _rotvec_from_quat(q: torch.Tensor) -> torch.Tensor:
-    q = _canonical(q)
-    w, v = q[..., :1], q[..., 1:]
-    s2 = (v * v).sum(-1, keepdim=True)
-    # θ / |v| = 2 atan2(|v|, w) / |v|; for |v| << w it is (2/w) atan(r)/r, r = |v|/w
-    small = s2 < (_series_threshold(q.dtype, 6) ** 2) * (w * w)
-    w_safe = torch.where(small, w, torch.ones_like(w))
-    r2 = torch.where(small, s2 / (w_safe * w_safe), torch.zeros_like(s2))
-    series = (2 / w_safe) * _poly(r2, [1.0, -1 / 3, 1 / 5, -1 / 7])
-    s = torch.where(small, torch.ones_like(s2), s2).sqrt()
-    direct = 2 * torch.atan2(s, w) / s
-    return torch.where(small, series, direct) * v
+    return cast_back(quat_from_rotvec(w), axis_angle.dtype)
 
 
 def quaternion_to_axis_angle(quaternion: torch.Tensor) -> torch.Tensor:
@@ -330,7 +240,7 @@ def quaternion_to_axis_angle(quaternion: torch.Tensor) -> torch.Tensor:
         tensor([0.0000, 0.0000, 3.1416])
     """
     q = _vec(quaternion, 4, "quaternion")
-    return cast_back(_rotvec_from_quat(q), quaternion.dtype)
+    return cast_back(rotvec_from_quat(q), quaternion.dtype)
 
 
 def matrix_to_axis_angle(matrix: torch.Tensor) -> torch.Tensor:
@@ -355,7 +265,7 @@ def matrix_to_axis_angle(matrix: torch.Tensor) -> torch.Tensor:
         tensor([0.0000, 3.1416, 0.0000])
     """
     m = _mat(matrix, 3, "matrix")
-    return cast_back(_rotvec_from_quat(_quat_from_matrix(m)), matrix.dtype)
+    return cast_back(rotvec_from_quat(quat_from_matrix(m)), matrix.dtype)
 
 
 def so3_log(matrix: torch.Tensor) -> torch.Tensor:
@@ -375,7 +285,7 @@ def so3_log(matrix: torch.Tensor) -> torch.Tensor:
         tensor([ 0.1000, -0.2000,  0.3000])
     """
     m = _mat(matrix, 3, "matrix")
-    return cast_back(_rotvec_from_quat(_quat_from_matrix(m)), matrix.dtype)
+    return cast_back(rotvec_from_quat(quat_from_matrix(m)), matrix.dtype)
 
 
 def rotation_6d_to_matrix(d6: torch.Tensor) -> torch.Tensor:
@@ -431,17 +341,6 @@ def matrix_to_rotation_6d(matrix: torch.Tensor) -> torch.Tensor:
     return matrix[..., :, :2].mT.flatten(-2)
 
 
-def _qmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    aw, ax, ay, az = a.unbind(-1)
-    bw, bx, by, bz = b.unbind(-1)
-    return torch.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], -1)
-
-
 def _pair(a: torch.Tensor, b: torch.Tensor, size: int, names: tuple[str, str]):
     x, y = _vec(a, size, names[0]), _vec(b, size, names[1])
     if a.dtype != b.dtype or a.device != b.device:
@@ -474,7 +373,7 @@ def quaternion_multiply(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         tensor([0., 0., 0., 1.])
     """
     x, y = _pair(a, b, 4, ("a", "b"))
-    return cast_back(_canonical(_qmul(x, y)), a.dtype)
+    return cast_back(canonical(qmul(x, y)), a.dtype)
 
 
 def quaternion_conjugate(quaternion: torch.Tensor) -> torch.Tensor:
@@ -566,10 +465,10 @@ def quaternion_slerp(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor | float
     b = torch.where(((a * b).sum(-1, keepdim=True) < 0), -b, b)
     theta = 2 * torch.atan2(safe_norm(a - b, keepdim=True), safe_norm(a + b, keepdim=True))
     t = t.to(a.dtype)[..., None]
-    den = _sinc(theta)
-    out = ((1 - t) * _sinc((1 - t) * theta) * a + t * _sinc(t * theta) * b) / den
+    den = sinc(theta)
+    out = ((1 - t) * sinc((1 - t) * theta) * a + t * sinc(t * theta) * b) / den
     out = out / safe_norm(out, keepdim=True).clamp_min(torch.finfo(out.dtype).tiny)
-    return cast_back(_canonical(out), q0.dtype)
+    return cast_back(canonical(out), q0.dtype)
 
 
 def random_rotations(
@@ -603,7 +502,7 @@ def random_rotations(
     if device is None and generator is not None:
         device = generator.device
     q = torch.randn(n, 4, generator=generator, dtype=dtype, device=device)
-    return _matrix_from_quat(q)
+    return matrix_from_quat(q)
 
 
 def rotation_angle(r1: torch.Tensor, r2: torch.Tensor) -> torch.Tensor:
@@ -640,18 +539,10 @@ def rotation_angle(r1: torch.Tensor, r2: torch.Tensor) -> torch.Tensor:
     except RuntimeError:
         raise ShapeError(f"batch dims do not broadcast: r1 {tuple(r1.shape[:-2])}, "
                          f"r2 {tuple(r2.shape[:-2])}") from None
-    q1, q2 = _quat_from_matrix(a), _quat_from_matrix(b)
+    q1, q2 = quat_from_matrix(a), quat_from_matrix(b)
     q2 = torch.where((q1 * q2).sum(-1, keepdim=True) < 0, -q2, q2)
     angle = 4 * torch.atan2(safe_norm(q1 - q2), safe_norm(q1 + q2))  # 2x the angle of q1, q2
     return cast_back(angle, r1.dtype)
-
-
-def _left_jacobian(omega: torch.Tensor) -> torch.Tensor:
-    theta = safe_norm(omega)
-    k = so3_hat(omega)
-    eye = torch.eye(3, dtype=omega.dtype, device=omega.device)
-    b, c = _one_minus_cos(theta), _theta_minus_sin(theta)
-    return eye + b[..., None, None] * k + c[..., None, None] * (k @ k)
 
 
 def so3_left_jacobian(omega: torch.Tensor) -> torch.Tensor:
@@ -676,22 +567,7 @@ def so3_left_jacobian(omega: torch.Tensor) -> torch.Tensor:
                 [0., 0., 1.]])
     """
     w = _vec(omega, 3, "omega")
-    return cast_back(_left_jacobian(w), omega.dtype)
-
-
-def _left_jacobian_inverse(omega: torch.Tensor) -> torch.Tensor:
-    theta = safe_norm(omega)
-    k = so3_hat(omega)
-    eye = torch.eye(3, dtype=omega.dtype, device=omega.device)
-    # (1/θ²)(1 - (θ/2) cot(θ/2)) = (1/θ²)(1 - A / (2B)) with A = sinc θ, B = (1-cos θ)/θ²
-    small = theta < 0.5
-    safe = torch.where(small, torch.ones_like(theta), theta)
-    direct = (1 - _sinc(safe) / (2 * _one_minus_cos(safe))) / (safe * safe)
-    # series of (1 - (x/2) cot(x/2)) / x² = 1/12 + x²/720 + x⁴/30240 + x⁶/1209600 + ...
-    series = _poly(theta * theta, [1 / 12, 1 / 720, 1 / 30240, 1 / 1209600, 1 / 47900160,
-                                   691 / 1307674368000 / 1.0, 1 / 74724249600])
-    d = torch.where(small, series, direct)
-    return eye - 0.5 * k + d[..., None, None] * (k @ k)
+    return cast_back(left_jacobian(w), omega.dtype)
 
 
 def so3_left_jacobian_inverse(omega: torch.Tensor) -> torch.Tensor:
@@ -715,7 +591,7 @@ def so3_left_jacobian_inverse(omega: torch.Tensor) -> torch.Tensor:
         True
     """
     w = _vec(omega, 3, "omega")
-    return cast_back(_left_jacobian_inverse(w), omega.dtype)
+    return cast_back(left_jacobian_inverse(w), omega.dtype)
 
 
 def se3_exp(xi: torch.Tensor) -> torch.Tensor:
@@ -737,8 +613,8 @@ def se3_exp(xi: torch.Tensor) -> torch.Tensor:
     """
     x = _vec(xi, 6, "xi")
     v, w = x[..., :3], x[..., 3:]
-    rot = _exp(w)
-    t = (_left_jacobian(w) @ v[..., None])[..., 0]
+    rot = exp_map(w)
+    t = (left_jacobian(w) @ v[..., None])[..., 0]
     top = torch.cat([rot, t[..., None]], -1)
     bottom = torch.zeros_like(top[..., :1, :])
     bottom[..., 0, 3] = 1.0
@@ -764,6 +640,6 @@ def se3_log(matrix: torch.Tensor) -> torch.Tensor:
         True
     """
     m = _mat(matrix, 4, "matrix")
-    w = _rotvec_from_quat(_quat_from_matrix(m[..., :3, :3]))
-    v = (_left_jacobian_inverse(w) @ m[..., :3, 3:])[..., 0]
+    w = rotvec_from_quat(quat_from_matrix(m[..., :3, :3]))
+    v = (left_jacobian_inverse(w) @ m[..., :3, 3:])[..., 0]
     return cast_back(torch.cat([v, w], -1), matrix.dtype)
