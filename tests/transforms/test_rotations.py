@@ -103,7 +103,8 @@ def test_left_jacobian_is_the_derivative_of_exp_and_inverts():
         jac = R.so3_left_jacobian(w)
         # exp(w + δ) exp(w)⁻¹ = exp(J δ): the derivative at δ = 0, column by column
         num = torch.autograd.functional.jacobian(
-            lambda d: R.so3_log(R.so3_exp(w + d) @ R.so3_exp(w).mT), torch.zeros(3, dtype=F64))
+            lambda d, w=w: R.so3_log(R.so3_exp(w + d) @ R.so3_exp(w).mT),
+            torch.zeros(3, dtype=F64))
         assert (num - jac).abs().max() < 1e-12
         assert (R.so3_left_jacobian_inverse(w) @ jac - torch.eye(3, dtype=F64)).abs().max() < 1e-14
 
