@@ -87,7 +87,7 @@ CORE_TABLE: list[Entry] = [
           empty=(0, -1)),
     # --- transforms: homogeneous
     Entry("transforms.translation", T.translation, (Arg("offset", (4, 2)),), out="matrix",
-          empty=(0, 0), bad=((4, 3), ())),
+          empty=(0, 0), bad=((4, 4), ())),
     Entry("transforms.rotation", T.rotation, (Arg("angle", (4,), "angle", "unitless"),),
           out="matrix", empty=(0, 0)),
     Entry("transforms.scaling", T.scaling, (Arg("factor", (4,), "positive", "unitless"),),

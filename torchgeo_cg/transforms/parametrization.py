@@ -141,7 +141,8 @@ def _parameters_to_matrix(params, model, parametrization, base):
             # unit square (u, v) from corner frame: u = (x + 1) / 2
             half = torch.tensor([[0.5, 0, 0.5], [0, 0.5, 0.5], [0, 0, 1.0]],
                                 dtype=params.dtype, device=params.device)
-            return _square_to_quad(quad) @ half
+            poison = (params * 0).sum(-1)[..., None, None]  # a NaN offset anywhere gives NaN
+            return _square_to_quad(quad) @ half + poison
         gen = torch.einsum("...i,ijk->...jk", params, _sl3_basis(params))
         h = torch.linalg.matrix_exp(gen)
         return h if base is None else base @ h

@@ -141,7 +141,7 @@ def _minimal_fits(model: str, ps: torch.Tensor, qs: torch.Tensor):
     else:
         dp, dq = ps[..., 1, :] - ps[..., 0, :], qs[..., 1, :] - qs[..., 0, :]
         valid = (dp.square().sum(-1) > tol) & (dq.square().sum(-1) > tol)
-    return _CLOSED_FORMS[model](ps, qs), valid
+    return _CLOSED_FORMS[model](ps, qs).matrix, valid
 
 
 def _squared_errors(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
@@ -279,7 +279,7 @@ def _dlt_in_frame(frame: _Frame, w_fit: torch.Tensor):
 def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, final: bool):
     """Least-squares refit on weights w_fit (B, N): DLT (or LM from ``init`` when ``final``)."""
     if model != "homography":
-        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit), (w_fit > 0).sum(-1) >= 2
+        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit).matrix, (w_fit > 0).sum(-1) >= 2
     if not final:
         return _dlt_in_frame(frame, w_fit)
     ok = (w_fit > 0).sum(-1) >= 4
