@@ -82,14 +82,15 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh": [
         "CatmullClark", "FVAR_INTERPOLATIONS", "FaceVaryingSubdivision", "INFINITELY_SHARP",
-        "LimitFrames", "LoopSubdivision", "MarchingCubes", "MarchingCubesResult", "Mesh",
-        "MeshEdges", "SubdivisionOperator", "SubdivisionTags", "apply_operator",
-        "bilinear_operator", "catmull_clark", "catmull_clark_operator", "check_faces",
-        "edge_length_loss", "face_sizes", "face_varying_operator", "face_varying_subdivide",
-        "from_trimesh", "laplacian_smoothing_loss", "limit_frames", "limit_positions",
-        "load_mesh", "loop_operator", "loop_subdivide", "marching_cubes", "mesh_edges",
-        "mesh_laplacian", "normal_consistency_loss", "pad_faces", "save_mesh", "to_trimesh",
-        "triangulate_faces", "unpad_faces"
+        "LimitFrames", "LimitStencils", "LimitSurfaceSample", "LoopSubdivision", "MarchingCubes",
+        "MarchingCubesResult", "Mesh", "MeshEdges", "SubdivisionOperator", "SubdivisionTags",
+        "SurfaceSamples", "apply_operator", "bilinear_operator", "catmull_clark",
+        "catmull_clark_operator", "check_faces", "edge_length_loss", "face_sizes",
+        "face_varying_operator", "face_varying_subdivide", "from_trimesh",
+        "laplacian_smoothing_loss", "limit_frames", "limit_positions", "limit_stencils",
+        "limit_surface", "load_mesh", "loop_operator", "loop_subdivide", "marching_cubes",
+        "mesh_edges", "mesh_laplacian", "normal_consistency_loss", "pad_faces",
+        "sample_limit_surface", "save_mesh", "to_trimesh", "triangulate_faces", "unpad_faces"
     ],
     "torchgeo_cg.mesh.data": [],
     "torchgeo_cg.mesh.data.make_rabbit": ["cube_sphere", "extrude", "main", "make_rabbit"],
@@ -119,10 +120,11 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.subdivision": [
         "CatmullClark", "FVAR_INTERPOLATIONS", "FaceVaryingSubdivision", "INFINITELY_SHARP",
-        "LimitFrames", "LoopSubdivision", "SubdivisionOperator", "SubdivisionTags",
-        "apply_operator", "bilinear_operator", "catmull_clark", "catmull_clark_operator",
-        "face_varying_operator", "face_varying_subdivide", "limit_frames", "limit_positions",
-        "loop_operator", "loop_subdivide"
+        "LimitFrames", "LimitStencils", "LimitSurfaceSample", "LoopSubdivision",
+        "SubdivisionOperator", "SubdivisionTags", "SurfaceSamples", "apply_operator",
+        "bilinear_operator", "catmull_clark", "catmull_clark_operator", "face_varying_operator",
+        "face_varying_subdivide", "limit_frames", "limit_positions", "limit_stencils",
+        "limit_surface", "loop_operator", "loop_subdivide", "sample_limit_surface"
     ],
     "torchgeo_cg.mesh.subdivision.bilinear": ["bilinear_operator"],
     "torchgeo_cg.mesh.subdivision.catmark": [
@@ -133,6 +135,10 @@ INVENTORY: dict[str, list[str]] = {
         "face_varying_subdivide"
     ],
     "torchgeo_cg.mesh.subdivision.limit": ["LimitFrames", "limit_frames", "limit_positions"],
+    "torchgeo_cg.mesh.subdivision.surface": [
+        "LimitStencils", "LimitSurfaceSample", "SurfaceSamples", "limit_stencils", "limit_surface",
+        "sample_limit_surface"
+    ],
     "torchgeo_cg.mesh.subdivision.loop": ["LoopSubdivision", "loop_operator", "loop_subdivide"],
     "torchgeo_cg.mesh.subdivision.operator": ["SubdivisionOperator", "apply_operator"],
     "torchgeo_cg.mesh.subdivision.stencils": ["StencilMatrix", "apply_stencils", "stencil_matrix"],

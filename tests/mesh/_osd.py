@@ -84,7 +84,7 @@ def run_osd(verts, faces, command: str, *, tags=None, scheme="catmark", boundary
     if command.startswith("patch"):
         samples = np.asarray(samples, dtype=np.float64).reshape(-1, 3)
         lines.append(f"{command} {len(samples)}")
-        lines += [f"{int(f)} {u!r} {v!r}" for f, u, v in samples]
+        lines += [f"{int(f)} {float(u)!r} {float(v)!r}" for f, u, v in samples]
     else:
         lines.append(command)
     result = subprocess.run([osd_driver()], input="\n".join(lines) + "\n", capture_output=True,

@@ -134,8 +134,9 @@ int main() {
     Far::PatchTable *table = Far::PatchTableFactory::Create(*refiner, popt);
     std::vector<Point> all = refine_all(*refiner, base);
     all.resize(refiner->GetNumVerticesTotal() + table->GetNumLocalPoints());
-    if (table->GetNumLocalPoints())
-        table->ComputeLocalPointValues(all.data(), all.data() + refiner->GetNumVerticesTotal());
+    if (table->GetNumLocalPoints())  // end-cap points, from double-precision stencils
+        table->GetLocalPointStencilTable<double>()->UpdateValues(
+            all.data(), all.data() + refiner->GetNumVerticesTotal());
     Far::PatchMap map(*table);
     double wp[20], wu[20], wv[20];
     for (int s = 0; s < N; ++s) {
