@@ -152,16 +152,12 @@ def _face_matrices(slots: torch.Tensor, chains, num_cols: int, dtype):
 
 
 def _emit(out, sample, face_local, weights, C, cols):
-    """Append the triplets of points ``sample`` whose slot weights are ``weights (n, 3, S)``
+    """Append the blocks of points ``sample`` whose slot weights are ``weights (n, 3, S)``
     on faces ``face_local`` of the per-face matrices ``C``, ``cols``."""
     for lo in range(0, sample.numel(), _CHUNK):  # bounded memory: chunks of points
         sl = slice(lo, lo + _CHUNK)
         f = face_local[sl]
-        vals = torch.bmm(weights[sl], C[f])  # (n, 3, K)
-        c = cols[f]
-        rows = sample[sl][:, None].expand_as(c)
-        for i in range(3):
-            out[i].append((rows.reshape(-1), c.reshape(-1), vals[:, i].reshape(-1)))
+        out.append((sample[sl], cols[f], torch.bmm(weights[sl], C[f])))  # (n,), (n, K), (n, 3, K)
 
 
 def _chain_rule(ws, wt, jac):
@@ -373,7 +369,7 @@ def _build(operator, face_ids, uv, crease_method, max_level):
     level = _Level(faces, operator.num_vertices_out, tags, (st.crow, st.col, st.weights))
     face, s, t, jac = _ptex_to_level_one(operator, face_ids.to(faces.device), uv, dtype)
     sample = torch.arange(face.numel(), device=faces.device)
-    out = ([], [], [])
+    out = []
     for depth in range(1, max_level + 1):  # a loop over levels
         if sample.numel() == 0:
             break
@@ -400,17 +396,33 @@ def _build(operator, face_ids, uv, crease_method, max_level):
                                      V0)
         p, s, t, jac = _to_child(s, t, jac)
         face = 4 * fmap[face] + p
-    return LimitStencils(*(_assemble(parts, face_ids.numel(), V0, dtype, faces.device)
-                           for parts in out))
+    return _assemble(out, face_ids.numel(), V0, dtype, faces.device)
 
 
-def _assemble(parts, num_rows, num_cols, dtype, device) -> StencilMatrix:
-    if not parts:
-        empty = torch.zeros(0, dtype=torch.long, device=device)
-        return stencil_matrix(empty, empty, torch.zeros(0, dtype=dtype, device=device),
-                              (num_rows, num_cols))
-    rows, cols, vals = (torch.cat(x) for x in zip(*parts))
-    return stencil_matrix(rows, cols, vals, (num_rows, num_cols))
+def _assemble(blocks, num_rows, num_cols, dtype, device) -> LimitStencils:
+    """The three CSR stencil matrices from the per-point blocks (each point is in exactly
+    one block, so rows need no sort: the padded ``(N, K)`` layout is already CSR order)."""
+    K = max([c.shape[1] for _, c, _ in blocks] + [1])
+    cols = torch.full((num_rows, K), num_cols, dtype=torch.long, device=device)
+    vals = torch.zeros(3, num_rows, K, dtype=dtype, device=device)
+    for sample, c, v in blocks:  # one block per level and chunk
+        cols[sample, :c.shape[1]] = c
+        vals[:, sample, :c.shape[1]] = v.permute(1, 0, 2)
+    out = []
+    for i in range(3):
+        key = torch.where(vals[i] != 0, cols, num_cols)  # zeros sort last, then drop
+        key, order = torch.sort(key, dim=1)
+        w = torch.gather(vals[i], 1, order)
+        keep = key < num_cols
+        crow = torch.zeros(num_rows + 1, dtype=torch.long, device=device)
+        crow[1:] = torch.cumsum(keep.sum(1), 0)
+        col, weights = key[keep], w[keep]
+        rows = torch.repeat_interleave(torch.arange(num_rows, device=device), crow[1:] - crow[:-1])
+        order_t = torch.sort(col.to(torch.int32), stable=True).indices
+        crow_t = torch.zeros(num_cols + 1, dtype=torch.long, device=device)
+        crow_t[1:] = torch.cumsum(torch.bincount(col, minlength=num_cols), 0)
+        out.append(StencilMatrix(crow, col, weights, crow_t, rows[order_t], weights[order_t]))
+    return LimitStencils(*out)
 
 
 def limit_surface(
