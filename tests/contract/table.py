@@ -22,6 +22,7 @@ import torchgeo_cg.transforms as T
 from tests.contract import (
     table_estimation,
     table_fitting,
+    table_limit,
     table_meshes,
     table_queries,
     table_subdivision,
@@ -31,7 +32,8 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision)
+AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
+         table_limit)
 
 # ----------------------------------------------------------------------------- helpers
 

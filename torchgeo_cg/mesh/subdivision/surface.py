@@ -36,6 +36,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import check_shape, check_tensor
+from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.subdivision._creasing import effective_sharpness
 from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils
 from torchgeo_cg.mesh.subdivision._normals import unit_normals
@@ -471,7 +472,9 @@ def limit_surface(
                         max_level=max_level)
     shape = (*verts.shape[:-2], *face_ids.shape, verts.shape[-1])
     pos, du, dv = (apply_stencils(m, verts).reshape(shape) for m in st)
-    normals = unit_normals(du, dv) if verts.shape[-1] == 3 else None
+    wdt = working_dtype(verts.dtype)  # half precision: the normals in float32, cast back
+    normals = cast_back(unit_normals(du.to(wdt), dv.to(wdt)), verts.dtype) \
+        if verts.shape[-1] == 3 else None
     return LimitSurfaceSample(pos, du, dv, normals)
 
 
