@@ -22,6 +22,7 @@ import torchgeo_cg.transforms as T
 from tests.contract import (
     table_estimation,
     table_fitting,
+    table_limit,
     table_meshes,
     table_queries,
     table_rotations,
@@ -33,7 +34,7 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
 AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
-         table_rotations)
+         table_rotations, table_limit)
 
 # ----------------------------------------------------------------------------- helpers
 

@@ -24,9 +24,12 @@ from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
     FaceVaryingSubdivision,
     LimitFrames,
+    LimitStencils,
+    LimitSurfaceSample,
     LoopSubdivision,
     SubdivisionOperator,
     SubdivisionTags,
+    SurfaceSamples,
     apply_operator,
     bilinear_operator,
     catmull_clark,
@@ -35,8 +38,11 @@ from torchgeo_cg.mesh.subdivision import (
     face_varying_subdivide,
     limit_frames,
     limit_positions,
+    limit_stencils,
+    limit_surface,
     loop_operator,
     loop_subdivide,
+    sample_limit_surface,
 )
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
@@ -55,6 +61,8 @@ __all__ += [
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 __all__ += ["SubdivisionTags", "INFINITELY_SHARP", "bilinear_operator"]
 __all__ += ["limit_frames", "LimitFrames"]
+__all__ += ["limit_surface", "limit_stencils", "sample_limit_surface", "LimitSurfaceSample",
+            "LimitStencils", "SurfaceSamples"]
 __all__ += [
     "MeshEdges",
     "mesh_edges",

@@ -186,6 +186,22 @@ def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
     return tag_e, tag_v, sharp_e, sharp_v, hole_f
 
 
+def effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
+    """``(sharp_e (E,), sharp_v (V,), hole_f (F,) bool)``: the effective sharpness of every
+    edge and vertex (boundary and non-manifold raised to infinity) and the holes.
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision._topology import mesh_topology
+        >>> quad = torch.tensor([[0, 1, 2, 3]])
+        >>> effective_sharpness(mesh_topology(quad, 4), None, 4, 1, "edge_only", torch.float64)[0]
+        tensor([10., 10., 10., 10.], dtype=torch.float64)
+    """
+    _, _, sharp_e, sharp_v, hole_f = _effective_sharpness(
+        topo, tags, num_vertices, num_faces, boundary, dtype
+    )
+    return sharp_e, sharp_v, hole_f
+
+
 def _faces_touching(topo, mask_v: torch.Tensor, num_faces: int) -> torch.Tensor:
     hit_c = mask_v[topo.vert_c]
     return torch.bincount(topo.face_c[hit_c], minlength=num_faces) > 0
