@@ -9,9 +9,10 @@ from torchgeo_cg.core.numerics import power_of_two_scale, safe_norm
 
 def power_of_two_scaled(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """``(x / scale, scale)`` with ``scale`` the power of two of each item's largest
-    magnitude (exact division, :func:`~torchgeo_cg.core.numerics.power_of_two_scale`). Tangent masks are differences (rows sum to 0), so ``4 a -
-    4 b`` of points near the largest float would overflow although the tangent is finite;
-    on the scaled data it cannot. Empty, zero and non-finite items keep ``scale = 1``."""
+    magnitude (exact division, :func:`~torchgeo_cg.core.numerics.power_of_two_scale`).
+    Tangent masks are differences (rows sum to 0), so ``4 a - 4 b`` of points near the
+    largest float would overflow although the tangent is finite; on the scaled data it
+    cannot. Empty, zero and non-finite items keep ``scale = 1``."""
     if x.shape[-2] * x.shape[-1] == 0:
         return x, x.new_ones(())
     scale = power_of_two_scale(x.detach().abs().amax(dim=(-2, -1), keepdim=True))
