@@ -126,6 +126,9 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.mesh.marching_cubes": [
         "AMBIGUITY_RULES", "MarchingCubes", "MarchingCubesResult", "marching_cubes"
     ],
+    "torchgeo_cg.mesh.marching_cubes.dense": [
+        "AMBIGUITY_RULES", "MarchingCubes", "MarchingCubesResult", "marching_cubes"
+    ],
     "torchgeo_cg.mesh.regularizers": [
         "MeshEdges", "edge_length_loss", "laplacian_smoothing_loss", "mesh_edges",
         "mesh_laplacian", "normal_consistency_loss"

@@ -51,7 +51,7 @@ import torch
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
-from torchgeo_cg.mesh._marching_cubes_steps import EdgeFraction
+from torchgeo_cg.mesh.marching_cubes._steps import EdgeFraction
 from torchgeo_cg.sdf.grid import Volume
 
 __all__ = ["MarchingSquaresResult", "marching_squares", "SADDLE_RULES"]

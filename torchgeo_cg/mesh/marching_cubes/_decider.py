@@ -31,8 +31,8 @@ import math
 
 import torch
 
-from torchgeo_cg.mesh._marching_cubes_steps import take
-from torchgeo_cg.mesh._marching_cubes_tables import (
+from torchgeo_cg.mesh.marching_cubes._steps import take
+from torchgeo_cg.mesh.marching_cubes._tables import (
     MAX_TUBES,
     ConfigurationTables,
     configuration_tensors,
@@ -48,7 +48,7 @@ def face_decisions(g: torch.Tensor, cases: torch.Tensor, tables: ConfigurationTa
     Args:
         g: ``(N, 8)`` corner values minus ``iso``.
         cases: ``(N,)`` long corner bits.
-        tables: :func:`~torchgeo_cg.mesh._marching_cubes_tables.configuration_tensors`.
+        tables: :func:`~torchgeo_cg.mesh.marching_cubes._tables.configuration_tensors`.
     """
     gr = g[:, tables.face_rings]  # (N, 6, 4)
     det = gr[..., 0] * gr[..., 2] - gr[..., 1] * gr[..., 3]  # (N, 6)
@@ -128,7 +128,7 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
 
     Args:
         vol: ``(B, X, Y, Z)`` samples (detached); iso_b: ``(B,)``.
-        cell_id, cases: ``(A,)`` from :func:`~._marching_cubes_steps.classify`.
+        cell_id, cases: ``(A,)`` from :func:`~._steps.classify`.
         real: ``(A,)`` bool, cells that make triangles (padded cells read no values).
 
     Returns:

@@ -1,10 +1,10 @@
 """Marching cubes: vectorized, batched, differentiable, watertight (report section 1.4).
 
 A thin public function over private steps (as scikit-image separates its wrapper
-from its implementation): argument parsing (:mod:`._marching_cubes_args`), then
+from its implementation): argument parsing (:mod:`._args`), then
 classify, weld, triangulate, interpolate and soft weights
-(:mod:`._marching_cubes_steps`), with the tables generated in code
-(:mod:`._marching_cubes_tables`). No Python loop over cells; the batch is stacked
+(:mod:`._steps`), with the tables generated in code
+(:mod:`._tables`). No Python loop over cells; the batch is stacked
 along x, so one call costs one pass over all the volumes.
 
 Positions are interpolated along the crossing edges with
@@ -31,7 +31,7 @@ Convention:
       at ``iso`` is outside, like a sample); both cells sharing the face compute it from
       the same samples, so the surface is closed and edge-manifold by construction.
       Where two loops of a cell could be joined by a tube, Marching Cubes 33's interior
-      test decides (see :mod:`._marching_cubes_decider`). Per-cell outlines then equal
+      test decides (see :mod:`._decider`). Per-cell outlines then equal
       scikit-image's Lewiner method outside exact-iso ties; the triangles inside a cell
       may differ (diagonals, tube strips; a nine-edge loop is fanned around a vertex at
       the mean of its vertices, as Lewiner et al. fan around the cell centre).
@@ -73,9 +73,9 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.numerics import cast_back
-from torchgeo_cg.mesh._marching_cubes_args import parse_arguments
-from torchgeo_cg.mesh._marching_cubes_decider import asymptotic_rows
-from torchgeo_cg.mesh._marching_cubes_steps import (
+from torchgeo_cg.mesh.marching_cubes._args import parse_arguments
+from torchgeo_cg.mesh.marching_cubes._decider import asymptotic_rows
+from torchgeo_cg.mesh.marching_cubes._steps import (
     Welded,
     classify,
     find_centres,
@@ -86,7 +86,7 @@ from torchgeo_cg.mesh._marching_cubes_steps import (
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh._marching_cubes_tables import CENTRE, table_tensors
+from torchgeo_cg.mesh.marching_cubes._tables import CENTRE, table_tensors
 from torchgeo_cg.sdf.grid import Volume, index_to_world
 
 __all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES"]

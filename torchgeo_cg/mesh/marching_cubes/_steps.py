@@ -6,7 +6,7 @@
    direction), so neighbouring cells share the vertex of their common edge;
 3. :func:`triangulate` looks each cell's triangles up in the generated table (row
    chosen by the case and, with ``ambiguity="asymptotic"``, the face and interior
-   decisions of :mod:`torchgeo_cg.mesh._marching_cubes_decider`) and maps local
+   decisions of :mod:`torchgeo_cg.mesh.marching_cubes._decider`) and maps local
    edges to global vertex ids through a dense id map, one slab at a time;
 4. :func:`interpolate` places the vertices, ``t = (iso - f1) / (f2 - f1)``, and
    computes the normals (the only differentiable step besides 5);
@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh._marching_cubes_tables import corner_tables
+from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
 __all__ = [
     "SLAB_CELLS",
