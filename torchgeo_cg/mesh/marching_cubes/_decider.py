@@ -37,9 +37,10 @@ from torchgeo_cg.mesh.marching_cubes._tables import (
     ConfigurationTables,
     configuration_tensors,
     corner_tables,
+    table_tensors,
 )
 
-__all__ = ["face_decisions", "interior_decisions", "asymptotic_rows"]
+__all__ = ["face_decisions", "interior_decisions", "asymptotic_rows", "cell_rows"]
 
 
 def face_decisions(g: torch.Tensor, cases: torch.Tensor, tables: ConfigurationTables):
@@ -158,3 +159,36 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
         tube[ask] = interior_decisions(take(g, ask), take(config, ask), tables)
     rows[pick] = take(tables.row, config * MAX_TUBES + tube)
     return rows, pick, tables
+
+
+def cell_rows(vol: torch.Tensor, iso_b: torch.Tensor, mask: torch.Tensor | None,
+              cell_id: torch.Tensor, cases: torch.Tensor, ambiguity: str):
+    """Table rows, triangle counts (0 where a cell makes none) and the table, per active cell.
+
+    Args:
+        vol: ``(B, X, Y, Z)`` samples (detached); iso_b: ``(B,)`` (detached).
+        mask: ``None`` or bool ``(B, X, Y, Z)``: a cell makes triangles only where the
+            mask is True at its far corner (corner 7).
+        cell_id, cases: ``(A,)`` from :func:`~._steps.classify`.
+        ambiguity: ``"asymptotic"`` or ``"separate"``.
+
+    Returns:
+        ``(rows (A,), n_tri (A,), tri_table (R, T, 3), centre)``: ``centre`` is
+        ``(centre_mask (R,), decided (N,))`` for the asymptotic rule, else None.
+    """
+    B, X, Y, Z = vol.shape
+    k, j, layer = cell_id % Z, (cell_id // Z) % Y, cell_id // (Y * Z)
+    real = (layer % X < X - 1) & (j < Y - 1) & (k < Z - 1)  # padded cells make nothing
+    if mask is not None:  # the cell's far corner (corner 7) decides, as scikit-image
+        far = cell_id + (Y * Z + Z + 1)
+        real &= take(mask.view(-1), far.clamp_max(mask.numel() - 1))
+    centre = None
+    if ambiguity == "separate":
+        tri_table, num_tris = table_tensors(vol.device)[:2]
+        rows = cases
+    else:
+        rows, decided, tables = asymptotic_rows(vol, iso_b, cell_id, cases, real)
+        tri_table, num_tris = tables.triangles, tables.num_triangles
+        centre = (tables.centre_mask, decided)  # only decided cells can have a centre
+    n_tri = torch.where(real, take(num_tris, rows), 0)
+    return rows, n_tri, tri_table, centre

@@ -36,7 +36,9 @@ __all__ = [
     "find_centres",
     "place_centres",
     "EdgeFraction",
+    "sample_stencil",
     "interpolate",
+    "place_vertices",
     "soft_weights",
 ]
 
@@ -260,7 +262,9 @@ def find_centres(cell_id, rows, centre_mask, decided, vert_key, cell_of_face, tr
     cells = take(cell_id, centre_cells)
     keys = cells[:, None] * 3 + key_delta  # (C, 12)
     members = torch.searchsorted(vert_key, keys).clamp_max(vert_key.shape[0] - 1)
-    weight = bits / bits.sum(1, keepdim=True)
+    # 1 / count in float64 (correctly rounded in every working dtype; a long / long
+    # division would give float32 weights for float64 volumes)
+    weight = bits.double() / bits.sum(1, keepdim=True).double()
     return Centres(members * bits, weight, cells // (X * Y * Z))
 
 
@@ -319,7 +323,7 @@ class EdgeFraction(torch.autograd.Function):
         return g * (t - 1.0), -g * t, g, None
 
 
-def _sample_stencil(welded: Welded, sizes):
+def sample_stencil(welded: Welded, sizes):
     """Flat sample indices needed per vertex, gathered in one go (one backward scatter).
 
     Returns:
@@ -414,17 +418,33 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
         ``(verts (V, 3), normals (V, 3))``.
     """
     sizes = vol.shape[1:]
-    stencil, axes, steps = _sample_stencil(welded, sizes)
+    stencil, axes, steps = sample_stencil(welded, sizes)
     flat = vol.reshape(-1)
     samples = take(flat, stencil.view(-1)).view(stencil.shape).to(args.work)  # (10, V)
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)
-    samples, iso_v = _keep_in_range(samples, iso_v)
-    delta = math.sqrt(torch.finfo(args.work).eps)
-    t = EdgeFraction.apply(samples[0], samples[1], iso_v, delta)  # (V,)
-    index_pos = welded.corner_ijk.to(args.work).scatter_add(  # (V, 3) index space
-        1, welded.d[:, None], t[:, None])
     spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)
-    verts = to_world(index_pos, b_v)
+    return place_vertices(samples, iso_v, welded, axes, steps, spacing_v,
+                          lambda index_pos: to_world(index_pos, b_v))
+
+
+def place_vertices(samples, iso_v, welded: Welded, axes, steps, spacing_v, to_world):
+    """Positions and unit normals from the stencil samples of :func:`sample_stencil`.
+
+    Args:
+        samples: ``(10, V)`` stencil samples in the working dtype; iso_v: ``(V,)``.
+        welded, axes, steps: the vertices and their stencil.
+        spacing_v: ``(V, 3)`` or ``(1, 3)`` grid spacing.
+        to_world: ``index_pos (V, 3) -> (V, 3)`` world positions.
+
+    Returns:
+        ``(verts (V, 3), normals (V, 3))``.
+    """
+    samples, iso_v = _keep_in_range(samples, iso_v)
+    delta = math.sqrt(torch.finfo(samples.dtype).eps)
+    t = EdgeFraction.apply(samples[0], samples[1], iso_v, delta)  # (V,)
+    index_pos = welded.corner_ijk.to(samples.dtype).scatter_add(  # (V, 3) index space
+        1, welded.d[:, None], t[:, None])
+    verts = to_world(index_pos)
     # normals depend on the ratios of the spacings only: relative spacings in (0, 1]
     # keep the world gradient from overflowing at a tiny spacing
     relative_v = spacing_v / spacing_v.amax(-1, keepdim=True)

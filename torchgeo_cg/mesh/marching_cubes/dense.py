@@ -74,7 +74,7 @@ from torch import nn
 
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.marching_cubes._args import parse_arguments
-from torchgeo_cg.mesh.marching_cubes._decider import asymptotic_rows
+from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
 from torchgeo_cg.mesh.marching_cubes._steps import (
     Welded,
     classify,
@@ -86,7 +86,7 @@ from torchgeo_cg.mesh.marching_cubes._steps import (
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh.marching_cubes._tables import CENTRE, table_tensors
+from torchgeo_cg.mesh.marching_cubes._tables import CENTRE
 from torchgeo_cg.sdf.grid import Volume, index_to_world
 
 __all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES"]
@@ -239,8 +239,8 @@ def marching_cubes(
     with torch.no_grad():
         cell_id, cases_a = classify(vol.detach(), args.iso.detach())
         welded = weld(cell_id, cases_a, (X, Y, Z))
-        rows, n_tri, tri_table, centre = _cell_rows(vol.detach(), args, cell_id, cases_a,
-                                                    ambiguity)
+        rows, n_tri, tri_table, centre = cell_rows(vol.detach(), args.iso.detach(), args.mask,
+                                                   cell_id, cases_a, ambiguity)
         faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
                                                    (X, Y, Z), B)
         centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
@@ -281,26 +281,6 @@ def _empty_result(vol: torch.Tensor) -> MarchingCubesResult:
     faces = torch.zeros(0, 3, dtype=torch.long, device=vol.device)
     return MarchingCubesResult(vol.new_zeros(0, 3), faces, vol.new_zeros(0, 3), vol.new_zeros(0),
                                counts, counts.clone())
-
-
-def _cell_rows(vol, args, cell_id, cases, ambiguity):
-    """Table rows, triangle counts (0 where a cell makes none) and the table, per active cell."""
-    B, X, Y, Z = vol.shape
-    k, j, layer = cell_id % Z, (cell_id // Z) % Y, cell_id // (Y * Z)
-    real = (layer % X < X - 1) & (j < Y - 1) & (k < Z - 1)  # padded cells make nothing
-    if args.mask is not None:  # the cell's far corner (corner 7) decides, as scikit-image
-        far = cell_id + (Y * Z + Z + 1)
-        real &= take(args.mask.view(-1), far.clamp_max(args.mask.numel() - 1))
-    centre = None
-    if ambiguity == "separate":
-        tri_table, num_tris = table_tensors(vol.device)[:2]
-        rows = cases
-    else:
-        rows, decided, tables = asymptotic_rows(vol, args.iso.detach(), cell_id, cases, real)
-        tri_table, num_tris = tables.triangles, tables.num_triangles
-        centre = (tables.centre_mask, decided)  # only decided cells can have a centre
-    n_tri = torch.where(real, take(num_tris, rows), 0)
-    return rows, n_tri, tri_table, centre
 
 
 def _drop_unused(welded: Welded, b_v, faces, centre_slot):
