@@ -87,9 +87,9 @@ INVENTORY: dict[str, list[str]] = {
         "bilinear_operator", "catmull_clark", "catmull_clark_operator", "check_faces",
         "edge_length_loss", "face_sizes", "face_varying_operator", "face_varying_subdivide",
         "from_trimesh", "laplacian_smoothing_loss", "limit_frames", "limit_positions",
-        "load_mesh", "loop_operator", "loop_subdivide", "marching_cubes", "mesh_edges",
-        "mesh_laplacian", "normal_consistency_loss", "pad_faces", "save_mesh", "to_trimesh",
-        "triangulate_faces", "unpad_faces"
+        "lipschitz_bound", "load_mesh", "loop_operator", "loop_subdivide", "marching_cubes", "mesh_edges",
+        "mesh_laplacian", "normal_consistency_loss", "pad_faces", "save_mesh",
+        "sparse_marching_cubes", "to_trimesh", "triangulate_faces", "unpad_faces"
     ],
     "torchgeo_cg.mesh.bilinear": ["bilinear_operator"],
     "torchgeo_cg.mesh.creasing": [
@@ -124,11 +124,13 @@ INVENTORY: dict[str, list[str]] = {
         "LoopSubdivision", "loop_beta", "loop_limit_stencils", "loop_operator", "loop_subdivide"
     ],
     "torchgeo_cg.mesh.marching_cubes": [
-        "AMBIGUITY_RULES", "MarchingCubes", "MarchingCubesResult", "marching_cubes"
+        "AMBIGUITY_RULES", "MarchingCubes", "MarchingCubesResult", "lipschitz_bound",
+        "marching_cubes", "sparse_marching_cubes"
     ],
     "torchgeo_cg.mesh.marching_cubes.dense": [
         "AMBIGUITY_RULES", "MarchingCubes", "MarchingCubesResult", "marching_cubes"
     ],
+    "torchgeo_cg.mesh.marching_cubes.sparse": ["lipschitz_bound", "sparse_marching_cubes"],
     "torchgeo_cg.mesh.regularizers": [
         "MeshEdges", "edge_length_loss", "laplacian_smoothing_loss", "mesh_edges",
         "mesh_laplacian", "normal_consistency_loss"
