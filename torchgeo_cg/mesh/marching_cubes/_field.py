@@ -49,7 +49,12 @@ class Grid(NamedTuple):
 def _resolution(resolution) -> tuple[int, int, int]:
     if isinstance(resolution, torch.Tensor):
         resolution = resolution.tolist()
-    res = (resolution,) * 3 if isinstance(resolution, int) else tuple(resolution)
+    if isinstance(resolution, int):
+        res = (resolution,) * 3
+    elif isinstance(resolution, (list, tuple)):
+        res = tuple(resolution)
+    else:
+        raise TypeError(f"resolution: expected an int or 3 ints, got {resolution!r}")
     if len(res) != 3 or not all(isinstance(r, int) and not isinstance(r, bool) for r in res):
         raise TypeError(f"resolution: expected an int or 3 ints, got {resolution!r}")
     if min(res) < 2:
