@@ -178,7 +178,7 @@ SPECS: dict[str, Spec] = {
                                   torch.tensor([0.0, 1.0, 4.0, 2.0])),
         _rand(5, lo=0.1, hi=2.9),
     ),
-    "torchgeo_cg.mesh.marching_cubes.MarchingCubes": Spec(
+    "torchgeo_cg.mesh.marching_cubes.dense.MarchingCubes": Spec(
         lambda: MarchingCubes(iso=0.0), _sphere_volume, batched=False,
         tensor_of=lambda out: out.verts,
     ),
