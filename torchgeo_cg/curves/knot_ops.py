@@ -255,7 +255,7 @@ def bezier_to_bspline(control_points: torch.Tensor,
     dtype = torch.promote_types(control_points.dtype, breaks.dtype)
     control_points, breaks = control_points.to(dtype), breaks.to(dtype)
     first = control_points[..., :1, 0, :]  # (*, 1, D)
-    rest = control_points[..., 1:].flatten(-3, -2)  # (*, S p, D)
+    rest = control_points[..., 1:, :].flatten(-3, -2)  # (*, S p, D)
     points = torch.cat([first, rest], -2)
     repeat = torch.full((s + 1,), degree, device=breaks.device)
     repeat[0] = repeat[-1] = degree + 1
