@@ -22,7 +22,13 @@ from torchgeo_cg.curves.bezier import (
     split_bezier,
 )
 from torchgeo_cg.curves.bspline import BSplineControls, BSplineCurve, bspline, bspline_derivative
-from torchgeo_cg.curves.bspline_fitting import BSplineFit, fit_bspline, interpolate_bspline
+from torchgeo_cg.curves.bspline_fitting import (
+    BSplineFit,
+    averaged_knots,
+    collocation_matrix,
+    fit_bspline,
+    interpolate_bspline,
+)
 from torchgeo_cg.curves.fitting import BezierFit, fit_bezier, fit_parameters
 from torchgeo_cg.curves.hermite import (
     HermiteControls,
@@ -100,6 +106,8 @@ __all__ = [
     "grid_2d",
     "implicit_circle",
     "BSplineBasis",
+    "averaged_knots",
+    "collocation_matrix",
     "BSplineControls",
     "BSplineCurve",
     "BSplineFit",

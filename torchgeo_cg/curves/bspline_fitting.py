@@ -32,7 +32,8 @@ from torchgeo_cg.curves.fitting import as_padded_strokes, stroke_parameters
 from torchgeo_cg.curves.hermite import check_knots
 from torchgeo_cg.curves.knots import check_bspline_knots, find_spans, local_basis
 
-__all__ = ["BSplineFit", "interpolate_bspline", "fit_bspline", "collocation_matrix"]
+__all__ = ["BSplineFit", "interpolate_bspline", "fit_bspline", "collocation_matrix",
+           "averaged_knots"]
 
 _METHODS = ("uniform", "chord", "centripetal")
 
@@ -137,8 +138,28 @@ def interpolate_bspline(x: torch.Tensor, points: torch.Tensor, degree: int = 3) 
     return BSplineControls(control.to(dtype), knots)
 
 
-def _averaged_knots(t, valid, count: int, degree: int) -> torch.Tensor:
-    """Piegl & Tiller eq. 9.69 on each stroke's valid parameters: ``(*, n + p + 2)``."""
+def averaged_knots(t: torch.Tensor, num_control_points: int, degree: int,
+                   valid: torch.Tensor | None = None) -> torch.Tensor:
+    """Clamped knots on ``[0, 1]`` averaged from parameters (Piegl & Tiller eq. 9.69).
+
+    Every knot span then holds parameters, so a least-squares fit is regular.
+
+    Args:
+        t: ``(*, M)`` non-decreasing parameters in ``[0, 1]`` (valid ones first).
+        num_control_points: ``n + 1 <= M``.
+        degree: ``p``.
+        valid: ``(*, M)`` bool, the valid parameters (default: all).
+
+    Returns:
+        ``(*, n + p + 2)`` knots.
+
+    Example:
+        >>> averaged_knots(torch.tensor([0.0, 0.1, 0.2, 0.9, 1.0]), 4, 2)
+        tensor([0.0000, 0.0000, 0.0000, 0.5500, 1.0000, 1.0000, 1.0000])
+    """
+    count = num_control_points
+    if valid is None:
+        valid = torch.ones_like(t, dtype=torch.bool)
     m = valid.sum(-1, keepdim=True)  # (*, 1) valid points
     j = torch.arange(1, count - degree, device=t.device, dtype=t.dtype)  # interior knots
     d = m.to(t.dtype) / (count - degree)
@@ -241,7 +262,7 @@ def fit_bspline(points, degree: int, num_control_points: int | None = None,
         if periodic:
             knots = torch.linspace(0, 1, count + 1, dtype=points.dtype, device=points.device)
         else:
-            knots = _averaged_knots(t, valid, count, degree)
+            knots = averaged_knots(t, count, degree, valid)
     elif not periodic:
         check_bspline_knots(knots, count, degree)
     knots = knots.to(points.dtype)
