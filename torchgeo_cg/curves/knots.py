@@ -126,7 +126,7 @@ def check_bspline_knots(knots: torch.Tensor, num_control_points: int, degree: in
         flat = bad.reshape(-1, bad.shape[-1])
         column = int(flat.any(0).nonzero()[0, 0])
         row = int(flat[:, column].nonzero()[0, 0])
-        k = knots.reshape(-1, count)[row]
+        k = knots.detach().reshape(-1, count)[row]
         raise ValueError(
             f"{name}: must be non-decreasing, but {name}[..., {column + 1}] = "
             f"{float(k[column + 1])} is smaller than {name}[..., {column}] = {float(k[column])}"
