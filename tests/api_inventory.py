@@ -16,7 +16,8 @@ from __future__ import annotations
 #: module -> the names of its ``__all__`` (order does not matter; kept sorted).
 INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg": [
-        "ShapeError", "__version__", "core", "curves", "mesh", "points", "sdf", "transforms"
+        "ShapeError", "__version__", "core", "curves", "mesh", "points", "sdf", "surfaces",
+        "transforms"
     ],
     "torchgeo_cg.cli": ["CommandError"],
     "torchgeo_cg.cli.bench": [
@@ -47,17 +48,33 @@ INVENTORY: dict[str, list[str]] = {
         "DTYPES", "TOLERANCES", "assert_close", "available_devices", "tolerance"
     ],
     "torchgeo_cg.curves": [
-        "BezierCurve", "BezierFit", "HermiteControls", "HermiteCurve", "HermiteSpline",
-        "MarchingSquaresResult", "PchipInterpolator", "SplitResult", "bernstein_basis",
-        "bezier", "bezier_arclength_params", "bezier_curvature", "bezier_derivative",
-        "bezier_length", "bezier_normal", "bezier_tangent", "bezier_to_hermite",
-        "cardinal_tangents", "catmull_rom_tangents", "check_knots", "circle", "cubic_bezier",
-        "cycloid", "de_casteljau", "elevate_bezier", "figure_eight_implicit",
-        "figure_eight_parametric", "fit_bezier", "fit_parameters", "grid_2d", "hermite",
-        "hermite_basis", "hermite_spline", "hermite_to_bezier", "implicit_circle",
-        "marching_squares", "pchip_interpolate", "pchip_tangents", "quartic_bezier",
-        "split_bezier"
+        "BSplineBasis", "BSplineControls", "BSplineCurve", "BSplineFit", "BezierCurve",
+        "BezierFit", "BezierSegments", "HermiteControls", "HermiteCurve", "HermiteSpline",
+        "MarchingSquaresResult", "NURBSCurve", "PchipInterpolator", "SplitResult",
+        "averaged_knots", "bernstein_basis", "bezier", "bezier_arclength_params",
+        "bezier_curvature", "bezier_derivative", "bezier_length", "bezier_normal",
+        "bezier_tangent", "bezier_to_bspline", "bezier_to_hermite", "bspline", "bspline_basis",
+        "bspline_derivative", "bspline_to_bezier", "cardinal_tangents", "catmull_rom_tangents",
+        "check_knots", "circle", "collocation_matrix", "cubic_bezier", "cycloid",
+        "de_casteljau", "elevate_bezier", "figure_eight_implicit", "figure_eight_parametric",
+        "fit_bezier", "fit_bspline", "fit_parameters", "grid_2d", "hermite", "hermite_basis",
+        "hermite_spline", "hermite_to_bezier", "implicit_circle", "insert_knot",
+        "interpolate_bspline", "marching_squares", "nurbs", "nurbs_derivative",
+        "pchip_interpolate", "pchip_tangents", "quartic_bezier", "split_bezier", "uniform_knots"
     ],
+    "torchgeo_cg.curves.bspline": [
+        "BSplineControls", "BSplineCurve", "bspline", "bspline_derivative"
+    ],
+    "torchgeo_cg.curves.bspline_fitting": [
+        "BSplineFit", "averaged_knots", "collocation_matrix", "fit_bspline", "interpolate_bspline"
+    ],
+    "torchgeo_cg.curves.knot_ops": [
+        "BezierSegments", "bezier_to_bspline", "bspline_to_bezier", "insert_knot"
+    ],
+    "torchgeo_cg.curves.knots": [
+        "BSplineBasis", "bspline_basis", "check_bspline_knots", "uniform_knots"
+    ],
+    "torchgeo_cg.curves.nurbs": ["NURBSCurve", "nurbs", "nurbs_derivative"],
     "torchgeo_cg.curves.bernstein": ["bernstein_basis", "check_degree"],
     "torchgeo_cg.curves.bezier": [
         "BezierCurve", "SplitResult", "bezier", "bezier_arclength_params", "bezier_curvature",
@@ -198,6 +215,19 @@ INVENTORY: dict[str, list[str]] = {
         "SDFSampler", "SDFSamples", "load_samples", "sample_mesh_surface", "save_samples",
         "triangle_mesh", "worker_seed"
     ],
+    "torchgeo_cg.surfaces": [
+        "BSplineSurface", "BezierSurface", "NURBSSurface", "SurfaceDerivatives", "SurfaceFit",
+        "SurfaceMesh", "bezier_surface", "bezier_surface_derivatives", "bspline_surface",
+        "bspline_surface_derivatives", "fit_bspline_surface", "nurbs_surface",
+        "nurbs_surface_derivatives", "surface_mesh"
+    ],
+    "torchgeo_cg.surfaces.fitting": ["SurfaceFit", "fit_bspline_surface"],
+    "torchgeo_cg.surfaces.modules": ["BSplineSurface", "BezierSurface", "NURBSSurface"],
+    "torchgeo_cg.surfaces.patches": [
+        "SurfaceDerivatives", "bezier_surface", "bezier_surface_derivatives", "bspline_surface",
+        "bspline_surface_derivatives", "nurbs_surface", "nurbs_surface_derivatives"
+    ],
+    "torchgeo_cg.surfaces.tessellation": ["SurfaceMesh", "surface_mesh"],
     "torchgeo_cg.transforms": [
         "AffineDecomposition", "FitResult", "FixedTransform", "HartleyNormalization",
         "HomogeneousTransform", "HomographyFit", "HomographyModel", "Orbit",

@@ -43,8 +43,7 @@ from torchgeo_cg.curves.knots import (
     uniform_knots,
 )
 
-__all__ = ["BSplineControls", "BSplineCurve", "bspline", "bspline_derivative", "prepare_bspline",
-           "evaluate_local"]
+__all__ = ["BSplineControls", "BSplineCurve", "bspline", "bspline_derivative"]
 
 
 class BSplineControls(NamedTuple):

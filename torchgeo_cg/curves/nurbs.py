@@ -29,7 +29,7 @@ from torchgeo_cg.curves.bernstein import check_degree
 from torchgeo_cg.curves.bspline import evaluate_local, prepare_bspline
 from torchgeo_cg.curves.knots import find_spans, local_basis
 
-__all__ = ["NURBSCurve", "nurbs", "nurbs_derivative", "check_weights", "rational_derivatives"]
+__all__ = ["NURBSCurve", "nurbs", "nurbs_derivative"]
 
 
 def check_weights(weights: torch.Tensor, control_points: torch.Tensor,

@@ -45,14 +45,12 @@ from torchgeo_cg.curves.nurbs import check_weights
 
 __all__ = [
     "SurfaceDerivatives",
-    "check_surface_degree",
     "bezier_surface",
     "bezier_surface_derivatives",
     "bspline_surface",
     "bspline_surface_derivatives",
     "nurbs_surface",
     "nurbs_surface_derivatives",
-    "surface_normals",
 ]
 
 

@@ -18,7 +18,7 @@ import torch
 
 from torchgeo_cg.curves.bernstein import check_degree
 
-__all__ = ["SurfaceMesh", "surface_mesh", "grid_faces"]
+__all__ = ["SurfaceMesh", "surface_mesh"]
 
 
 class SurfaceMesh(NamedTuple):
