@@ -79,6 +79,11 @@ def collocation_matrix(t: torch.Tensor, degree: int, knots: torch.Tensor,
     count = knots.shape[-1] - (1 if periodic else degree + 1)
     zeros = t.new_zeros(*knots.shape[:-1], count, 1)
     _, t, full = prepare_bspline(zeros, t, degree, knots, periodic)
+    return _collocation(t, degree, full, count, periodic)
+
+
+def _collocation(t, degree: int, full: torch.Tensor, count: int, periodic: bool):
+    """:func:`collocation_matrix` on full knots, unvalidated (NaN strokes stay NaN)."""
     if full.dim() > 1 or t.dim() > 1:
         batch = torch.broadcast_shapes(full.shape[:-1], t.shape[:-1])
         full, t = full.expand(*batch, full.shape[-1]), t.expand(*batch, t.shape[-1])
@@ -136,6 +141,16 @@ def interpolate_bspline(x: torch.Tensor, points: torch.Tensor, degree: int = 3) 
     a = collocation_matrix(x.to(torch.float64), degree, knots.to(torch.float64))
     control = torch.linalg.solve(a, points.to(torch.float64))
     return BSplineControls(control.to(dtype), knots)
+
+
+def _design(t, degree: int, knots, count: int, periodic: bool) -> torch.Tensor:
+    """The fit's collocation matrix; knots from NaN parameters are not validated."""
+    if periodic:
+        period = knots[..., -1:] - knots[..., :1]
+        g = torch.arange(-degree, count + degree + 1, device=knots.device)
+        wraps = torch.div(g, count, rounding_mode="floor")
+        knots = knots[..., g - wraps * count] + wraps.to(knots.dtype) * period
+    return _collocation(t, degree, knots, count, periodic)
 
 
 def averaged_knots(t: torch.Tensor, num_control_points: int, degree: int,
@@ -200,13 +215,19 @@ def _least_squares(a, points, w):
     weighted = a * w[..., None]  # (*, M, K)
     gram = weighted.transpose(-1, -2) @ a
     rhs = weighted.transpose(-1, -2) @ points
+    # a stroke with a NaN point, weight or parameter: solve the identity, then give NaN
+    bad = ~(torch.isfinite(gram).all(-1).all(-1) & torch.isfinite(rhs).all(-1).all(-1))
+    eye = torch.eye(gram.shape[-1], dtype=gram.dtype, device=gram.device)
+    gram = torch.where(bad[..., None, None], eye, gram)
+    rhs = torch.where(bad[..., None, None], 0.0, rhs)
+    a = torch.where(bad[..., None, None], 0.0, a)
     solution, info = torch.linalg.solve_ex(gram, rhs)
     singular = (info != 0) | ~torch.isfinite(solution).all(-1).all(-1)
     if bool(singular.any()):
         root = w[singular].sqrt()[..., None]
         fallback = torch.linalg.pinv(a[singular] * root) @ (points[singular] * root)
         solution = solution.index_put((singular,), fallback)
-    return solution
+    return torch.where(bad[..., None, None], torch.nan, solution)
 
 
 def fit_bspline(points, degree: int, num_control_points: int | None = None,
@@ -267,7 +288,7 @@ def fit_bspline(points, degree: int, num_control_points: int | None = None,
         check_bspline_knots(knots, count, degree)
     knots = knots.to(points.dtype)
     w = valid.to(points.dtype) if weights is None else torch.where(valid, weights, 0.0)
-    a = collocation_matrix(t, degree, knots, periodic)
+    a = _design(t, degree, knots, count, periodic)
     a = torch.where(valid[..., None], a, 0.0)
     control = _least_squares(a, points, w).to(points.dtype)
     residual = ((a.to(points.dtype) @ control - points) ** 2).sum(-1)

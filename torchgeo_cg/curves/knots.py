@@ -156,7 +156,8 @@ def find_spans(knots: torch.Tensor, t: torch.Tensor, degree: int) -> torch.Tenso
     low = torch.searchsorted(seq, knots[..., degree:degree + 1].contiguous(), right=True) - 1
     high = torch.searchsorted(seq, knots[..., last + 1:last + 2].contiguous(), right=False) - 1
     span = torch.searchsorted(seq, t.contiguous(), right=True) - 1
-    return torch.minimum(torch.maximum(span, low), high)
+    # the outer clamp only acts for NaN knots (a NaN stroke of a fit): indices stay valid
+    return torch.minimum(torch.maximum(span, low), high).clamp(degree, last)
 
 
 def _gather(knots: torch.Tensor, index: torch.Tensor) -> torch.Tensor:

@@ -63,6 +63,10 @@ def _pair(value, name):
     return pair
 
 
+def _uniform(x: torch.Tensor) -> torch.Tensor:
+    return torch.linspace(0, 1, x.shape[-1], dtype=x.dtype, device=x.device).expand_as(x)
+
+
 def fit_bspline_surface(points: torch.Tensor, degree, num_control_points=None,
                         knots_u: torch.Tensor | None = None, knots_v: torch.Tensor | None = None,
                         parametrization: str = "chord") -> SurfaceFit:
@@ -113,8 +117,15 @@ def fit_bspline_surface(points: torch.Tensor, degree, num_control_points=None,
         check_bspline_knots(knots_u, rows, p, "knots_u")
         check_bspline_knots(knots_v, cols, q, "knots_v")
     knots_u, knots_v = knots_u.to(points.dtype), knots_v.to(points.dtype)
-    a_u = collocation_matrix(u.double(), p, knots_u.double())  # (*, R, m + 1)
-    a_v = collocation_matrix(v.double(), q, knots_v.double())  # (*, S, n + 1)
+    # a grid with a NaN point has NaN parameters and knots: solve it on uniform ones
+    # (finite system), its NaN points then make its control grid NaN
+    bad = ~torch.isfinite(points).flatten(-3).all(-1)[..., None]  # (*, 1)
+    u_s, v_s = torch.where(bad, _uniform(u), u), torch.where(bad, _uniform(v), v)
+    if num_control_points is not None:
+        knots_u = torch.where(bad, averaged_knots(_uniform(u), rows, p), knots_u)
+        knots_v = torch.where(bad, averaged_knots(_uniform(v), cols, q), knots_v)
+    a_u = collocation_matrix(u_s.double(), p, knots_u.double())  # (*, R, m + 1)
+    a_v = collocation_matrix(v_s.double(), q, knots_v.double())  # (*, S, n + 1)
     grid = torch.einsum("...ar,...rsd,...bs->...abd", torch.linalg.pinv(a_u), points.double(),
                         torch.linalg.pinv(a_v))
     fitted = torch.einsum("...ra,...abd,...sb->...rsd", a_u, grid, a_v)
