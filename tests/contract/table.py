@@ -24,14 +24,17 @@ from tests.contract import (
     table_fitting,
     table_meshes,
     table_queries,
+    table_splines,
     table_subdivision,
+    table_surfaces,
 )
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
 from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision)
+AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
+         table_splines, table_surfaces)
 
 # ----------------------------------------------------------------------------- helpers
 

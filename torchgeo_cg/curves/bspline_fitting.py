@@ -172,9 +172,15 @@ def averaged_knots(t: torch.Tensor, num_control_points: int, degree: int,
         >>> averaged_knots(torch.tensor([0.0, 0.1, 0.2, 0.9, 1.0]), 4, 2)
         tensor([0.0000, 0.0000, 0.0000, 0.5500, 1.0000, 1.0000, 1.0000])
     """
-    count = num_control_points
+    check_float(t, "t", low_precision=False)
+    check_shape(t, ["*", "M"], "t")
+    count = check_degree(num_control_points, "num_control_points")
+    degree = check_degree(degree)
     if valid is None:
         valid = torch.ones_like(t, dtype=torch.bool)
+    if count < degree + 1 or count > t.shape[-1]:
+        raise ShapeError(f"t: {count} control points of degree {degree} need between "
+                         f"{degree + 1} and {t.shape[-1]} parameters, got shape {tuple(t.shape)}")
     m = valid.sum(-1, keepdim=True)  # (*, 1) valid points
     j = torch.arange(1, count - degree, device=t.device, dtype=t.dtype)  # interior knots
     d = m.to(t.dtype) / (count - degree)
@@ -182,6 +188,7 @@ def averaged_knots(t: torch.Tensor, num_control_points: int, degree: int,
     i = jd.floor().long().clamp(1, t.shape[-1] - 1)
     alpha = jd - i.to(t.dtype)
     inner = (1 - alpha) * t.gather(-1, i - 1) + alpha * t.gather(-1, i)
+    inner = inner + 0 * torch.where(valid, t, 0.0).sum(-1, keepdim=True)  # NaN in, NaN out
     return torch.cat([t.new_zeros(*inner.shape[:-1], degree + 1), inner,
                       t.new_ones(*inner.shape[:-1], degree + 1)], -1)
 
@@ -266,6 +273,7 @@ def fit_bspline(points, degree: int, num_control_points: int | None = None,
     if (num_control_points is None) == (knots is None):
         raise ValueError("num_control_points, knots: give exactly one of the two")
     points, valid, weights = as_padded_strokes(points, lengths, weights)
+    check_float(points, "points", low_precision=False)
     if knots is not None:
         count = knots.shape[-1] - (1 if periodic else degree + 1)
     else:
@@ -274,6 +282,12 @@ def fit_bspline(points, degree: int, num_control_points: int | None = None,
     if count < (1 if periodic else degree + 1) or least < count:
         raise ShapeError(f"points: {count} control points of degree {degree} need at least "
                          f"{count} points, got {least} (shape {tuple(points.shape)})")
+    if points.shape[:-2].numel() == 0:  # an empty batch
+        k = knots if knots is not None else points.new_zeros(
+            *points.shape[:-2], count + (1 if periodic else degree + 1))
+        return BSplineFit(points.new_zeros(*points.shape[:-2], count, points.shape[-1]),
+                          k.expand(*points.shape[:-2], k.shape[-1]), points[..., 0],
+                          points.new_zeros(points.shape[:-2]))
     points = torch.where(valid[..., None], points, 0.0)
     if periodic:
         t = _closed_parameters(points, valid, parametrization)

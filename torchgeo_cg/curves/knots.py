@@ -163,7 +163,8 @@ def find_spans(knots: torch.Tensor, t: torch.Tensor, degree: int) -> torch.Tenso
 def _gather(knots: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     if knots.dim() == 1:
         return knots[index]
-    return knots.gather(-1, index.reshape(*index.shape[:-2], -1)).reshape(index.shape)
+    flat = index.reshape(*index.shape[:-2], index.shape[-2] * index.shape[-1])
+    return knots.gather(-1, flat).reshape(index.shape)
 
 
 def bspline_basis(t: torch.Tensor, degree: int, knots: torch.Tensor | None = None,

@@ -77,6 +77,8 @@ def rational_derivatives(homogeneous: list[torch.Tensor]) -> list[torch.Tensor]:
 
 
 def _homogeneous(control_points, weights, t, degree, knots, periodic, order):
+    check_float(control_points, "control_points", low_precision=False)
+    check_shape(control_points, ["*", "K", "D"], "control_points")
     check_weights(weights, control_points)
     dtype = torch.promote_types(control_points.dtype, weights.dtype)
     weights = weights.to(dtype)

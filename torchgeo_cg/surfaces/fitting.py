@@ -96,7 +96,7 @@ def fit_bspline_surface(points: torch.Tensor, degree, num_control_points=None,
                 [0., 1.]], dtype=torch.float64)
     """
     p, q = check_surface_degree(degree)
-    check_float(points, "points")
+    check_float(points, "points", low_precision=False)
     sizes = check_shape(points, ["*", "R", "S", "D"], "points")
     if (num_control_points is None) == (knots_u is None or knots_v is None):
         raise ValueError("num_control_points, knots_u, knots_v: give num_control_points or "
