@@ -137,8 +137,8 @@ def evaluate_local(control_points, basis, spans, degree: int) -> torch.Tensor:
 
     Example:
         >>> cp = torch.tensor([[0.0], [1.0], [4.0]])
-        >>> evaluate_local(cp, torch.tensor([[0.5, 0.5]]), torch.tensor([1]), 1)
-        tensor([[2.5000]])
+        >>> evaluate_local(cp, torch.tensor([[0.5, 0.5]]), torch.tensor([1]), 1)  # P0 / 2 + P1 / 2
+        tensor([[0.5000]])
     """
     k, d = control_points.shape[-2:]
     if basis.dim() == 2:

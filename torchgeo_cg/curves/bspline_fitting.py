@@ -170,7 +170,7 @@ def averaged_knots(t: torch.Tensor, num_control_points: int, degree: int,
 
     Example:
         >>> averaged_knots(torch.tensor([0.0, 0.1, 0.2, 0.9, 1.0]), 4, 2)
-        tensor([0.0000, 0.0000, 0.0000, 0.5500, 1.0000, 1.0000, 1.0000])
+        tensor([0.0000, 0.0000, 0.0000, 0.1500, 1.0000, 1.0000, 1.0000])
     """
     check_float(t, "t", low_precision=False)
     check_shape(t, ["*", "M"], "t")
@@ -263,7 +263,7 @@ def fit_bspline(points, degree: int, num_control_points: int | None = None,
     Example:
         >>> s = torch.linspace(0, 1, 50, dtype=torch.float64)
         >>> wave = torch.stack([s, torch.sin(6 * s)], -1)
-        >>> fit = fit_bspline(wave, 3, 10)
+        >>> fit = fit_bspline(wave, 3, 10, parametrization="uniform")
         >>> fit.control_points.shape, bool(fit.rms < 1e-3)
         (torch.Size([10, 2]), True)
     """

@@ -176,7 +176,7 @@ def surface_normals(du: torch.Tensor, dv: torch.Tensor, duv: torch.Tensor,
         >>> dv, duv = torch.tensor([[0.0, 1.0, 0.0]]), torch.tensor([[1.0, 0.0, 0.0]])
         >>> no = torch.tensor([False])
         >>> surface_normals(du, dv, duv, torch.tensor([True]), no, torch.ones(1), torch.ones(1))
-        tensor([[ 0.,  0.,  1.]])
+        tensor([[0., 0., 1.]])
     """
     du = torch.where(degenerate_u[..., None], 0.0, du)
     dv = torch.where(degenerate_v[..., None], 0.0, dv)
