@@ -39,7 +39,7 @@ from torchgeo_cg.curves.bernstein import check_degree
 from torchgeo_cg.curves.knots import (
     check_bspline_knots,
     find_spans,
-    local_basis,
+    local_basis_list,
     uniform_knots,
 )
 
@@ -131,9 +131,10 @@ def prepare_bspline(control_points, t, degree, knots=None, periodic=False):
 def evaluate_local(control_points, basis, spans, degree: int) -> torch.Tensor:
     """``sum_j basis[..., j] P_{span - p + j}``: ``(*, T, p + 1)`` basis -> ``(*, T, D)``.
 
-    With one shared basis ``(T, p + 1)`` the basis is scattered into a dense ``(T, n + 1)``
-    matrix and applied by one GEMM to every curve at once (the result is a view of that
-    product); otherwise the ``p + 1`` control points of every parameter are gathered.
+    ``basis`` may also be a list of the ``p + 1`` tensors ``(*, T)``. With one shared basis
+    ``(T, p + 1)`` the basis is scattered into a dense ``(T, n + 1)`` matrix and applied by
+    one GEMM to every curve at once (the result is a view of that product); otherwise the
+    ``p + 1`` control points of every parameter are gathered, one coordinate at a time.
 
     Example:
         >>> cp = torch.tensor([[0.0], [1.0], [4.0]])
@@ -141,24 +142,32 @@ def evaluate_local(control_points, basis, spans, degree: int) -> torch.Tensor:
         tensor([[0.5000]])
     """
     k, d = control_points.shape[-2:]
-    if basis.dim() == 2:
+    if spans.dim() == 1:
+        basis = torch.stack(basis, -1) if isinstance(basis, list) else basis
         columns = spans[:, None] - degree + torch.arange(degree + 1, device=spans.device)
         dense = basis.new_zeros(basis.shape[0], k).scatter_add(1, columns, basis)  # (T, K)
         if control_points.dim() == 2:
             return dense @ control_points
         batch = control_points.shape[:-2]
         flat = control_points.reshape(-1, k, d).permute(1, 0, 2).reshape(k, -1)  # (K, B D)
-        out = (dense @ flat).reshape(basis.shape[0], -1, d)  # (T, B, D)
-        return out.permute(1, 0, 2).reshape(*batch, basis.shape[0], d)
-    batch = torch.broadcast_shapes(control_points.shape[:-2], basis.shape[:-2])
-    cp = control_points.expand(*batch, k, d).reshape(-1, k, d)
-    basis = basis.expand(*batch, *basis.shape[-2:]).reshape(cp.shape[0], -1, degree + 1)
-    spans = spans.expand(*batch, spans.shape[-1]).reshape(cp.shape[0], -1)
+        out = (dense @ flat).reshape(basis.shape[0], *batch, d)  # (T, *, D)
+        return out.movedim(0, -2)  # a view: (*, T, D)
+    if not isinstance(basis, list):
+        basis = list(basis.unbind(-1))
+    batch = torch.broadcast_shapes(control_points.shape[:-2], spans.shape[:-1])
+    cp = control_points.expand(*batch, k, d).reshape(-1, k, d)  # (B, K, D)
+    spans = spans.expand(*batch, spans.shape[-1]).reshape(cp.shape[0], -1)  # (B, T)
+    inplace = not (torch.is_grad_enabled() and (cp.requires_grad or any(
+        b.requires_grad for b in basis)))
     out = None
     for j in range(degree + 1):  # loop over the p + 1 local control points
         index = (spans - degree + j)[..., None].expand(-1, -1, d)
-        term = basis[..., j, None] * cp.gather(1, index)
-        out = term if out is None else out + term
+        weight = basis[j].expand(*batch, spans.shape[-1]).reshape(spans.shape)[..., None]
+        points = cp.gather(1, index)  # (B, T, D)
+        if out is None:
+            out = points.mul_(weight) if inplace else points * weight
+        else:
+            out = out.addcmul_(points, weight) if inplace else out + points * weight
     return out.reshape(*batch, -1, d)
 
 
@@ -170,7 +179,7 @@ def _evaluate(control_points, t, knots, degree: int, order: int) -> torch.Tensor
         batch = torch.broadcast_shapes(knots.shape[:-1], t.shape[:-1])
         knots, t = knots.expand(*batch, knots.shape[-1]), t.expand(*batch, t.shape[-1])
     spans = find_spans(knots, t, degree)
-    basis = local_basis(knots, t, spans, degree, order)[order]
+    basis = local_basis_list(knots, t, spans, degree, order)[order]
     return evaluate_local(control_points, basis, spans, degree)
 
 

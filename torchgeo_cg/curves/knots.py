@@ -160,13 +160,6 @@ def find_spans(knots: torch.Tensor, t: torch.Tensor, degree: int) -> torch.Tenso
     return torch.minimum(torch.maximum(span, low), high).clamp(degree, last)
 
 
-def _gather(knots: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
-    if knots.dim() == 1:
-        return knots[index]
-    flat = index.reshape(*index.shape[:-2], index.shape[-2] * index.shape[-1])
-    return knots.gather(-1, flat).reshape(index.shape)
-
-
 def bspline_basis(t: torch.Tensor, degree: int, knots: torch.Tensor | None = None,
                   order: int = 0, num_control_points: int | None = None) -> BSplineBasis:
     """The ``p + 1`` non-zero B-spline basis functions (and derivatives) at parameters ``t``.
@@ -218,31 +211,55 @@ def bspline_basis(t: torch.Tensor, degree: int, knots: torch.Tensor | None = Non
 
 def local_basis(knots, t, spans, degree: int, order: int) -> torch.Tensor:
     """Local basis values ``(order + 1, *, T, p + 1)`` on given spans (no validation)."""
-    offsets = torch.arange(1, degree + 1, device=t.device)
-    left = t[..., None] - _gather(knots, spans[..., None] + 1 - offsets)  # t - u_{s+1-j}
-    right = _gather(knots, spans[..., None] + offsets) - t[..., None]  # u_{s+j} - t
-    levels = [torch.ones_like(t[..., None])]  # degree-0 basis: N_{s,0} = 1
+    levels = local_basis_list(knots, t, spans, degree, order)
+    return torch.stack([torch.stack(level, -1) for level in levels])
+
+
+def local_basis_list(knots, t, spans, degree: int, order: int) -> list[list[torch.Tensor]]:
+    """:func:`local_basis` as ``order + 1`` lists of ``p + 1`` tensors ``(*, T)``.
+
+    The scalar form of algorithm A2.2 on whole tensors: ``p (p + 1) / 2`` steps of a few
+    elementwise operations, with no stacking or padding of ``(*, T, j)`` intermediates.
+    """
+    left = [t - _gather1(knots, spans + 1 - j) for j in range(1, degree + 1)]  # t - u_{s+1-j}
+    right = [_gather1(knots, spans + j) - t for j in range(1, degree + 1)]  # u_{s+j} - t
+    levels = [[torch.ones_like(t)]]  # degree 0: N_{s,0} = 1
     for j in range(1, degree + 1):  # loop over degrees
-        r_j, l_j = right[..., :j], left[..., :j].flip(-1)
-        temp = levels[-1] / (r_j + l_j)  # denominators u_{s+r+1} - u_{s+1-j+r} > 0
-        levels.append(F.pad(r_j * temp, (0, 1)) + F.pad(l_j * temp, (1, 0)))
+        previous, new, saved = levels[-1], [], None
+        for r in range(j):  # in-place steps where autograd allows: fewer fresh buffers
+            temp = right[r] + left[j - r - 1]  # u_{s+r+1} - u_{s+1-j+r} > 0
+            temp = torch.div(previous[r], temp, out=temp) if _inplace(t, knots) else (
+                previous[r] / temp)
+            term = right[r] * temp
+            new.append(term if saved is None else term.add_(saved))
+            saved = temp.mul_(left[j - r - 1]) if _inplace(t, knots) else temp * left[j - r - 1]
+        new.append(saved)
+        levels.append(new)
     out = [levels[degree]]
     for k in range(1, order + 1):  # loop over derivative orders
         if k > degree:
-            out.append(torch.zeros_like(levels[degree]))
+            out.append([torch.zeros_like(t)] * (degree + 1))
             continue
         values = levels[degree - k]
         for d in range(degree - k + 1, degree + 1):  # raise degree d - 1 -> d (eq. 2.9)
             values = _raise(knots, spans, values, d)
         out.append(values)
-    return torch.stack(out)
+    return out
 
 
-def _raise(knots, spans, values, d: int) -> torch.Tensor:
+def _inplace(*tensors: torch.Tensor) -> bool:
+    """In-place arithmetic is safe: nothing here needs the intermediates for a gradient."""
+    return not (torch.is_grad_enabled() and any(x.requires_grad for x in tensors))
+
+
+def _gather1(knots: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    return knots[index] if knots.dim() == 1 else knots.gather(-1, index)
+
+
+def _raise(knots, spans, values, d: int) -> list[torch.Tensor]:
     """``d (N_{i,d-1} / (u_{i+d} - u_i) - N_{i+1,d-1} / (u_{i+d+1} - u_{i+1}))`` locally."""
-    j = torch.arange(d, device=spans.device)  # in-index j' = 0..d-1 is i' = s - d + 1 + j'
-    lo = _gather(knots, spans[..., None] - d + 1 + j)
-    hi = _gather(knots, spans[..., None] + 1 + j)
-    gap = hi - lo  # u_{i'+d} - u_{i'}
-    scaled = torch.where(gap > 0, values / torch.where(gap > 0, gap, 1.0), 0.0) * d
-    return F.pad(scaled, (1, 0)) - F.pad(scaled, (0, 1))
+    scaled = []
+    for j in range(d):  # in-index j is i' = s - d + 1 + j
+        gap = _gather1(knots, spans + 1 + j) - _gather1(knots, spans - d + 1 + j)
+        scaled.append(torch.where(gap > 0, values[j] / torch.where(gap > 0, gap, 1.0), 0.0) * d)
+    return [-scaled[0]] + [scaled[j - 1] - scaled[j] for j in range(1, d)] + [scaled[-1]]
