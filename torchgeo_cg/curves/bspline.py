@@ -160,8 +160,9 @@ def evaluate_local(control_points, basis, spans, degree: int) -> torch.Tensor:
     inplace = not (torch.is_grad_enabled() and (cp.requires_grad or any(
         b.requires_grad for b in basis)))
     out = None
+    first = spans - degree
     for j in range(degree + 1):  # loop over the p + 1 local control points
-        index = (spans - degree + j)[..., None].expand(-1, -1, d)
+        index = (first + j if j else first)[..., None].expand(-1, -1, d)
         weight = basis[j].expand(*batch, spans.shape[-1]).reshape(spans.shape)[..., None]
         points = cp.gather(1, index)  # (B, T, D)
         if out is None:

@@ -221,7 +221,7 @@ def local_basis_list(knots, t, spans, degree: int, order: int) -> list[list[torc
     The scalar form of algorithm A2.2 on whole tensors: ``p (p + 1) / 2`` steps of a few
     elementwise operations, with no stacking or padding of ``(*, T, j)`` intermediates.
     """
-    left = [t - _gather1(knots, spans + 1 - j) for j in range(1, degree + 1)]  # t - u_{s+1-j}
+    left = [t - _gather1(knots, spans - (j - 1)) for j in range(1, degree + 1)]  # t - u_{s+1-j}
     right = [_gather1(knots, spans + j) - t for j in range(1, degree + 1)]  # u_{s+j} - t
     levels = [[torch.ones_like(t)]]  # degree 0: N_{s,0} = 1
     for j in range(1, degree + 1):  # loop over degrees
