@@ -1,4 +1,4 @@
-"""Curves: Bernstein/Bezier, B-splines/NURBS, Hermite/PCHIP, parametric and implicit 2D curves, marching squares.
+"""Curves: Bezier, B-splines/NURBS, Hermite/PCHIP, parametric and implicit 2D curves, contours.
 
 Report sections 1.1-1.3. Every function is batched over leading dimensions,
 differentiable, and takes dtype and device from its inputs.

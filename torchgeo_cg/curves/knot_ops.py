@@ -217,7 +217,7 @@ def _blossom_batched(local, knots, spans, args, degree: int) -> torch.Tensor:
 
 def bezier_to_bspline(control_points: torch.Tensor,
                       breaks: torch.Tensor | None = None) -> BSplineControls:
-    """Join Bezier segments of one degree into a clamped B-spline (interior knots of multiplicity p).
+    """Join Bezier segments of one degree into a clamped B-spline (interior knots repeated p times).
 
     Convention:
         Segment ``s`` spans ``[breaks_s, breaks_{s+1}]``. Consecutive segments are
@@ -234,8 +234,10 @@ def bezier_to_bspline(control_points: torch.Tensor,
     Example:
         >>> segments = torch.tensor([[[0.0], [1.0], [2.0]], [[2.0], [3.0], [5.0]]])
         >>> spline = bezier_to_bspline(segments)
-        >>> spline.control_points[..., 0], spline.knots
-        (tensor([0., 1., 2., 3., 5.]), tensor([0.0000, 0.0000, 0.0000, 0.5000, 0.5000, 1.0000, 1.0000, 1.0000]))
+        >>> spline.control_points[..., 0]
+        tensor([0., 1., 2., 3., 5.])
+        >>> spline.knots.tolist()
+        [0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]
     """
     check_float(control_points, "control_points", low_precision=False)
     sizes = check_shape(control_points, ["*", "S", "K", "D"], "control_points")

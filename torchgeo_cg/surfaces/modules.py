@@ -15,11 +15,11 @@ from torch import nn
 
 from torchgeo_cg.surfaces.patches import (
     SurfaceDerivatives,
-    check_surface_degree,
     bezier_surface,
     bezier_surface_derivatives,
     bspline_surface,
     bspline_surface_derivatives,
+    check_surface_degree,
     nurbs_surface,
     nurbs_surface_derivatives,
 )
@@ -124,7 +124,7 @@ class BSplineSurface(nn.Module):
 
 
 class NURBSSurface(BSplineSurface):
-    """NURBS patch(es) with learnable control grid and weights; ``forward`` is :func:`nurbs_surface`.
+    """NURBS patches with learnable control grid and weights; ``forward`` is :func:`nurbs_surface`.
 
     Convention:
         The weights are a parameter the optimiser may move; keep them positive

@@ -31,9 +31,9 @@ def _circle():
     "A NURBS circle: the rational quadratic with nine control points",
     "Left: the curve, its control polygon (a square) and the weights (1 at the edge "
     "midpoints, sqrt(1/2) at the corners); the dots are the curve at 16 uniform parameters, "
-    "denser where the speed is lowest (at the edge midpoints). Right: |C(t)| - 1 over the parameter, at the level of float64 "
-    "rounding (the curve is exactly a circle), and the speed |C'(t)| from the exact rational "
-    "derivative.",
+    "denser where the speed is lowest (at the edge midpoints). Right: |C(t)| - 1 over the "
+    "parameter, at the level of float64 rounding (the curve is exactly a circle), and the "
+    "speed |C'(t)| from the exact rational derivative.",
 )
 def _nurbs_circle(path: Path) -> None:
     cp, w, knots = _circle()
