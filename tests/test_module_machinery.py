@@ -43,8 +43,14 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.optim.swa_utils import AveragedModel
 
 import torchgeo_cg
-from torchgeo_cg.curves import BezierCurve, HermiteCurve, HermiteSpline, PchipInterpolator
-from torchgeo_cg.curves import BSplineCurve, NURBSCurve
+from torchgeo_cg.curves import (
+    BezierCurve,
+    BSplineCurve,
+    HermiteCurve,
+    HermiteSpline,
+    NURBSCurve,
+    PchipInterpolator,
+)
 from torchgeo_cg.mesh import (
     CatmullClark,
     FaceVaryingSubdivision,

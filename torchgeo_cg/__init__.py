@@ -4,7 +4,7 @@ Subpackages, one per area:
 
 - :mod:`torchgeo_cg.core`: the validation helper and NaN-free numerics;
 - :mod:`torchgeo_cg.transforms`: homogeneous 2D transforms, scene graphs, estimation;
-- :mod:`torchgeo_cg.curves`: Bezier, B-spline/NURBS, Hermite/PCHIP, parametric and implicit 2D curves;
+- :mod:`torchgeo_cg.curves`: Bezier, B-spline/NURBS, Hermite/PCHIP, parametric and 2D curves;
 - :mod:`torchgeo_cg.surfaces`: Bezier, B-spline and NURBS patches, surface fits and grid meshes;
 - :mod:`torchgeo_cg.sdf`: signed distance fields, grids and samplers;
 - :mod:`torchgeo_cg.mesh`: marching cubes, Catmull-Clark subdivision, mesh I/O;
