@@ -14,7 +14,7 @@ from torchgeo_cg.mesh import faces as faces_mod
 from torchgeo_cg.mesh import io as io_mod
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces, unpad_faces
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 MIXED = [[0, 1, 2, 3], [1, 4, 2], [2, 4, 5, 6, 3]]
 
@@ -678,7 +678,7 @@ def test_one_huge_face_does_not_pad_every_face_to_gigabytes(tmp_path):
         _load_bytes(tmp_path, "big.obj", text)
 
 
-# ----------------------------------------------------------------------------- contract (i10)
+# ----------------------------------------------------------------------------- contract ------
 @pytest.mark.parametrize("suffix, binary", [(".obj", True), (".ply", True), (".ply", False),
                                             (".off", True)])
 def test_bfloat16_verts_save_exactly(tmp_path, suffix, binary):

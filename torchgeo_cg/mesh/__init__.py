@@ -1,12 +1,5 @@
 """torchgeo_cg.mesh: marching cubes, Catmull-Clark, Loop and bilinear subdivision, mesh I/O."""
 
-from torchgeo_cg.mesh.bilinear import bilinear_operator
-from torchgeo_cg.mesh.face_varying import (
-    FVAR_INTERPOLATIONS,
-    FaceVaryingSubdivision,
-    face_varying_operator,
-    face_varying_subdivide,
-)
 from torchgeo_cg.mesh.faces import (
     check_faces,
     face_sizes,
@@ -15,8 +8,6 @@ from torchgeo_cg.mesh.faces import (
     unpad_faces,
 )
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
-from torchgeo_cg.mesh.limit import LimitFrames, limit_frames
-from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
 from torchgeo_cg.mesh.regularizers import (
     MeshEdges,
@@ -27,14 +18,25 @@ from torchgeo_cg.mesh.regularizers import (
     normal_consistency_loss,
 )
 from torchgeo_cg.mesh.subdivision import (
+    FVAR_INTERPOLATIONS,
+    INFINITELY_SHARP,
     CatmullClark,
+    FaceVaryingSubdivision,
+    LimitFrames,
+    LoopSubdivision,
     SubdivisionOperator,
+    SubdivisionTags,
     apply_operator,
+    bilinear_operator,
     catmull_clark,
     catmull_clark_operator,
+    face_varying_operator,
+    face_varying_subdivide,
+    limit_frames,
     limit_positions,
+    loop_operator,
+    loop_subdivide,
 )
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
 __all__ += ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]

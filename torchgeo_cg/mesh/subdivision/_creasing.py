@@ -1,8 +1,8 @@
 """OpenSubdiv's creasing rules, vectorized: sharpness, vertex rules, transitions, child tags.
 
-This module turns a mesh's topology and its :class:`~torchgeo_cg.mesh.tags.SubdivisionTags`
+This module turns a mesh's topology and its :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags`
 into the per-vertex and per-edge coefficients that the Catmark and Loop builders
-(:mod:`torchgeo_cg.mesh.subdivision`, :mod:`torchgeo_cg.mesh.loop`) weight their masks
+(:mod:`torchgeo_cg.mesh.subdivision`, :mod:`torchgeo_cg.mesh.subdivision.loop`) weight their masks
 with, and into the tags of the refined mesh. Everything is sort/scatter on flat tensors.
 
 Convention (OpenSubdiv 3, ``Sdc::Crease``, ``Far::TopologyRefinerFactory``):
@@ -35,7 +35,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags, check_tags
+from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags, check_tags
 
 __all__ = [
     "CREASE_METHODS",
@@ -274,7 +274,7 @@ def subdivision_rules(
         topo: the corner/edge tables of :mod:`torchgeo_cg.mesh.subdivision`.
         num_vertices: ``V``.
         num_faces: ``F``.
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None``.
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None``.
         boundary: ``"edge_only"``, ``"edge_and_corner"`` or ``"none"``.
         crease_method: ``"uniform"`` or ``"chaikin"``.
         dtype: float dtype of the coefficients.
@@ -283,7 +283,7 @@ def subdivision_rules(
         :class:`SubdivisionRules`.
 
     Example:
-        >>> from torchgeo_cg.mesh.subdivision import mesh_topology
+        >>> from torchgeo_cg.mesh.subdivision._topology import mesh_topology
         >>> quad = torch.tensor([[0, 1, 2, 3]])
         >>> rules = subdivision_rules(mesh_topology(quad, 4), 4, 1, None, "edge_only",
         ...                           "uniform", torch.float64)
@@ -370,7 +370,7 @@ def limit_rules(topo, num_vertices, num_faces, tags, boundary, dtype):
             mask at this level: refine until the sharpness has decayed).
 
     Example:
-        >>> from torchgeo_cg.mesh.subdivision import mesh_topology
+        >>> from torchgeo_cg.mesh.subdivision._topology import mesh_topology
         >>> quad = torch.tensor([[0, 1, 2, 3]])
         >>> limit_rules(mesh_topology(quad, 4), 4, 1, None, "edge_and_corner", torch.float64)[0]
         tensor([2, 2, 2, 2])
