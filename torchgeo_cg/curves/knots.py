@@ -227,8 +227,7 @@ def local_basis_list(knots, t, spans, degree: int, order: int) -> list[list[torc
         previous, new, saved = levels[-1], [], None
         for r in range(j):  # in-place steps where autograd allows: fewer fresh buffers
             temp = right[r] + left[j - r - 1]  # u_{s+r+1} - u_{s+1-j+r} > 0
-            temp = torch.div(previous[r], temp, out=temp) if _inplace(t, knots) else (
-                previous[r] / temp)
+            temp = previous[r] / temp
             term = right[r] * temp
             new.append(term if saved is None else term.add_(saved))
             saved = temp.mul_(left[j - r - 1]) if _inplace(t, knots) else temp * left[j - r - 1]
