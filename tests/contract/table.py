@@ -26,7 +26,9 @@ from tests.contract import (
     table_meshes,
     table_queries,
     table_rotations,
+    table_splines,
     table_subdivision,
+    table_surfaces,
 )
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
 from torchgeo_cg.curves.bernstein import bernstein_basis
@@ -34,7 +36,7 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
 AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
-         table_rotations, table_limit)
+         table_rotations, table_limit, table_splines, table_surfaces)
 
 # ----------------------------------------------------------------------------- helpers
 
