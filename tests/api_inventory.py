@@ -207,24 +207,27 @@ INVENTORY: dict[str, list[str]] = {
         "find_similarity", "find_transform_ransac", "find_translation", "fit_report_shapes",
         "fit_transform", "hartley_normalize", "homography", "inverse", "matrix_to_parameters",
         "parameters_to_matrix", "register_images", "report_shapes", "reprojection_error",
-        "rotation", "scale_x", "scale_y", "scaling", "shear", "solar_system",
+        "robust_loss", "robust_weights", "rotation", "scale_x", "scale_y", "scaling", "shear",
+        "solar_system",
         "transform_points", "translation", "warp_image"
     ],
     "torchgeo_cg.transforms.decompose": ["AffineDecomposition", "decompose_affine"],
+    "torchgeo_cg.transforms.correspondences": [
+        "HartleyNormalization", "hartley_normalize", "reprojection_error"
+    ],
     "torchgeo_cg.transforms.estimation": [
-        "HartleyNormalization", "HomographyFit", "find_affine", "find_euclidean",
-        "find_homography_dlt", "find_similarity", "find_translation", "hartley_normalize",
-        "reprojection_error"
+        "find_affine", "find_euclidean", "find_similarity", "find_translation"
     ],
-    "torchgeo_cg.transforms.fitting": [
-        "FitResult", "HomographyModel", "LOSSES", "MODELS", "PARAMETRIZATIONS", "fit_transform",
-        "matrix_to_parameters", "parameters_to_matrix"
-    ],
+    "torchgeo_cg.transforms.fitting": ["FitResult", "HomographyModel", "fit_transform"],
     "torchgeo_cg.transforms.homogeneous": [
         "compose", "compose_trs", "homography", "inverse", "rotation", "scale_x", "scale_y",
         "scaling", "shear", "transform_points", "translation"
     ],
+    "torchgeo_cg.transforms.homography_dlt": ["find_homography_dlt"],
     "torchgeo_cg.transforms.modules": ["HomogeneousTransform", "TRSTransform"],
+    "torchgeo_cg.transforms.parametrization": [
+        "MODELS", "PARAMETRIZATIONS", "matrix_to_parameters", "parameters_to_matrix"
+    ],
     "torchgeo_cg.transforms.ransac": ["RobustFit", "SAMPLE_SIZES", "find_transform_ransac"],
     "torchgeo_cg.transforms.registration": [
         "REGISTRATION_MODELS", "RegistrationResult", "WarpedImage", "register_images",
@@ -234,6 +237,7 @@ INVENTORY: dict[str, list[str]] = {
         "REPORT_FORMULAS", "REPORT_NAMES", "ReportShapes", "ShapeFit", "fit_report_shapes",
         "format_report_table", "format_transform", "report_shapes"
     ],
+    "torchgeo_cg.transforms.robust": ["LOSSES", "robust_loss", "robust_weights"],
     "torchgeo_cg.transforms.scene_graph": [
         "FixedTransform", "Orbit", "SceneGraph", "WorldTransforms", "solar_system"
     ],

@@ -24,6 +24,7 @@ from tests.contract import (
     table_fitting,
     table_meshes,
     table_queries,
+    table_rotations,
     table_subdivision,
 )
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
@@ -31,7 +32,8 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision)
+AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
+         table_rotations)
 
 # ----------------------------------------------------------------------------- helpers
 

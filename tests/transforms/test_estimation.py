@@ -49,14 +49,6 @@ def rel_err(a, b):
     return (a - b).flatten(-2).norm(dim=-1) / b.flatten(-2).norm(dim=-1)
 
 
-def test_public_surface():
-    assert set(est.__all__) == {
-        "HartleyNormalization", "HomographyFit", "hartley_normalize", "find_homography_dlt",
-        "find_affine", "find_similarity", "find_euclidean", "find_translation",
-        "reprojection_error",
-    }
-
-
 # ------------------------------------------------------------------ DLT, noise free
 
 
