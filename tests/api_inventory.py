@@ -474,8 +474,13 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.points": [
         "ChamferDistance",
         "ChamferResult",
+        "ICPResult",
         "KNNResult",
+        "SampleResult",
         "chamfer_distance",
+        "estimate_normals",
+        "farthest_point_sampling",
+        "icp",
         "knn",
     ],
     "torchgeo_cg.points.chamfer": [
@@ -483,11 +488,28 @@ INVENTORY: dict[str, list[str]] = {
         "ChamferResult",
         "chamfer_distance",
     ],
+    "torchgeo_cg.points.icp": [
+        "ICPResult",
+        "METHODS",
+        "MODELS",
+        "icp",
+    ],
+    "torchgeo_cg.points.icp_steps": [
+        "apply_transform",
+        "point_to_plane_step",
+        "rodrigues",
+        "weighted_procrustes",
+    ],
     "torchgeo_cg.points.nearest_neighbors": [
         "BRUTE_FORCE_PAIRS",
         "KNNResult",
         "check_lengths",
         "knn",
+    ],
+    "torchgeo_cg.points.normals": ["estimate_normals"],
+    "torchgeo_cg.points.sampling": [
+        "SampleResult",
+        "farthest_point_sampling",
     ],
     "torchgeo_cg.points.search_brute": ["brute_knn_indices"],
     "torchgeo_cg.points.search_grid": [
@@ -495,6 +517,7 @@ INVENTORY: dict[str, list[str]] = {
         "MAX_RING",
         "build_grid",
         "grid_knn_indices",
+        "grid_per_cell",
         "ring_offsets",
         "segment_ids",
     ],
@@ -881,6 +904,11 @@ INVENTORY: dict[str, list[str]] = {
         "GalleryFigure",
         "figure",
         "registered_figures",
+    ],
+    "torchgeo_cg.viz.scans": [
+        "ScanPairs",
+        "rabbit_scan_pairs",
+        "rabbit_surface",
     ],
     "torchgeo_cg.viz.sdf": [],
     "torchgeo_cg.viz.splines": [],
