@@ -39,19 +39,10 @@ FUNCTION_LEVEL_OK: dict[tuple[str, str], str] = {
         "matplotlib (extra 'plot') only for the figure, not for the fit",
     ("viz/torus_fit.py", "torchgeo_cg.viz.style"):
         "matplotlib (extra 'plot') only for the figure, not for the fit",
-    ("mesh/subdivision.py", "torchgeo_cg.mesh.loop"):
-        "Loop limit stencils (the subdivision subpackage separates the schemes)",
-    ("transforms/ransac.py", "torchgeo_cg.transforms.fitting"):
-        "the final refit (the transforms split by topic separates them)",
-    ("transforms/estimation.py", "torchgeo_cg.transforms.homogeneous"):
-        "transfer errors (the transforms split by topic separates them)",
 }
 #: Private imports across modules that stay, with why: (file, imported name) -> reason.
 PRIVATE_OK: dict[tuple[str, str], str] = {
-    **{("mesh/loop.py", f"torchgeo_cg.mesh.subdivision.{n}"):
-       "shared with Catmark (the subdivision subpackage promotes them)"
-       for n in ("_check_boundary", "_check_crease_method", "_SubdivisionModule")},
-    ("viz/marching_cubes.py", "torchgeo_cg.mesh._marching_cubes_tables"):
+    ("viz/marching_cubes.py", "torchgeo_cg.mesh.marching_cubes._tables"):
         "the figure colours the ambiguous cases of the table",
 }
 #: The command line imports each subcommand's work only when it runs, so that

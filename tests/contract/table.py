@@ -2,13 +2,13 @@
 
 This module holds the entries of the numeric core (core, homogeneous transforms,
 curves, SDF primitives, operators and grids) and gathers the areas' tables
-(``table_<area>.py``: ``ENTRIES``, ``PENDING``, ``EXEMPT`` each) into :data:`TABLE`,
-:data:`PENDING` and :data:`EXEMPT`. The vocabulary (``Arg``, ``Entry``, laws,
+(``table_<area>.py``: ``ENTRIES`` and ``EXEMPT`` each) into :data:`TABLE` and
+:data:`EXEMPT`. The vocabulary (``Arg``, ``Entry``, laws,
 generators) is in ``spec.py``.
 
-Names not in the table are in :data:`PENDING` (not yet under contract, with the
-reason) or :data:`EXEMPT` (result types, exceptions, validators and figures: no
-geometry). The completeness test fails for any public name in none of the three.
+Public callables not in the table are in :data:`EXEMPT` (result types, exceptions,
+validators and figures: no geometry). The completeness test fails for any public
+callable in neither.
 """
 
 from __future__ import annotations
@@ -22,16 +22,21 @@ import torchgeo_cg.transforms as T
 from tests.contract import (
     table_estimation,
     table_fitting,
+    table_limit,
     table_meshes,
     table_queries,
+    table_rotations,
+    table_splines,
     table_subdivision,
+    table_surfaces,
 )
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
 from torchgeo_cg.curves.bernstein import bernstein_basis
 
-__all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
+__all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision)
+AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
+         table_rotations, table_limit, table_splines, table_surfaces)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -85,7 +90,7 @@ CORE_TABLE: list[Entry] = [
           empty=(0, -1)),
     # --- transforms: homogeneous
     Entry("transforms.translation", T.translation, (Arg("offset", (4, 2)),), out="matrix",
-          empty=(0, 0), bad=((4, 3), ())),
+          empty=(0, 0), bad=((4, 4), ())),
     Entry("transforms.rotation", T.rotation, (Arg("angle", (4,), "angle", "unitless"),),
           out="matrix", empty=(0, 0)),
     Entry("transforms.scaling", T.scaling, (Arg("factor", (4,), "positive", "unitless"),),
@@ -370,7 +375,7 @@ CORE_TABLE: list[Entry] = [
           (Arg("volume", (2, 4, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive"),
            Arg("tol", (), "positive")),
           out=("length", "index", "index", "index"), empty=(0, 0), mixed=("follow", 0),
-          bad=((5, 3),), nan="skip"),
+          bad=((5, 3),), nan="raise"),
     # --- sdf: gradients
     Entry("sdf.sdf_gradient", lambda p: S.sdf_gradient(S.sphere, p), (PTS3,), out="unitless",
           bad=((2, 6), ())),
@@ -382,9 +387,6 @@ CORE_TABLE: list[Entry] = [
 ]
 
 TABLE: list[Entry] = CORE_TABLE + [e for area in AREAS for e in area.ENTRIES]
-
-#: Public names not yet under contract (name -> (owner, reason)).
-PENDING: dict[str, tuple[str, str]] = {k: v for area in AREAS for k, v in area.PENDING.items()}
 
 #: Public names with no geometry to put under contract (name -> reason).
 EXEMPT: dict[str, str] = {

@@ -97,7 +97,7 @@ def test_safe_norm_matches_float64_reference_at_every_scale(dtype):
 
 
 def test_safe_norm_float32_intermediate_overflow_regression():
-    """Issue 10: |p| ~ 2e19 gave inf in float32 (the sum of squares overflows)."""
+    """|p| ~ 2e19 is finite in float32 although the sum of squares overflows."""
     p = torch.tensor([[2e19, 2e19, 2e19]], dtype=torch.float32, requires_grad=True)
     n = safe_norm(p)
     assert torch.isfinite(n).all()

@@ -29,7 +29,7 @@ import math
 
 import torch
 
-from torchgeo_cg.core.check import check_float
+from torchgeo_cg.core.check import check_broadcastable, check_float
 from torchgeo_cg.core.coerce import check_same_dtype
 
 __all__ = [
@@ -159,6 +159,7 @@ def safe_div(
     """
     check_float(num, "num")
     check_float(den, "den")
+    check_broadcastable({"num": num.shape, "den": den.shape})
     if eps is not None:
         return num / clamp_away_from_zero(den, eps)
     zero = den == 0

@@ -161,6 +161,12 @@ def closest_point_on_triangle(
     feature = torch.where(t_best <= 0, start, torch.where(t_best >= 1, end, code))
     feature = torch.where(code == 0, 0, feature).expand(shape[:-1])
     q = torch.stack(torch.broadcast_tensors(*q), dim=-1) * scale + origin
+    # a NaN corner loses every comparison, so the nearest finite edge would win: NaN in
+    # any argument gives a NaN closest point instead
+    nan = torch.zeros((), dtype=torch.bool, device=q.device)
+    for x in named.values():
+        nan = nan | x.isnan().any(-1)
+    q = torch.where(nan[..., None], math.nan, q)
     return TriangleClosestPoint(cast_back(q.expand(shape), dtype), feature)
 
 

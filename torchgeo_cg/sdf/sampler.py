@@ -41,7 +41,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.faces import check_mesh
@@ -239,6 +239,13 @@ class SDFSampler:
         if bounds is None:
             bounds = (-1.0, 1.0) if self.verts is None else self._mesh_bounds()
         self.bounds = _parse_bounds(bounds)  # (*, 2, 3) float64 CPU
+        if self.sdf_fn is not None and self.bounds.dim() != 2:
+            raise ShapeError(f"bounds: expected one box (2, 3) for an SDF callable (one box "
+                             f"per mesh needs a batch of meshes), got {tuple(self.bounds.shape)}")
+        if check_broadcastable({"vertices": self.batch_shape,
+                                "bounds": self.bounds.shape[:-2]}) != self.batch_shape:
+            raise ShapeError(f"bounds: expected at most one box per mesh, got "
+                             f"{tuple(self.bounds.shape)} for meshes {self.batch_shape}")
         self.variances = _validate_options(variances, uniform_fraction, clamp)
         self.uniform_fraction = float(uniform_fraction)
         self.balanced = bool(balanced)

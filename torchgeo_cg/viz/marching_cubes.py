@@ -8,9 +8,9 @@ import numpy as np
 import torch
 
 from torchgeo_cg.core.grid import Volume
-from torchgeo_cg.mesh._marching_cubes_tables import AMBIGUOUS
 from torchgeo_cg.mesh.data import mri_phantom
 from torchgeo_cg.mesh.marching_cubes import marching_cubes
+from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS
 from torchgeo_cg.sdf.grid import sample_grid
 from torchgeo_cg.sdf.primitives import torus
 from torchgeo_cg.viz.registry import figure
