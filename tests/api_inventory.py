@@ -289,6 +289,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.viz.registration": ["plot_registration", "plot_robust_fit"],
     "torchgeo_cg.viz.registry": ["GalleryFigure", "figure", "registered_figures"],
     "torchgeo_cg.viz.sdf": [],
+    "torchgeo_cg.viz.splines": [],
     "torchgeo_cg.viz.style": ["closed", "plt", "save"],
     "torchgeo_cg.viz.subdivision": [],
     "torchgeo_cg.viz.subdivision_tags": [],
