@@ -1,7 +1,7 @@
 """Every public ``nn.Module`` of torchgeo_cg survives the torch machinery.
 
-The public modules are enumerated from the ``__all__`` of every public (sub)module of
-the package, and each needs a factory in :data:`SPECS`: a new module without one fails
+The public modules are enumerated from ``tests/api_inventory.py`` (every public module's
+``__all__``), and each needs a factory in :data:`SPECS`: a new module without one fails
 :func:`test_every_public_module_has_a_factory`. For each module:
 
 - ``copy.deepcopy`` and ``torch.optim.swa_utils.AveragedModel`` (which deep-copies);
@@ -26,7 +26,6 @@ import io
 import json
 import math
 import os
-import pkgutil
 from collections.abc import Callable
 from datetime import timedelta
 from typing import NamedTuple
@@ -39,7 +38,7 @@ from torch import nn
 from torch.nn.parallel import DistributedDataParallel
 from torch.optim.swa_utils import AveragedModel
 
-import torchgeo_cg
+from tests.api_inventory import public_names
 from torchgeo_cg.curves import (
     BezierCurve,
     BSplineCurve,
@@ -92,19 +91,12 @@ from torchgeo_cg.transforms import (
 
 
 def public_modules() -> dict[str, type]:
-    """``qualified name -> class`` of every ``nn.Module`` subclass in a public ``__all__``."""
+    """``qualified name -> class`` of every ``nn.Module`` subclass in the API inventory."""
     found: dict[str, type] = {}
-    names = ["torchgeo_cg"] + [
-        info.name
-        for info in pkgutil.walk_packages(torchgeo_cg.__path__, "torchgeo_cg.")
-        if not any(part.startswith("_") for part in info.name.split("."))
-    ]
-    for name in names:
-        module = importlib.import_module(name)
-        for attr in getattr(module, "__all__", ()):
-            obj = getattr(module, attr)
-            if inspect.isclass(obj) and issubclass(obj, nn.Module):
-                found[f"{obj.__module__}.{obj.__qualname__}"] = obj
+    for name, attr in public_names():
+        obj = getattr(importlib.import_module(name), attr)
+        if inspect.isclass(obj) and issubclass(obj, nn.Module):
+            found[f"{obj.__module__}.{obj.__qualname__}"] = obj
     return found
 
 
@@ -218,7 +210,7 @@ SPECS: dict[str, Spec] = {
                                   torch.tensor([0.0, 1.0, 4.0, 2.0])),
         _rand(5, lo=0.1, hi=2.9),
     ),
-    "torchgeo_cg.mesh.marching_cubes.MarchingCubes": Spec(
+    "torchgeo_cg.mesh.marching_cubes.dense.MarchingCubes": Spec(
         lambda: MarchingCubes(iso=0.0), _sphere_volume, batched=False,
         tensor_of=lambda out: out.verts,
     ),

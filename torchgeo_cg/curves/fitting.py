@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_norm, safe_sqrt
 
 __all__ = ["BezierFit", "fit_parameters", "fit_bezier", "as_padded_strokes"]
@@ -84,8 +84,7 @@ def fit_parameters(points: torch.Tensor, parametrization: str = "chord") -> torc
     sizes = check_shape(points, ["*", "M", "D"], "points")
     if sizes["M"] < 2:
         raise ShapeError(f"points: expected at least 2 points, got shape {tuple(points.shape)}")
-    if parametrization not in _METHODS:
-        raise ValueError(f"parametrization: expected one of {_METHODS}, got {parametrization!r}")
+    check_choice(parametrization, _METHODS, "parametrization")
     m = sizes["M"]
     with torch.no_grad():
         uniform = torch.linspace(0, 1, m, dtype=points.dtype, device=points.device)
@@ -394,8 +393,7 @@ def fit_bezier(
         True
     """
     degree = _degree(degree)
-    if parametrization not in _METHODS:
-        raise ValueError(f"parametrization: expected one of {_METHODS}, got {parametrization!r}")
+    check_choice(parametrization, _METHODS, "parametrization")
     if not (isinstance(max_iterations, int) and max_iterations >= 1):
         raise ValueError(f"max_iterations: expected a positive int, got {max_iterations!r}")
     if not tol >= 0:
