@@ -1,4 +1,4 @@
-"""Signed distance fields (issues 4 and 16).
+"""Signed distance fields.
 
 Targets, 1 thread, ratios measured side by side in one process:
 

@@ -1,9 +1,9 @@
 """Catmull-Clark on the icosphere (5 subdivisions: 10,242 vertices, 20,480 triangles).
 
-Targets (issue 6), 1 thread:
+Targets, 1 thread:
 
 - operator build ≤ 50 ms (absolute; ``target_ms`` in the notes); with 5% of the edges
-  creased at random sharpness in 0-3 ≤ 60 ms (issue 14);
+  creased at random sharpness in 0-3 ≤ 60 ms;
 - applying levels 1, 2, 3 ≤ 0.02x pymeshlab's ``meshing_surface_subdivision_catmull_clark``
   at the same level (its weights differ from OpenSubdiv's, but it is the fastest
   installed peer);

@@ -30,18 +30,22 @@ INVENTORY: dict[str, list[str]] = {
         "add_parser", "find_meshes", "mesh_seed", "sdf_samples_for_mesh", "write_npz"
     ],
     "torchgeo_cg.core": [
-        "ShapeError", "as_tensor_like", "cast_back", "check_broadcastable", "check_float",
-        "check_same_dtype", "check_shape", "check_tensor", "clamp_away_from_zero", "hypot",
-        "safe_div", "safe_norm", "safe_sqrt", "working_dtype"
+        "ShapeError", "Volume", "as_tensor_like", "cast_back", "check_broadcastable",
+        "check_float", "check_same_dtype", "check_shape", "check_spacing", "check_tensor",
+        "clamp_away_from_zero", "hypot", "index_to_world", "power_of_two_scale", "safe_div",
+        "safe_norm", "safe_sqrt", "working_dtype", "world_to_index"
     ],
     "torchgeo_cg.core.check": [
         "ShapeError", "check_broadcastable", "check_float", "check_shape", "check_tensor",
         "format_shape"
     ],
     "torchgeo_cg.core.coerce": ["as_tensor_like", "check_same_dtype"],
+    "torchgeo_cg.core.grid": [
+        "Volume", "check_spacing", "edge_fraction", "index_to_world", "world_to_index"
+    ],
     "torchgeo_cg.core.numerics": [
-        "cast_back", "clamp_away_from_zero", "hypot", "safe_div", "safe_norm", "safe_sqrt",
-        "working_dtype"
+        "cast_back", "clamp_away_from_zero", "hypot", "power_of_two_scale", "safe_div",
+        "safe_norm", "safe_sqrt", "working_dtype"
     ],
     "torchgeo_cg.core.testing": [
         "DTYPES", "TOLERANCES", "assert_close", "available_devices", "tolerance"
@@ -158,14 +162,14 @@ INVENTORY: dict[str, list[str]] = {
         "Annulus", "Box", "Capsule", "Circle", "Difference", "Gyroid", "Intersection",
         "LevelSetPoints", "MeshSDF", "MeshSDFResult", "Plane", "Product", "Rectangle", "Rotate",
         "SDFSampler", "SDFSamples", "Scale", "SmoothIntersection", "SmoothUnion", "Sphere",
-        "Torus", "Translate", "TriangleClosestPoint", "Union", "Volume", "annulus",
+        "Torus", "Translate", "TriangleClosestPoint", "Union", "annulus",
         "available_engines", "box", "capsule", "circle", "closest_point_on_triangle",
         "difference", "eikonal_loss", "grid_interpolate", "grid_points", "grid_spacing",
-        "gyroid", "index_to_world", "intersection", "is_watertight", "load_samples", "mesh_sdf",
+        "gyroid", "intersection", "is_watertight", "load_samples", "mesh_sdf",
         "plane", "product", "rectangle", "rotate", "sample_grid", "sample_mesh_surface",
         "save_samples", "scale", "sdf_gradient", "sdf_normal", "smooth_intersection",
         "smooth_union", "sphere", "torus", "translate", "union", "winding_number",
-        "world_to_index", "zero_level_set"
+        "zero_level_set"
     ],
     "torchgeo_cg.sdf.engine_warp": [
         "WarpAnswer", "WarpSearch", "build_warp_search", "face_rings", "morton_order",
@@ -177,8 +181,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.sdf.gradients": ["eikonal_loss", "sdf_gradient", "sdf_normal"],
     "torchgeo_cg.sdf.grid": [
-        "Volume", "check_spacing", "grid_interpolate", "grid_points", "grid_spacing",
-        "index_to_world", "parse_bounds", "sample_grid", "world_to_index"
+        "grid_interpolate", "grid_points", "grid_spacing", "parse_bounds", "sample_grid"
     ],
     "torchgeo_cg.sdf.level_set": ["LevelSetPoints", "zero_level_set"],
     "torchgeo_cg.sdf.mesh_distance": [
@@ -189,7 +192,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.sdf.mesh_search": [
         "FaceGrid", "TorchSearch", "build_torch_search", "face_table", "far_radius", "pair_d2",
-        "power_of_two_scale", "pull_in_far_points", "torch_closest_faces"
+        "pull_in_far_points", "torch_closest_faces"
     ],
     "torchgeo_cg.sdf.operators": [
         "Difference", "Intersection", "Product", "Rotate", "Scale", "SmoothIntersection",
@@ -214,24 +217,27 @@ INVENTORY: dict[str, list[str]] = {
         "find_similarity", "find_transform_ransac", "find_translation", "fit_report_shapes",
         "fit_transform", "hartley_normalize", "homography", "inverse", "matrix_to_parameters",
         "parameters_to_matrix", "register_images", "report_shapes", "reprojection_error",
-        "rotation", "scale_x", "scale_y", "scaling", "shear", "solar_system",
+        "robust_loss", "robust_weights", "rotation", "scale_x", "scale_y", "scaling", "shear",
+        "solar_system",
         "transform_points", "translation", "warp_image"
     ],
     "torchgeo_cg.transforms.decompose": ["AffineDecomposition", "decompose_affine"],
+    "torchgeo_cg.transforms.correspondences": [
+        "HartleyNormalization", "hartley_normalize", "reprojection_error"
+    ],
     "torchgeo_cg.transforms.estimation": [
-        "HartleyNormalization", "HomographyFit", "find_affine", "find_euclidean",
-        "find_homography_dlt", "find_similarity", "find_translation", "hartley_normalize",
-        "reprojection_error"
+        "find_affine", "find_euclidean", "find_similarity", "find_translation"
     ],
-    "torchgeo_cg.transforms.fitting": [
-        "FitResult", "HomographyModel", "LOSSES", "MODELS", "PARAMETRIZATIONS", "fit_transform",
-        "matrix_to_parameters", "parameters_to_matrix"
-    ],
+    "torchgeo_cg.transforms.fitting": ["FitResult", "HomographyModel", "fit_transform"],
     "torchgeo_cg.transforms.homogeneous": [
         "compose", "compose_trs", "homography", "inverse", "rotation", "scale_x", "scale_y",
         "scaling", "shear", "transform_points", "translation"
     ],
+    "torchgeo_cg.transforms.homography_dlt": ["find_homography_dlt"],
     "torchgeo_cg.transforms.modules": ["HomogeneousTransform", "TRSTransform"],
+    "torchgeo_cg.transforms.parametrization": [
+        "MODELS", "PARAMETRIZATIONS", "matrix_to_parameters", "parameters_to_matrix"
+    ],
     "torchgeo_cg.transforms.ransac": ["RobustFit", "SAMPLE_SIZES", "find_transform_ransac"],
     "torchgeo_cg.transforms.registration": [
         "REGISTRATION_MODELS", "RegistrationResult", "WarpedImage", "register_images",
@@ -241,6 +247,7 @@ INVENTORY: dict[str, list[str]] = {
         "REPORT_FORMULAS", "REPORT_NAMES", "ReportShapes", "ShapeFit", "fit_report_shapes",
         "format_report_table", "format_transform", "report_shapes"
     ],
+    "torchgeo_cg.transforms.robust": ["LOSSES", "robust_loss", "robust_weights"],
     "torchgeo_cg.transforms.scene_graph": [
         "FixedTransform", "Orbit", "SceneGraph", "WorldTransforms", "solar_system"
     ],

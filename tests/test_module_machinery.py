@@ -1,4 +1,4 @@
-"""Every public ``nn.Module`` of torchgeo_cg survives the torch machinery (issue 11).
+"""Every public ``nn.Module`` of torchgeo_cg survives the torch machinery.
 
 The public modules are enumerated from the ``__all__`` of every public (sub)module of
 the package, and each needs a factory in :data:`SPECS`: a new module without one fails
@@ -15,9 +15,6 @@ the package, and each needs a factory in :data:`SPECS`: a new module without one
 - DDP with default arguments, gloo, 2 processes on this machine (slow): a loss through
   the module trains, parameters stay identical across ranks and equal single-process
   training on the mean loss.
-
-Known failures in files owned by other helpers are ``xfail(strict=True)`` with the owner
-named in the reason, so they turn into failures when fixed.
 """
 
 from __future__ import annotations
@@ -264,18 +261,8 @@ SPECS: dict[str, Spec] = {
     ),
 }
 
-# Known failures in other helpers' files: (module, check) -> reason naming the owner.
-XFAIL: dict[tuple[str, str], str] = {}
-
-
-def _params(names: list[str], check: str) -> list:
-    out = []
-    for name in names:
-        marks = []
-        if (name, check) in XFAIL:
-            marks.append(pytest.mark.xfail(reason=XFAIL[(name, check)], strict=True))
-        out.append(pytest.param(name, id=name.rsplit(".", 1)[-1], marks=marks))
-    return out
+def _params(names: list[str]) -> list:
+    return [pytest.param(name, id=name.rsplit(".", 1)[-1]) for name in names]
 
 
 _ALL = sorted(SPECS)
@@ -313,7 +300,7 @@ def test_every_public_module_has_a_factory():
 # ----------------------------------------------------------------------------- copies
 
 
-@pytest.mark.parametrize("name", _params(_ALL, "deepcopy"))
+@pytest.mark.parametrize("name", _params(_ALL))
 def test_deepcopy(name):
     spec = SPECS[name]
     module = spec.make()
@@ -326,7 +313,7 @@ def test_deepcopy(name):
     torch.testing.assert_close(_out(spec, module, x), _out(spec, spec.make(), x), rtol=0, atol=0)
 
 
-@pytest.mark.parametrize("name", _params(_ALL, "state_dict"))
+@pytest.mark.parametrize("name", _params(_ALL))
 def test_state_dict_round_trip_into_fresh_instance(name):
     spec = SPECS[name]
     trained = spec.make()
@@ -345,7 +332,7 @@ def test_state_dict_round_trip_into_fresh_instance(name):
             torch.testing.assert_close(p, moved[n], rtol=0, atol=0)
 
 
-@pytest.mark.parametrize("name", _params(_ALL, "to_dtype"))
+@pytest.mark.parametrize("name", _params(_ALL))
 def test_to_float64(name):
     spec = SPECS[name]
     module = spec.make()
@@ -359,7 +346,7 @@ def test_to_float64(name):
     torch.testing.assert_close(out64.float(), expected, rtol=1e-5, atol=1e-5)
 
 
-@pytest.mark.parametrize("name", _params(_ALL, "averaged_model"))
+@pytest.mark.parametrize("name", _params(_ALL))
 def test_swa_averaged_model(name):
     spec = SPECS[name]
     module = spec.make()
@@ -379,7 +366,7 @@ def test_swa_averaged_model(name):
 # ----------------------------------------------------------------------------- functorch
 
 
-@pytest.mark.parametrize("name", _params([n for n in _ALL if SPECS[n].batched], "vmap"))
+@pytest.mark.parametrize("name", _params([n for n in _ALL if SPECS[n].batched]))
 def test_vmap_over_a_leading_batch(name):
     spec = SPECS[name]
     module = spec.make()
@@ -389,7 +376,7 @@ def test_vmap_over_a_leading_batch(name):
     torch.testing.assert_close(vmapped, looped, rtol=1e-6, atol=1e-6)
 
 
-@pytest.mark.parametrize("name", _params([n for n in _ALL if SPECS[n].differentiable], "jacrev"))
+@pytest.mark.parametrize("name", _params([n for n in _ALL if SPECS[n].differentiable]))
 def test_jacrev_matches_autograd_jacobian(name):
     spec = SPECS[name]
     module = spec.make().double()
@@ -455,7 +442,7 @@ def test_subdivision_double_backward():
 
 
 def test_catmull_clark_compiles_fullgraph():
-    """Issue 11: fullgraph failed with "Attempted to wrap sparse Tensor" (eager backend
+    """fullgraph compiles without "Attempted to wrap sparse Tensor" (the eager backend
     keeps this fast; the default backend runs in the slow compile test)."""
     cc = CatmullClark(_CUBE_F, 8, levels=2, tags=_CUBE_TAGS)
     loop = LoopSubdivision(_OCTA_F, 6, levels=2, boundary="none")
@@ -473,7 +460,7 @@ def test_catmull_clark_compiles_fullgraph():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", _params(_ALL, "compile"))
+@pytest.mark.parametrize("name", _params(_ALL))
 def test_torch_compile_matches_eager(name):
     spec = SPECS[name]
     module = spec.make()
@@ -563,7 +550,7 @@ def ddp_results(tmp_path_factory) -> list[dict[str, str]]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", _params(_ALL, "ddp"))
+@pytest.mark.parametrize("name", _params(_ALL))
 def test_ddp_two_processes_gloo(name, ddp_results):
     assert [r[name] for r in ddp_results] == ["ok", "ok"]
 

@@ -15,7 +15,7 @@ from torchgeo_cg.curves import (
     marching_squares,
 )
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.grid import Volume
 
 
 def _directed_edges(polylines) -> np.ndarray:
@@ -165,7 +165,7 @@ def test_bad_input():
         marching_squares(Volume(torch.zeros(3, 3, 2), torch.zeros(3), torch.ones(3)))
 
 
-# ------------------------------------------------ tie rule and asymptotic decider (issue 13)
+# --------------------------------------------------------- tie rule and asymptotic decider
 def _is_degenerate(poly: np.ndarray) -> bool:
     return bool(np.all(poly == poly[0]) or (np.diff(poly, axis=0) == 0).all(1).any())
 
@@ -257,7 +257,7 @@ def test_volume_input_and_scale_invariance():
         torch.testing.assert_close(scaled.vertices, ref.vertices, rtol=0, atol=1e-12)
 
 
-# --- contract regressions (issue 10) -----------------------------------------------------
+# --- contract regressions ----------------------------------------------------------------
 
 
 def _ring_fields(dtype) -> torch.Tensor:

@@ -678,7 +678,7 @@ def test_one_huge_face_does_not_pad_every_face_to_gigabytes(tmp_path):
         _load_bytes(tmp_path, "big.obj", text)
 
 
-# ----------------------------------------------------------------------------- contract (i10)
+# ----------------------------------------------------------------------------- contract ------
 @pytest.mark.parametrize("suffix, binary", [(".obj", True), (".ply", True), (".ply", False),
                                             (".off", True)])
 def test_bfloat16_verts_save_exactly(tmp_path, suffix, binary):

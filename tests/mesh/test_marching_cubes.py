@@ -24,7 +24,7 @@ from torchgeo_cg.mesh._marching_cubes_tables import (
     TRIANGLES,
     face_segments,
 )
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.grid import Volume
 
 skimage_measure = pytest.importorskip("skimage.measure")
 trimesh = pytest.importorskip("trimesh")
@@ -614,7 +614,7 @@ def test_to_trimesh_gives_a_watertight_sphere_and_round_trips():
     torch.testing.assert_close(back.faces, result.faces)
 
 
-# ------------------------------------------- arguments, Volume, mask, scale, half (issue 13)
+# ---------------------------------------------------- arguments, Volume, mask, scale, half
 def test_volume_input_uses_its_origin_and_spacing():
     from torchgeo_cg.sdf.grid import sample_grid
 
@@ -723,7 +723,7 @@ def test_half_precision_classified_as_is_and_interpolated_in_float32(half):
 
 
 
-# ------------------------------------------------- ambiguity="asymptotic" (issue 13)
+# ---------------------------------------------------------- ambiguity="asymptotic"
 def cell_outlines(verts: np.ndarray, faces: np.ndarray) -> set:
     """The closed polygons each cell cuts from its faces, as a set of (cell, edge, edge).
 
@@ -980,7 +980,7 @@ def test_interior_test_agrees_with_a_brute_force_flood_fill_of_the_trilinear_int
     assert disagree <= 5  # thin tunnels below the flood fill's resolution
 
 
-# ----------------------------------------------------------------------------- contract (i10)
+# ----------------------------------------------------------------------------- contract ------
 @pytest.mark.parametrize("where", [(0, 0, 0), (2, 3, 1)])
 @pytest.mark.parametrize("mask", [None, torch.zeros(4, 4, 4, dtype=torch.bool)])
 def test_nan_sample_raises_naming_volume(where, mask):

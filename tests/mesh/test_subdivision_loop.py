@@ -172,7 +172,7 @@ def test_errors():
         loop_subdivide([[0.0, 0, 0]] * 3, [[0, 1, 2]])
 
 
-# ---------------------------------------------------------------- limit positions (issue 14a)
+# ---------------------------------------------------------------- limit positions ----------
 
 
 def _octahedron():
@@ -259,7 +259,8 @@ def test_loop_limit_on_the_boundary_is_the_cubic_bspline(boundary):
 
 
 def test_limit_positions_differ_by_scheme_and_refuse_others():
-    """Issue 14: a Loop operator got Catmull-Clark masks; it now records its scheme."""
+    """An operator records its scheme, so a Loop operator gets Loop masks, not
+    Catmull-Clark ones."""
     verts, faces = _octahedron()
     op = loop_operator(faces, 6, dtype=torch.float64)
     assert op.scheme == "loop"

@@ -208,7 +208,7 @@ def test_bad_input():
         M.mesh_sdf(V, F, p, sign="rays")
 
 
-# --- batched meshes and polygon faces (issue 15) --------------------------------------------
+# --- batched meshes and polygon faces -------------------------------------------------------
 
 
 def test_batched_vertices_match_a_loop():
@@ -256,7 +256,7 @@ def test_polygon_faces_are_triangulated():
         M.mesh_sdf(V, torch.tensor([[0, 1, 2, 9]]), p)
 
 
-# --- numerics at every scale, empty inputs (issue 10) ---------------------------------------
+# --- numerics at every scale, empty inputs --------------------------------------------------
 
 TET_V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
 TET_F = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
@@ -310,7 +310,7 @@ def test_nan_points_give_nan():
     assert_close(r[[0, 2]], M.mesh_sdf(V, F, p[[0, 2]]).sdf)
 
 
-# --- progress, vmap, jacrev (issue 11) ------------------------------------------------------
+# --- progress, vmap, jacrev -----------------------------------------------------------------
 
 
 def test_progress_bar(capsys):
@@ -345,7 +345,7 @@ def test_vmap_and_jacrev():
     assert_close(jv[3], vv.grad)
 
 
-# --- backends (issue 16) --------------------------------------------------------------------
+# --- backends -------------------------------------------------------------------------------
 
 from torchgeo_cg.sdf import engines as E  # noqa: E402
 
@@ -582,7 +582,7 @@ def test_repeated_calls_reuse_only_an_identical_mesh(backend, monkeypatch):
     assert reused == (1 if backend != "torch" else 2) and len(builds) == reused + 1
 
 
-# --- scale, dtype policy (issue 10) ----------------------------------------------------------
+# --- scale, dtype policy ---------------------------------------------------------------------
 
 UNIT_TRI = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=torch.float64)
 

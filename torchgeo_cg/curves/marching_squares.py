@@ -49,10 +49,9 @@ import numpy as np
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.grid import Volume, edge_fraction
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
-from torchgeo_cg.mesh._marching_cubes_steps import EdgeFraction
-from torchgeo_cg.sdf.grid import Volume
 
 __all__ = ["MarchingSquaresResult", "marching_squares", "SADDLE_RULES"]
 
@@ -225,7 +224,7 @@ def marching_squares(
 
     Args:
         field: ``(*, H, W)`` float values, ``H, W >= 2``, or a
-            :class:`~torchgeo_cg.sdf.grid.Volume` with ``(2,)`` origin and spacing (or
+            :class:`~torchgeo_cg.core.grid.Volume` with ``(2,)`` origin and spacing (or
             a one-slice 3D Volume, values ``(*, H, W, 1)``): origin and spacing then
             come from it and must not be given.
         iso: the level (a number, not NaN).
@@ -312,7 +311,7 @@ def marching_squares(
     fa = values[batch_of, i0, j0]  # differentiable gathers
     fb = values[batch_of, i1, j1]
     delta = math.sqrt(torch.finfo(values.dtype).eps)
-    fraction = EdgeFraction.apply(fa, fb, fa.new_tensor(iso).expand_as(fa), delta)
+    fraction = edge_fraction(fa, fb, fa.new_tensor(iso).expand_as(fa), delta)
     along_i = (~is_h).to(values.dtype)  # 1 on axis-0 edges: the fraction moves i
     index_xy = torch.stack([i0.to(values.dtype) + along_i * fraction,
                             j0.to(values.dtype) + (1 - along_i) * fraction], dim=-1)

@@ -31,6 +31,7 @@ import math
 
 import torch
 
+from torchgeo_cg.core.numerics import power_of_two_scale
 from torchgeo_cg.mesh._marching_cubes_steps import take
 from torchgeo_cg.mesh._marching_cubes_tables import (
     MAX_TUBES,
@@ -95,9 +96,7 @@ def _unit_scaled(g: torch.Tensor) -> torch.Tensor:
     while the products no longer underflow (fields of 1e-200) or overflow (1e200).
     Cells whose largest ``|g|`` is 0 or not finite are left as they are.
     """
-    big = g.abs().amax(1, keepdim=True)
-    _, exponent = torch.frexp(torch.where(torch.isfinite(big) & (big > 0), big, 1.0))
-    return g * torch.ldexp(torch.ones_like(big), -exponent)
+    return g / power_of_two_scale(g.abs().amax(1, keepdim=True))
 
 
 def _decider_values(f: torch.Tensor, iso_c: torch.Tensor) -> torch.Tensor:

@@ -22,6 +22,8 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.grid import edge_fraction
+from torchgeo_cg.core.numerics import power_of_two_scale
 from torchgeo_cg.mesh._marching_cubes_tables import corner_tables
 
 __all__ = [
@@ -35,7 +37,6 @@ __all__ = [
     "Centres",
     "find_centres",
     "place_centres",
-    "EdgeFraction",
     "interpolate",
     "soft_weights",
 ]
@@ -281,44 +282,6 @@ def place_centres(verts, normals, centres: Centres):
     return torch.cat([verts, pos]), torch.cat([normals, nrm])
 
 
-class EdgeFraction(torch.autograd.Function):
-    """``t = clamp((iso - f1) / (f2 - f1), delta, 1 - delta)`` with scale-free gradients.
-
-    The derivatives are written with one division each, ``dt/df1 = (t - 1) / den``,
-    ``dt/df2 = -t / den``, ``dt/diso = 1 / den`` (``den = f2 - f1``), so they stay finite
-    at any field scale (autograd's ``-num / den**2`` underflows to 0 and gives inf);
-    where the clamp is active the gradient is zero. ``den == 0`` (never for a crossing
-    edge of finite samples) divides by one instead.
-    """
-
-    generate_vmap_rule = True  # with setup_context: works under vmap / jacrev / grad
-
-    @staticmethod
-    def _fraction(f1, f2, iso):
-        """``(t, den)``: the unclamped fraction and its denominator (1 where ``f1 == f2``)."""
-        den = f2 - f1
-        den = torch.where(den == 0, torch.ones_like(den), den)
-        return (iso - f1) / den, den
-
-    @staticmethod
-    def forward(f1, f2, iso, delta: float):
-        t, _ = EdgeFraction._fraction(f1, f2, iso)
-        return t.clamp(delta, 1.0 - delta)
-
-    @staticmethod
-    def setup_context(ctx, inputs, output) -> None:
-        f1, f2, iso, delta = inputs
-        ctx.save_for_backward(*EdgeFraction._fraction(f1, f2, iso))
-        ctx.delta = delta
-
-    @staticmethod
-    def backward(ctx, grad):
-        t, den = ctx.saved_tensors
-        free = (t > ctx.delta) & (t < 1.0 - ctx.delta)
-        g = torch.where(free, grad, torch.zeros_like(grad)) / den
-        return g * (t - 1.0), -g * t, g, None
-
-
 def _sample_stencil(welded: Welded, sizes):
     """Flat sample indices needed per vertex, gathered in one go (one backward scatter).
 
@@ -395,9 +358,8 @@ def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
     if max(-float(low), float(high), float(iso_high)) <= limit:
         return samples, iso_v
     top = torch.maximum(samples.detach().abs().amax(0), iso_v.detach().abs())  # (V,)
-    _, exponent = torch.frexp(torch.where(torch.isfinite(top) & (top > 0), top, 1.0))
-    scale = torch.ldexp(torch.ones_like(top), -exponent)  # (V,) powers of two
-    return samples * scale, iso_v * scale
+    scale = power_of_two_scale(top)  # (V,)
+    return samples / scale, iso_v / scale
 
 
 def interpolate(vol, welded: Welded, b_v, args, to_world):
@@ -420,7 +382,7 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)
     samples, iso_v = _keep_in_range(samples, iso_v)
     delta = math.sqrt(torch.finfo(args.work).eps)
-    t = EdgeFraction.apply(samples[0], samples[1], iso_v, delta)  # (V,)
+    t = edge_fraction(samples[0], samples[1], iso_v, delta)  # (V,)
     index_pos = welded.corner_ijk.to(args.work).scatter_add(  # (V, 3) index space
         1, welded.d[:, None], t[:, None])
     spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)

@@ -14,8 +14,8 @@ flow to ``volume`` and ``iso``.
 Convention:
     - Volumes are indexed ``indexing="ij"``: array axis 0 is x, 1 is y, 2 is z.
       Sample ``(i, j, k)`` sits at world ``origin + spacing * (i, j, k)``, computed by
-      :func:`torchgeo_cg.sdf.grid.index_to_world` (the one grid convention); a
-      :class:`~torchgeo_cg.sdf.grid.Volume` carries its own origin and spacing.
+      :func:`torchgeo_cg.core.grid.index_to_world` (the one grid convention); a
+      :class:`~torchgeo_cg.core.grid.Volume` carries its own origin and spacing.
     - Negative inside (an SDF): a sample is *inside* when ``f < iso``; a sample
       exactly equal to ``iso`` is outside. This one rule classifies degenerate data.
     - Faces are wound counter-clockwise seen from the outside, so the right-hand
@@ -72,6 +72,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.grid import Volume, index_to_world
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh._marching_cubes_args import parse_arguments
 from torchgeo_cg.mesh._marching_cubes_decider import asymptotic_rows
@@ -87,7 +88,6 @@ from torchgeo_cg.mesh._marching_cubes_steps import (
     weld,
 )
 from torchgeo_cg.mesh._marching_cubes_tables import CENTRE, table_tensors
-from torchgeo_cg.sdf.grid import Volume, index_to_world
 
 __all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES"]
 
@@ -176,7 +176,7 @@ def marching_cubes(
 
     Args:
         volume: ``(X, Y, Z)`` or ``(B, X, Y, Z)`` float samples, each of X, Y, Z >= 2,
-            or a :class:`~torchgeo_cg.sdf.grid.Volume` (then ``origin`` and ``spacing``
+            or a :class:`~torchgeo_cg.core.grid.Volume` (then ``origin`` and ``spacing``
             come from it and must not be given).
         iso: the level: a number, numpy scalar, or ``()`` / ``(B,)`` tensor or array
             (differentiable when a tensor).

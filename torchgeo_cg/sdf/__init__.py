@@ -1,4 +1,4 @@
-"""Signed distance fields: primitives, CSG operators, THE grid convention, mesh distances.
+"""Signed distance fields: primitives, CSG operators, grid sampling, mesh distances.
 
 Layout (one topic per file):
 
@@ -6,9 +6,9 @@ Layout (one topic per file):
   ``gyroid`` and 2D ``circle``, ``rectangle``, ``annulus``, each with an ``nn.Module``.
 - :mod:`~torchgeo_cg.sdf.operators`: ``union``, ``intersection``, ``difference``,
   ``smooth_union``, ``smooth_intersection``, ``product``, ``translate``, ``rotate``, ``scale``.
-- :mod:`~torchgeo_cg.sdf.grid`: the grid convention (``indexing="ij"``, index ``(i, j, k)``
-  at ``origin + spacing * (i, j, k)``), ``grid_points``, ``sample_grid``, ``Volume``,
-  ``grid_interpolate``.
+- :mod:`~torchgeo_cg.sdf.grid`: ``grid_points``, ``sample_grid``, ``grid_interpolate`` on the
+  grid convention of :mod:`torchgeo_cg.core.grid` (``indexing="ij"``, index ``(i, j, k)``
+  at ``origin + spacing * (i, j, k)``, ``Volume``).
 - :mod:`~torchgeo_cg.sdf.level_set`: the report's ``zero_level_set``.
 - :mod:`~torchgeo_cg.sdf.gradients`: ``sdf_gradient``, ``sdf_normal``, ``eikonal_loss``.
 - :mod:`~torchgeo_cg.sdf.mesh_distance`: ``mesh_sdf``, ``MeshSDF`` (pseudo-normal and
@@ -23,15 +23,7 @@ Convention: SDFs are negative inside; points are ``(*, N, 3)`` (or ``(*, N, 2)``
 
 from torchgeo_cg.sdf.engines import available_engines
 from torchgeo_cg.sdf.gradients import eikonal_loss, sdf_gradient, sdf_normal
-from torchgeo_cg.sdf.grid import (
-    Volume,
-    grid_interpolate,
-    grid_points,
-    grid_spacing,
-    index_to_world,
-    sample_grid,
-    world_to_index,
-)
+from torchgeo_cg.sdf.grid import grid_interpolate, grid_points, grid_spacing, sample_grid
 from torchgeo_cg.sdf.level_set import LevelSetPoints, zero_level_set
 from torchgeo_cg.sdf.mesh_distance import (
     MeshSDF,
@@ -100,8 +92,7 @@ __all__ = [
     "Union", "Intersection", "Difference", "SmoothUnion", "SmoothIntersection", "Product",
     "Translate", "Rotate", "Scale",
     # grid
-    "Volume", "grid_spacing", "grid_points", "sample_grid", "index_to_world", "world_to_index",
-    "grid_interpolate",
+    "grid_spacing", "grid_points", "sample_grid", "grid_interpolate",
     # level set, gradients
     "LevelSetPoints", "zero_level_set", "sdf_gradient", "sdf_normal", "eikonal_loss",
     # mesh distance

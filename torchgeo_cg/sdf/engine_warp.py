@@ -14,7 +14,7 @@ kernel; otherwise only the face index leaves it.
 
 Convention:
     Inputs are scaled by a power of two into ``[-1, 1]`` (see
-    :func:`~torchgeo_cg.sdf.mesh_search.power_of_two_scale`), vertices ``(B, V, 3)``,
+    :func:`~torchgeo_cg.core.numerics.power_of_two_scale`), vertices ``(B, V, 3)``,
     triangles ``(T, 3)`` shared by the ``B`` meshes, points ``(B, N, 3)`` finite. Points
     and meshes stay on their device (CPU or CUDA). One BVH is built per mesh of the batch
     (Warp has no batched constructor); the query is one launch for all meshes.

@@ -49,9 +49,9 @@ from torchgeo_cg.core.check import (
     check_tensor,
 )
 from torchgeo_cg.core.coerce import check_same_dtype
-from torchgeo_cg.core.numerics import cast_back, hypot, working_dtype
+from torchgeo_cg.core.numerics import cast_back, hypot, power_of_two_scale, working_dtype
 from torchgeo_cg.mesh.faces import triangulate_faces
-from torchgeo_cg.sdf.mesh_search import far_radius, power_of_two_scale, pull_in_far_points
+from torchgeo_cg.sdf.mesh_search import far_radius, pull_in_far_points
 
 __all__ = [
     "FEATURES",
@@ -168,8 +168,7 @@ def closest_point_on_triangle(
     big = torch.maximum(torch.maximum(rel[0].detach().abs().amax(-1),
                                       rel[1].detach().abs().amax(-1)),
                         rel[2].detach().abs().amax(-1))
-    one = torch.ones_like(big)  # 2^(e-1) <= big < 2^e: never overflows, even near max
-    scale = torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1] - 1), one)[..., None]
+    scale = power_of_two_scale(big)[..., None]
     rel = [x / scale for x in rel]
     p, a, b, c = (x.movedim(-1, 0).contiguous().unbind(0)  # structure of arrays
                   for x in (rel[0], torch.zeros_like(origin), rel[1], rel[2]))
@@ -352,7 +351,7 @@ def winding_number(
     verts_bv3, points_bn3, lead = batch_mesh_points(vertices, points)
     work = working_dtype(points.dtype)  # float16/bfloat16: computed in float32
     with torch.no_grad():
-        scale = power_of_two_scale(verts_bv3.to(work))
+        scale = power_of_two_scale(verts_bv3.to(work).abs().amax((1, 2), keepdim=True))
         tri = gather_triangles(verts_bv3.detach().to(work) / scale, tris)
         total = _solid_angles_sum(tri, points_bn3.detach().to(work) / scale, chunk)
     return cast_back((total / (4.0 * math.pi)).reshape(lead), points.dtype)
@@ -484,7 +483,7 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
     if points_bn3.numel() == 0:  # empty in, empty out (still attached to the inputs)
         empty = points_bn3 * 0 + verts_bv3[:, :1].to(dtype) * 0
         return empty.sum(-1), empty
-    scale = power_of_two_scale(verts_bv3).to(dtype)  # (B, 1, 1)
+    scale = power_of_two_scale(verts_bv3.abs().amax((1, 2), keepdim=True)).to(dtype)  # (B, 1, 1)
     vn, pn = verts_bv3.to(dtype) / scale, points_bn3 / scale
     tri = gather_triangles(vn, tris_t3, face_ids_bn)  # (B, N, 3, 3)
     near = pull_in_far_points(pn)  # the feature as seen from far; measured from pn below
@@ -612,7 +611,7 @@ def _has_far_points(verts_bv3: torch.Tensor, points_bn3: torch.Tensor) -> bool:
     (rare; a cheap check)."""
     if points_bn3.numel() == 0:
         return False
-    scale = power_of_two_scale(verts_bv3.detach()).to(torch.float64)
+    scale = power_of_two_scale(verts_bv3.detach().abs().amax((1, 2), keepdim=True)).to(torch.float64)
     top = (points_bn3.detach().abs().amax(-1) / scale[..., 0]).nan_to_num(0.0)
     try:
         return bool((top > far_radius(torch.float64)).any())

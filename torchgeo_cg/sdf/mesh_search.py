@@ -25,7 +25,7 @@ Algorithm (no Python loop over points, faces or batch items):
 Convention:
     Inputs are ``tri (B, F, 3, 3)`` float64 corners and ``points (B, N, 3)`` float64,
     on the CPU, finite, already scaled by a power of two into a unit-sized box (see
-    :func:`power_of_two_scale`): scaling by a power of two is exact, so the face chosen
+    :func:`torchgeo_cg.core.numerics.power_of_two_scale` of the mesh): scaling by a power of two is exact, so the face chosen
     is the one of the unscaled problem, and squared distances cannot overflow.
 """
 
@@ -38,7 +38,6 @@ import numpy as np
 import torch
 
 __all__ = [
-    "power_of_two_scale",
     "far_radius",
     "pull_in_far_points",
     "face_table",
@@ -48,30 +47,6 @@ __all__ = [
     "build_torch_search",
     "torch_closest_faces",
 ]
-
-
-def power_of_two_scale(x_bk3: torch.Tensor) -> torch.Tensor:
-    """Per batch item, the power of two at or above the largest absolute coordinate.
-
-    Dividing by it is exact (no rounding) and brings every coordinate into ``[-1, 1]``;
-    an all-zero item gets scale 1. Above the dtype's largest power of two (where the
-    next one would be ``inf``) it is that power, and coordinates land in ``[-2, 2]``.
-
-    Args:
-        x_bk3: ``(B, K, 3)`` finite coordinates.
-
-    Returns:
-        ``(B, 1, 1)`` scales, dtype of ``x_bk3``.
-
-    Example:
-        >>> power_of_two_scale(torch.tensor([[[3.0, -0.1, 0.0]], [[0.0, 0.0, 0.0]]])).flatten()
-        tensor([4., 1.])
-    """
-    big = x_bk3.detach().abs().amax(dim=(1, 2), keepdim=True)
-    _, exponent = torch.frexp(big)  # big = m * 2**e with m in [0.5, 1)
-    top = math.frexp(torch.finfo(big.dtype).max)[1] - 1  # 2**top is the largest finite
-    return torch.where(big > 0, torch.ldexp(torch.ones_like(big), exponent.clamp_max(top)),
-                       torch.ones_like(big))
 
 
 def far_radius(dtype: torch.dtype) -> float:

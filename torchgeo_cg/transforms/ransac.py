@@ -32,18 +32,14 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.transforms._correspondences import check_pair, hartley_weighted, similarity_matrix
+from torchgeo_cg.transforms._dlt import adjugate3, dlt_moments, dlt_smallest_eigenpair, matmul3
 from torchgeo_cg.transforms.estimation import (
-    adjugate3,
-    check_pair,
-    dlt_moments,
-    dlt_smallest_eigenpair,
     find_affine,
     find_euclidean,
     find_similarity,
-    hartley_weighted,
-    matmul3,
-    similarity_matrix,
 )
+from torchgeo_cg.transforms.fitting import fit_transform
 
 __all__ = ["RobustFit", "SAMPLE_SIZES", "find_transform_ransac"]
 
@@ -285,8 +281,6 @@ def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, f
         return _CLOSED_FORMS[model](frame.p, frame.q, w_fit), (w_fit > 0).sum(-1) >= 2
     if not final:
         return _dlt_in_frame(frame, w_fit)
-    from torchgeo_cg.transforms.fitting import fit_transform
-
     ok = (w_fit > 0).sum(-1) >= 4
     safe_w = torch.where(ok[:, None], w_fit, frame.w)
     return fit_transform(frame.p, frame.q, "homography", "lm", steps=5, init=init,
@@ -341,7 +335,6 @@ def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round
         if value is not None and (isinstance(value, bool) or not isinstance(value, int)
                                   or value < low):
             raise ValueError(f"{name}: expected an int >= {low}, got {value!r}")
-
 
 
 def _prepare(src, dst, weights):

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.mesh.marching_cubes import marching_cubes
-from torchgeo_cg.sdf.grid import Volume, sample_grid
+from torchgeo_cg.sdf.grid import sample_grid
 from torchgeo_cg.sdf.primitives import torus
 from torchgeo_cg.viz.registry import figure
 from torchgeo_cg.viz.style import plt, save

@@ -1,4 +1,4 @@
-"""Gallery figures for subdivision tags and face-varying data (issue 14): creases at
+"""Gallery figures for subdivision tags and face-varying data: creases at
 OpenSubdiv sharpness 0, 1, 2 and infinity, a hole, and a UV checkerboard carried
 through Catmull-Clark by the face-varying operator."""
 

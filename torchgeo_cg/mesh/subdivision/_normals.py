@@ -4,19 +4,18 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.numerics import safe_norm
+from torchgeo_cg.core.numerics import power_of_two_scale, safe_norm
 
 
 def power_of_two_scaled(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(x / scale, scale)`` with ``scale`` the power of two just below each item's largest
-    magnitude (exact division). Tangent masks are differences (rows sum to 0), so ``4 a -
-    4 b`` of points near the largest float would overflow although the tangent is finite;
-    on the scaled data it cannot. Empty, zero and non-finite items keep ``scale = 1``."""
+    """``(x / scale, scale)`` with ``scale`` the power of two just above each item's largest
+    magnitude (exact division, :func:`~torchgeo_cg.core.numerics.power_of_two_scale`).
+    Tangent masks are differences (rows sum to 0), so ``4 a - 4 b`` of points near the
+    largest float would overflow although the tangent is finite; on the scaled data it
+    cannot. Empty, zero and non-finite items keep ``scale = 1``."""
     if x.shape[-2] * x.shape[-1] == 0:
         return x, x.new_ones(())
-    big = x.detach().abs().amax(dim=(-2, -1), keepdim=True)
-    scale = torch.ldexp(torch.ones_like(big), torch.frexp(big).exponent - 1)
-    scale = torch.where(torch.isfinite(big) & (big > 0), scale, torch.ones_like(big))
+    scale = power_of_two_scale(x.detach().abs().amax(dim=(-2, -1), keepdim=True))
     return x / scale, scale
 
 

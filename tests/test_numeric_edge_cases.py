@@ -1,6 +1,6 @@
-"""Regression tests: every measured case of issue 10's "Why" that lives in core,
-transforms (homogeneous/modules/decompose), curves (bezier/parametric) and sdf
-(primitives/operators/grid/gradients/level_set)."""
+"""Numeric edge cases across core, transforms (homogeneous/modules/decompose), curves
+(bezier/parametric) and sdf (primitives/operators/grid/gradients/level_set): every
+scale, float16, NaN, overflow, empty input, parameter validation and mixed dtypes."""
 
 import math
 
@@ -14,7 +14,8 @@ from torchgeo_cg.curves.bezier import bezier_length, bezier_normal, bezier_tange
 from torchgeo_cg.curves.parametric import circle, implicit_circle
 from torchgeo_cg.sdf import primitives as P
 from torchgeo_cg.sdf.gradients import eikonal_loss, sdf_gradient
-from torchgeo_cg.sdf.grid import grid_interpolate, index_to_world, sample_grid, world_to_index
+from torchgeo_cg.core.grid import index_to_world, world_to_index
+from torchgeo_cg.sdf.grid import grid_interpolate, sample_grid
 from torchgeo_cg.sdf.level_set import zero_level_set
 from torchgeo_cg.sdf.operators import Rotate, rotate, union
 from torchgeo_cg.transforms.decompose import decompose_affine
