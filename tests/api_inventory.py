@@ -261,6 +261,7 @@ INVENTORY: dict[str, list[str]] = {
         "GlyphFit", "GlyphPieces", "fit_glyph", "glyph_pieces", "glyph_polygon",
         "plot_glyph_fit"
     ],
+    "torchgeo_cg.viz.limit_surface": [],
     "torchgeo_cg.viz.marching_cubes": ["mri_phantom"],
     "torchgeo_cg.viz.registration": ["plot_registration", "plot_robust_fit"],
     "torchgeo_cg.viz.registry": ["GalleryFigure", "figure", "registered_figures"],
