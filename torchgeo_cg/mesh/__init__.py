@@ -2,13 +2,20 @@
 
 from torchgeo_cg.mesh.faces import (
     check_faces,
+    check_mesh,
     face_sizes,
     pad_faces,
     triangulate_faces,
     unpad_faces,
 )
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
-from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
+from torchgeo_cg.mesh.marching_cubes import (
+    MarchingCubes,
+    MarchingCubesResult,
+    lipschitz_bound,
+    marching_cubes,
+    sparse_marching_cubes,
+)
 from torchgeo_cg.mesh.regularizers import (
     MeshEdges,
     edge_length_loss,
@@ -45,8 +52,11 @@ from torchgeo_cg.mesh.subdivision import (
 )
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
+__all__ += ["sparse_marching_cubes", "lipschitz_bound"]
 __all__ += ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
-__all__ += ["pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces"]
+__all__ += [
+    "pad_faces", "face_sizes", "check_faces", "check_mesh", "triangulate_faces", "unpad_faces"
+]
 __all__ += [
     "SubdivisionOperator",
     "catmull_clark_operator",

@@ -59,7 +59,7 @@ class SubdivisionRules(NamedTuple):
         smooth_v: ``(V,)`` weight of the smooth vertex mask.
         crease_v: ``(V,)`` weight of the crease vertex mask ``3/4 V + 1/8 (a + b)``.
         corner_v: ``(V,)`` weight of the corner mask (the vertex itself).
-        crease_end_lo_e: ``(E,)`` weight of ``hi`` in row ``lo``'s crease part (``1/8``s).
+        crease_end_lo_e: ``(E,)`` weight of ``hi`` in row ``lo``'s crease part (``1/8`` each).
         crease_end_hi_e: ``(E,)`` weight of ``lo`` in row ``hi``'s crease part.
         crease_e: ``(E,)`` weight of the crease edge mask ``(a + b) / 2``; the smooth edge
             mask gets ``1 - crease_e``.

@@ -8,7 +8,7 @@ from torchgeo_cg.core.numerics import power_of_two_scale, safe_norm
 
 
 def power_of_two_scaled(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(x / scale, scale)`` with ``scale`` the power of two just above each item's largest
+    """``(x / scale, scale)`` with ``scale`` the power of two of each item's largest
     magnitude (exact division, :func:`~torchgeo_cg.core.numerics.power_of_two_scale`).
     Tangent masks are differences (rows sum to 0), so ``4 a - 4 b`` of points near the
     largest float would overflow although the tangent is finite; on the scaled data it
