@@ -899,6 +899,7 @@ INVENTORY: dict[str, list[str]] = {
         "glyph_polygon",
         "plot_glyph_fit",
     ],
+    "torchgeo_cg.viz.limit_surface": [],
     "torchgeo_cg.viz.marching_cubes": [],
     "torchgeo_cg.viz.registration": [
         "plot_registration",

@@ -14,7 +14,7 @@ from tests.contract.spec import Arg, Entry
 from tests.contract.table_subdivision import CUBE_F, CUBE_V, GRID_F, GRID_V, NGON_F, NGON_V
 from torchgeo_cg.core.numerics import working_dtype
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 _UV = torch.tensor([[0.5, 0.5], [0.0, 0.0], [0.3, 0.9], [1.0, 0.25], [0.01, 0.6]])
 _CUBE_IDS = torch.tensor([0, 1, 2, 4, 5])
@@ -49,8 +49,6 @@ ENTRIES: list[Entry] = [
     Entry("mesh.limit_surface[ngon]", _surface(NGON_F, 7, _NGON_IDS),
           (Arg("verts", (2, 7, 3), NGON_V),), out=OUT4, empty=(0, 0), bad=((2, 6, 3),)),
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "mesh.LimitSurfaceSample": "result type (NamedTuple) of limit_surface",
