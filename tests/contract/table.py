@@ -399,7 +399,6 @@ EXEMPT: dict[str, str] = {
     "core.check_tensor": "validation helper (tests/core/test_check.py)",
     "core.cast_back": "dtype helper (tests/core/test_numerics.py)",
     "core.working_dtype": "dtype helper (tests/core/test_numerics.py)",
-    "curves.check_knots": "validation helper (tests/curves/test_hermite.py)",
     "curves.SplitResult": "NamedTuple result type",
     "curves.HermiteControls": "NamedTuple result type",
     "curves.grid_2d": "factory of numbers (n, low, high), no tensor input; tests/curves",

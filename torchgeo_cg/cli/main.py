@@ -19,7 +19,7 @@ import sys
 
 from torchgeo_cg.cli import CommandError
 
-__all__ = ["OneLineParser", "build_parser", "main"]
+__all__ = ["main"]
 
 
 class OneLineParser(argparse.ArgumentParser):

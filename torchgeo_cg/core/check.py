@@ -19,14 +19,7 @@ from collections.abc import Mapping, Sequence
 
 import torch
 
-__all__ = [
-    "ShapeError",
-    "check_shape",
-    "check_float",
-    "check_tensor",
-    "check_broadcastable",
-    "format_shape",
-]
+__all__ = ["ShapeError", "check_shape", "check_float", "check_tensor", "check_broadcastable"]
 
 
 class ShapeError(ValueError):

@@ -69,9 +69,6 @@ from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__ = [
     "FVAR_INTERPOLATIONS",
-    "ValueMesh",
-    "value_mesh",
-    "face_varying_tags",
     "face_varying_operator",
     "FaceVaryingSubdivision",
     "face_varying_subdivide",

@@ -44,9 +44,7 @@ from torchgeo_cg.mesh.subdivision import (
 )
 from torchgeo_cg.mesh.tags import SubdivisionTags
 
-__all__ = [
-    "loop_operator", "loop_subdivide", "LoopSubdivision", "loop_limit_stencils", "loop_beta"
-]
+__all__ = ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 
 
 def loop_operator(

@@ -70,8 +70,6 @@ __all__ = [
     "catmull_clark",
     "CatmullClark",
     "limit_positions",
-    "catmark_limit_stencils",
-    "mesh_topology",
 ]
 
 _BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")

@@ -53,8 +53,6 @@ __all__ = [
     "index_to_world",
     "world_to_index",
     "grid_interpolate",
-    "check_spacing",
-    "parse_bounds",
 ]
 
 

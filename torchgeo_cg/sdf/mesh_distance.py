@@ -54,16 +54,8 @@ from torchgeo_cg.mesh.faces import triangulate_faces
 from torchgeo_cg.sdf.mesh_search import far_radius, power_of_two_scale, pull_in_far_points
 
 __all__ = [
-    "FEATURES",
     "MeshSDFResult",
     "MeshSDF",
-    "check_mesh",
-    "batch_mesh_points",
-    "gather_triangles",
-    "pseudo_normals",
-    "resolve_sign",
-    "evaluate_sdf",
-    "search_and_evaluate",
     "TriangleClosestPoint",
     "closest_point_on_triangle",
     "is_watertight",

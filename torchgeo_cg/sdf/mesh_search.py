@@ -37,17 +37,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-__all__ = [
-    "power_of_two_scale",
-    "far_radius",
-    "pull_in_far_points",
-    "face_table",
-    "pair_d2",
-    "FaceGrid",
-    "TorchSearch",
-    "build_torch_search",
-    "torch_closest_faces",
-]
+__all__: list[str] = []
 
 
 def power_of_two_scale(x_bk3: torch.Tensor) -> torch.Tensor:

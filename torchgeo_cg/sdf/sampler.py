@@ -48,15 +48,7 @@ from torchgeo_cg.mesh.faces import check_faces, triangulate_faces
 from torchgeo_cg.sdf.engines import resolve_backend
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
-__all__ = [
-    "SDFSamples",
-    "SDFSampler",
-    "sample_mesh_surface",
-    "triangle_mesh",
-    "worker_seed",
-    "save_samples",
-    "load_samples",
-]
+__all__ = ["SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples", "load_samples"]
 
 
 class SDFSamples(NamedTuple):

@@ -10,10 +10,10 @@ import torch
 from torchgeo_cg.mesh.marching_cubes import marching_cubes
 from torchgeo_cg.sdf.grid import Volume, sample_grid
 from torchgeo_cg.sdf.primitives import torus
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
-__all__: list[str] = ["mri_phantom"]
+__all__: list[str] = []
 
 _LIGHT = np.array([0.4, -0.6, 0.7]) / np.linalg.norm([0.4, -0.6, 0.7])
 _LO, _HI = -1.2, 1.2

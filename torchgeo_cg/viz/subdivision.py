@@ -11,8 +11,8 @@ import torch
 from torchgeo_cg.mesh.faces import pad_faces
 from torchgeo_cg.mesh.io import load_mesh
 from torchgeo_cg.mesh.subdivision import catmull_clark
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 
