@@ -39,7 +39,14 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.optim.swa_utils import AveragedModel
 
 from tests.api_inventory import public_names
-from torchgeo_cg.curves import BezierCurve, HermiteCurve, HermiteSpline, PchipInterpolator
+from torchgeo_cg.curves import (
+    BezierCurve,
+    BSplineCurve,
+    HermiteCurve,
+    HermiteSpline,
+    NURBSCurve,
+    PchipInterpolator,
+)
 from torchgeo_cg.mesh import (
     CatmullClark,
     FaceVaryingSubdivision,
@@ -72,6 +79,7 @@ from torchgeo_cg.sdf import (
     Translate,
     Union,
 )
+from torchgeo_cg.surfaces import BezierSurface, BSplineSurface, NURBSSurface
 from torchgeo_cg.transforms import (
     FixedTransform,
     HomogeneousTransform,
@@ -160,7 +168,31 @@ _P3 = _rand(5, 3)
 _P2 = _rand(5, 2)
 _T = _rand(5, lo=0.0, hi=1.0)
 
+_GRID = torch.stack(torch.meshgrid(torch.linspace(0, 1, 4), torch.linspace(0, 1, 5),
+                                   indexing="ij") + (torch.zeros(4, 5),), -1) + 0.1
+_UV = _rand(5, 2, lo=0.0, hi=1.0)
+
+
+def _uv_call(module: nn.Module, x: torch.Tensor) -> torch.Tensor:
+    return module(x[..., 0], x[..., 1])
+
+
 SPECS: dict[str, Spec] = {
+    "torchgeo_cg.curves.bspline.BSplineCurve": Spec(
+        lambda: BSplineCurve(torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0],
+                                           [5.0, 1.0]]), 3), _T
+    ),
+    "torchgeo_cg.curves.nurbs.NURBSCurve": Spec(
+        lambda: NURBSCurve(torch.tensor([[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+                           torch.tensor([1.0, 0.7071, 1.0]), 2), _T
+    ),
+    "torchgeo_cg.surfaces.modules.BezierSurface": Spec(lambda: BezierSurface(_GRID), _UV,
+                                                       call=_uv_call),
+    "torchgeo_cg.surfaces.modules.BSplineSurface": Spec(lambda: BSplineSurface(_GRID, (2, 3)),
+                                                        _UV, call=_uv_call),
+    "torchgeo_cg.surfaces.modules.NURBSSurface": Spec(
+        lambda: NURBSSurface(_GRID, 1.0 + 0.1 * torch.rand(4, 5, generator=torch.Generator(
+        ).manual_seed(0)), (2, 3)), _UV, call=_uv_call),
     "torchgeo_cg.curves.bezier.BezierCurve": Spec(
         lambda: BezierCurve(torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0]])), _T
     ),
@@ -178,14 +210,14 @@ SPECS: dict[str, Spec] = {
                                   torch.tensor([0.0, 1.0, 4.0, 2.0])),
         _rand(5, lo=0.1, hi=2.9),
     ),
-    "torchgeo_cg.mesh.marching_cubes.MarchingCubes": Spec(
+    "torchgeo_cg.mesh.marching_cubes.dense.MarchingCubes": Spec(
         lambda: MarchingCubes(iso=0.0), _sphere_volume, batched=False,
         tensor_of=lambda out: out.verts,
     ),
-    "torchgeo_cg.mesh.subdivision.CatmullClark": Spec(
+    "torchgeo_cg.mesh.subdivision.catmark.CatmullClark": Spec(
         lambda: CatmullClark(_CUBE_F, 8, levels=1, tags=_CUBE_TAGS), _cube_sample
     ),
-    "torchgeo_cg.mesh.face_varying.FaceVaryingSubdivision": Spec(
+    "torchgeo_cg.mesh.subdivision.face_varying.FaceVaryingSubdivision": Spec(
         lambda: FaceVaryingSubdivision(_CUBE_F, [[4 * f + k for k in range(4)] for f in range(6)],
                                        8, 24, levels=1, tags=_CUBE_TAGS), _rand(24, 2)
     ),
@@ -196,7 +228,7 @@ SPECS: dict[str, Spec] = {
         ChamferDistance, _rand(2, 6, 3), batched=False,  # data-dependent search: no vmap
         call=lambda module, x: module(x[0], x[1]), tensor_of=lambda out: out.loss,
     ),
-    "torchgeo_cg.mesh.loop.LoopSubdivision": Spec(
+    "torchgeo_cg.mesh.subdivision.loop.LoopSubdivision": Spec(
         lambda: LoopSubdivision(_OCTA_F, 6, levels=1), _rand(6, 3)
     ),
     "torchgeo_cg.sdf.primitives.Sphere": Spec(lambda: Sphere(0.7, center=[0.1, 0.0, 0.2]), _P3),

@@ -13,7 +13,7 @@ import torch
 import torchgeo_cg.curves as C
 import torchgeo_cg.transforms as T
 from tests.contract.spec import Arg, Entry
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.grid import Volume
 
 __all__ = ["ENTRIES", "EXEMPT"]
 
@@ -45,7 +45,7 @@ def _scene(theta, root, r1, r2):
 
 
 def _polylines(result):
-    return result.vertices, result.lengths, result.batch, result.closed
+    return result.verts, result.lengths, result.batch, result.closed
 
 
 def _fit(fit):

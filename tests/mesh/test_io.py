@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces, unpad_faces
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 MIXED = [[0, 1, 2, 3], [1, 4, 2], [2, 4, 5, 6, 3]]
 

@@ -10,9 +10,9 @@ import trimesh
 
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.mesh import SubdivisionTags, bilinear_operator
-from torchgeo_cg.mesh.limit import limit_frames
-from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator
 from torchgeo_cg.mesh.subdivision import CatmullClark, catmull_clark_operator, limit_positions
+from torchgeo_cg.mesh.subdivision.limit import limit_frames
+from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator
 
 GRID_Q = [[r * 4 + c, r * 4 + c + 1, r * 4 + c + 5, r * 4 + c + 4]
           for r in range(3) for c in range(3)]

@@ -14,10 +14,9 @@ from hypothesis import strategies as st
 
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
-from torchgeo_cg.mesh import loop as loop_mod
 from torchgeo_cg.mesh.io import to_trimesh
-from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.subdivision import apply_operator, limit_positions
+from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator, loop_subdivide
 
 
 def reference_loop(verts, faces, boundary="edge_only"):
@@ -85,12 +84,6 @@ def ico():
 
 
 MESHES = {"grid": tri_grid, "fin": tri_fin, "icosphere": ico}
-
-
-def test_public_surface():
-    assert set(loop_mod.__all__) == {
-        "loop_operator", "loop_subdivide", "LoopSubdivision", "loop_limit_stencils", "loop_beta"
-    }
 
 
 @pytest.mark.parametrize("name", list(MESHES))

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from torchgeo_cg.mesh.face_varying import face_varying_subdivide
 from torchgeo_cg.mesh.subdivision import catmull_clark
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
+from torchgeo_cg.mesh.subdivision.face_varying import face_varying_subdivide
+from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
 from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
 

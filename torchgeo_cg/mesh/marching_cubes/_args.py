@@ -14,7 +14,7 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float
 from torchgeo_cg.core.coerce import as_tensor_like
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.grid import Volume
 
 __all__ = ["MarchingArgs", "parse_arguments"]
 
@@ -45,7 +45,7 @@ class MarchingArgs(NamedTuple):
     """Validated arguments: ``vol (B, X, Y, Z)`` contiguous, per-mesh ``iso (B,)``,
     ``origin (B, 3)``, ``spacing (B, 3)``, ``tau (B,)`` or None, ``mask (B, X, Y, Z)`` or
     None, ``work`` (the dtype positions are computed in), ``shared_frame`` (origin and
-    spacing shared by the batch, so :func:`~torchgeo_cg.sdf.grid.index_to_world` applies)."""
+    spacing shared by the batch, so :func:`~torchgeo_cg.core.grid.index_to_world` applies)."""
 
     vol: torch.Tensor
     iso: torch.Tensor

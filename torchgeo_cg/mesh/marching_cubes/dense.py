@@ -1,10 +1,10 @@
 """Marching cubes: vectorized, batched, differentiable, watertight (report section 1.4).
 
 A thin public function over private steps (as scikit-image separates its wrapper
-from its implementation): argument parsing (:mod:`._marching_cubes_args`), then
+from its implementation): argument parsing (:mod:`._args`), then
 classify, weld, triangulate, interpolate and soft weights
-(:mod:`._marching_cubes_steps`), with the tables generated in code
-(:mod:`._marching_cubes_tables`). No Python loop over cells; the batch is stacked
+(:mod:`._steps`), with the tables generated in code
+(:mod:`._tables`). No Python loop over cells; the batch is stacked
 along x, so one call costs one pass over all the volumes.
 
 Positions are interpolated along the crossing edges with
@@ -14,8 +14,8 @@ flow to ``volume`` and ``iso``.
 Convention:
     - Volumes are indexed ``indexing="ij"``: array axis 0 is x, 1 is y, 2 is z.
       Sample ``(i, j, k)`` sits at world ``origin + spacing * (i, j, k)``, computed by
-      :func:`torchgeo_cg.sdf.grid.index_to_world` (the one grid convention); a
-      :class:`~torchgeo_cg.sdf.grid.Volume` carries its own origin and spacing.
+      :func:`torchgeo_cg.core.grid.index_to_world` (the one grid convention); a
+      :class:`~torchgeo_cg.core.grid.Volume` carries its own origin and spacing.
     - Negative inside (an SDF): a sample is *inside* when ``f < iso``; a sample
       exactly equal to ``iso`` is outside. This one rule classifies degenerate data.
     - Faces are wound counter-clockwise seen from the outside, so the right-hand
@@ -31,7 +31,7 @@ Convention:
       at ``iso`` is outside, like a sample); both cells sharing the face compute it from
       the same samples, so the surface is closed and edge-manifold by construction.
       Where two loops of a cell could be joined by a tube, Marching Cubes 33's interior
-      test decides (see :mod:`._marching_cubes_decider`). Per-cell outlines then equal
+      test decides (see :mod:`._decider`). Per-cell outlines then equal
       scikit-image's Lewiner method outside exact-iso ties; the triangles inside a cell
       may differ (diagonals, tube strips; a nine-edge loop is fanned around a vertex at
       the mean of its vertices, as Lewiner et al. fan around the cell centre).
@@ -72,10 +72,12 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.check import check_choice
+from torchgeo_cg.core.grid import Volume, index_to_world
 from torchgeo_cg.core.numerics import cast_back
-from torchgeo_cg.mesh._marching_cubes_args import parse_arguments
-from torchgeo_cg.mesh._marching_cubes_decider import asymptotic_rows
-from torchgeo_cg.mesh._marching_cubes_steps import (
+from torchgeo_cg.mesh.marching_cubes._args import parse_arguments
+from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
+from torchgeo_cg.mesh.marching_cubes._steps import (
     Welded,
     classify,
     find_centres,
@@ -86,8 +88,7 @@ from torchgeo_cg.mesh._marching_cubes_steps import (
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh._marching_cubes_tables import CENTRE, table_tensors
-from torchgeo_cg.sdf.grid import Volume, index_to_world
+from torchgeo_cg.mesh.marching_cubes._tables import CENTRE
 
 __all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES"]
 
@@ -176,7 +177,7 @@ def marching_cubes(
 
     Args:
         volume: ``(X, Y, Z)`` or ``(B, X, Y, Z)`` float samples, each of X, Y, Z >= 2,
-            or a :class:`~torchgeo_cg.sdf.grid.Volume` (then ``origin`` and ``spacing``
+            or a :class:`~torchgeo_cg.core.grid.Volume` (then ``origin`` and ``spacing``
             come from it and must not be given).
         iso: the level: a number, numpy scalar, or ``()`` / ``(B,)`` tensor or array
             (differentiable when a tensor).
@@ -230,8 +231,7 @@ def marching_cubes(
         tensor([0.4723, 0.4723, 0.4723])
     """
     args = parse_arguments(volume, iso, origin, spacing, temperature, mask)
-    if ambiguity not in AMBIGUITY_RULES:
-        raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
+    check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
     vol = args.vol
     B, X, Y, Z = vol.shape
     if B == 0:
@@ -239,8 +239,8 @@ def marching_cubes(
     with torch.no_grad():
         cell_id, cases_a = classify(vol.detach(), args.iso.detach())
         welded = weld(cell_id, cases_a, (X, Y, Z))
-        rows, n_tri, tri_table, centre = _cell_rows(vol.detach(), args, cell_id, cases_a,
-                                                    ambiguity)
+        rows, n_tri, tri_table, centre = cell_rows(vol.detach(), args.iso.detach(), args.mask,
+                                                   cell_id, cases_a, ambiguity)
         faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
                                                    (X, Y, Z), B)
         centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
@@ -281,26 +281,6 @@ def _empty_result(vol: torch.Tensor) -> MarchingCubesResult:
     faces = torch.zeros(0, 3, dtype=torch.long, device=vol.device)
     return MarchingCubesResult(vol.new_zeros(0, 3), faces, vol.new_zeros(0, 3), vol.new_zeros(0),
                                counts, counts.clone())
-
-
-def _cell_rows(vol, args, cell_id, cases, ambiguity):
-    """Table rows, triangle counts (0 where a cell makes none) and the table, per active cell."""
-    B, X, Y, Z = vol.shape
-    k, j, layer = cell_id % Z, (cell_id // Z) % Y, cell_id // (Y * Z)
-    real = (layer % X < X - 1) & (j < Y - 1) & (k < Z - 1)  # padded cells make nothing
-    if args.mask is not None:  # the cell's far corner (corner 7) decides, as scikit-image
-        far = cell_id + (Y * Z + Z + 1)
-        real &= take(args.mask.view(-1), far.clamp_max(args.mask.numel() - 1))
-    centre = None
-    if ambiguity == "separate":
-        tri_table, num_tris = table_tensors(vol.device)[:2]
-        rows = cases
-    else:
-        rows, decided, tables = asymptotic_rows(vol, args.iso.detach(), cell_id, cases, real)
-        tri_table, num_tris = tables.triangles, tables.num_triangles
-        centre = (tables.centre_mask, decided)  # only decided cells can have a centre
-    n_tri = torch.where(real, take(num_tris, rows), 0)
-    return rows, n_tri, tri_table, centre
 
 
 def _drop_unused(welded: Welded, b_v, faces, centre_slot):
@@ -368,8 +348,7 @@ class MarchingCubes(nn.Module):
         ambiguity: str = DEFAULT_AMBIGUITY,
     ) -> None:
         super().__init__()
-        if ambiguity not in AMBIGUITY_RULES:
-            raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
+        check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
         self.ambiguity = ambiguity
         for name, value in (("iso", iso), ("origin", origin), ("spacing", spacing),
                             ("temperature", temperature), ("mask", mask)):

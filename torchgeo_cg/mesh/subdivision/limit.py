@@ -1,4 +1,4 @@
-"""Limit frames: OpenSubdiv's limit tangent masks (Catmark and Loop) as sparse operators.
+"""Limit positions and frames at the vertices: OpenSubdiv's limit masks as sparse operators.
 
 Convention:
     Masks are OpenSubdiv's (``Sdc::Scheme::assign*LimitTangentMasks``), applied to the
@@ -20,17 +20,67 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.numerics import safe_norm
-from torchgeo_cg.mesh.creasing import component_labels, limit_rules
-from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix
-from torchgeo_cg.mesh.subdivision import (
-    SubdivisionOperator,
-    apply_operator,
-    limit_positions,
-    mesh_topology,
-)
+from torchgeo_cg.mesh.subdivision._creasing import component_labels, limit_rules
+from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils, loop_limit_stencils
+from torchgeo_cg.mesh.subdivision._normals import power_of_two_scaled, unit_normals
+from torchgeo_cg.mesh.subdivision._topology import check_verts, mesh_topology
+from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator, apply_operator
+from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, stencil_matrix
 
-__all__ = ["LimitFrames", "limit_frames"]
+__all__ = ["limit_positions", "LimitFrames", "limit_frames"]
+
+
+def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
+    """Exact limit-surface positions of the refined vertices: ``L @ S @ verts``.
+
+    ``S`` is ``operator.stencils``; ``L`` applies the limit masks of the operator's
+    scheme on the refined mesh ``operator.faces``. Catmark (Halstead et al. 1993):
+    smooth vertex of valence ``n``: ``(n^2 V + 4 sum e_i + sum d_i) / (n (n + 5))``
+    (``e_i`` edge neighbours, ``d_i`` the opposite corner of each incident quad).
+    Loop: smooth vertex ``(1 - n chi) V + chi sum e_i``, ``chi = 1 / (n + 3 / (8 beta))``
+    with Loop's ``beta`` (OpenSubdiv's ``assignSmoothLimitMask``). Both schemes:
+    boundary/crease vertex ``(a + 4 V + b) / 6`` (the cubic B-spline limit of the
+    crease rule), corners and unreferenced vertices ``V``.
+
+    Convention:
+        Same classification and ``boundary`` mode as the operator. Because the
+        vertex points come first, ``out[..., :V0, :]`` are the limit positions of
+        the original control vertices. Differentiable in ``verts``.
+
+    Args:
+        operator: from :func:`catmull_clark_operator` or
+            :func:`~torchgeo_cg.mesh.subdivision.loop.loop_operator`.
+        verts: ``(*, V0, D)`` float control data at the operator's input level.
+
+    Returns:
+        ``(*, V1, D)`` limit positions of the vertices of ``operator.faces``.
+
+    Raises:
+        ValueError: the operator's scheme has no limit masks here (only
+            ``"catmark"`` and ``"loop"`` do).
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
+        >>> square = torch.tensor([[0., 0.], [1., 0.], [1., 1.], [0., 1.]])
+        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, boundary="edge_and_corner")
+        >>> limit_positions(op, square)[4:6]  # centre, then the middle of the bottom edge
+        tensor([[0.5000, 0.5000],
+                [0.5000, 0.0000]])
+    """
+    check_verts(verts, operator.num_vertices_in)
+    wdtype = operator.stencils.weights.dtype
+    faces = operator.faces if operator.child_faces is None else operator.child_faces
+    args = (faces, operator.num_vertices_out, operator.boundary, wdtype, operator.child_tags)
+    if operator.scheme == "catmark":
+        limit = catmark_limit_stencils(*args)
+    elif operator.scheme == "loop":
+        limit = loop_limit_stencils(*args)
+    else:
+        raise ValueError(
+            f"operator: limit_positions has limit masks for the 'catmark' and 'loop' "
+            f"schemes, got an operator of scheme {operator.scheme!r}"
+        )
+    return apply_stencils(limit, apply_stencils(operator.stencils, verts))
 
 
 class LimitFrames(NamedTuple):
@@ -118,37 +168,10 @@ def limit_frames(operator: SubdivisionOperator, verts: torch.Tensor) -> LimitFra
     wdtype = operator.stencils.weights.dtype
     with torch.no_grad():
         tan_u, tan_v = _tangent_stencils(faces, V1, operator, wdtype)
-    refined, scale = _power_of_two_scaled(apply_operator(operator, verts))
+    refined, scale = power_of_two_scaled(apply_operator(operator, verts))
     tu, tv = apply_stencils(tan_u, refined) * scale, apply_stencils(tan_v, refined) * scale
-    normals = _unit_normals(tu, tv) if verts.shape[-1] == 3 else None
+    normals = unit_normals(tu, tv) if verts.shape[-1] == 3 else None
     return LimitFrames(positions, tu, tv, normals)
-
-
-def _power_of_two_scaled(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(x / scale, scale)`` with ``scale`` the power of two just below each item's largest
-    magnitude (exact division). Tangent masks are differences (rows sum to 0), so ``4 a -
-    4 b`` of points near the largest float would overflow although the tangent is finite;
-    on the scaled data it cannot. Empty, zero and non-finite items keep ``scale = 1``."""
-    if x.shape[-2] * x.shape[-1] == 0:
-        return x, x.new_ones(())
-    big = x.detach().abs().amax(dim=(-2, -1), keepdim=True)
-    scale = torch.ldexp(torch.ones_like(big), torch.frexp(big).exponent - 1)
-    scale = torch.where(torch.isfinite(big) & (big > 0), scale, torch.ones_like(big))
-    return x / scale, scale
-
-
-def _unit_normals(tu: torch.Tensor, tv: torch.Tensor) -> torch.Tensor:
-    """``normalize(tu x tv)`` at every scale: each tangent is divided by its largest
-    component first (the normal does not change), so the cross product neither
-    overflows (|t| ~ 1e20 in float32) nor underflows to a zero normal (|t| ~ 1e-25).
-    Zero tangents give a zero normal; NaN passes through."""
-    def unit_max(t):
-        big = t.detach().abs().amax(dim=-1, keepdim=True)
-        return t / torch.where(big > 0, big, torch.ones_like(big))
-
-    n = torch.linalg.cross(unit_max(tu), unit_max(tv), dim=-1)
-    length = safe_norm(n, keepdim=True)
-    return n / torch.where(length > 0, length, torch.ones_like(length))
 
 
 def _tangent_stencils(faces, V, operator, dtype) -> tuple[StencilMatrix, StencilMatrix]:

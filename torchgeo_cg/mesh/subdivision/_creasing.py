@@ -1,8 +1,8 @@
 """OpenSubdiv's creasing rules, vectorized: sharpness, vertex rules, transitions, child tags.
 
-This module turns a mesh's topology and its :class:`~torchgeo_cg.mesh.tags.SubdivisionTags`
+This module turns a mesh's topology and its :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags`
 into the per-vertex and per-edge coefficients that the Catmark and Loop builders
-(:mod:`torchgeo_cg.mesh.subdivision`, :mod:`torchgeo_cg.mesh.loop`) weight their masks
+(:mod:`torchgeo_cg.mesh.subdivision`, :mod:`torchgeo_cg.mesh.subdivision.loop`) weight their masks
 with, and into the tags of the refined mesh. Everything is sort/scatter on flat tensors.
 
 Convention (OpenSubdiv 3, ``Sdc::Crease``, ``Far::TopologyRefinerFactory``):
@@ -35,7 +35,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags, check_tags
+from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags, check_tags
 
 __all__: list[str] = []
 
@@ -177,6 +177,22 @@ def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
     return tag_e, tag_v, sharp_e, sharp_v, hole_f
 
 
+def effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
+    """``(sharp_e (E,), sharp_v (V,), hole_f (F,) bool)``: the effective sharpness of every
+    edge and vertex (boundary and non-manifold raised to infinity) and the holes.
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision._topology import mesh_topology
+        >>> quad = torch.tensor([[0, 1, 2, 3]])
+        >>> effective_sharpness(mesh_topology(quad, 4), None, 4, 1, "edge_only", torch.float64)[0]
+        tensor([10., 10., 10., 10.], dtype=torch.float64)
+    """
+    _, _, sharp_e, sharp_v, hole_f = _effective_sharpness(
+        topo, tags, num_vertices, num_faces, boundary, dtype
+    )
+    return sharp_e, sharp_v, hole_f
+
+
 def _faces_touching(topo, mask_v: torch.Tensor, num_faces: int) -> torch.Tensor:
     hit_c = mask_v[topo.vert_c]
     return torch.bincount(topo.face_c[hit_c], minlength=num_faces) > 0
@@ -265,7 +281,7 @@ def subdivision_rules(
         topo: the corner/edge tables of :mod:`torchgeo_cg.mesh.subdivision`.
         num_vertices: ``V``.
         num_faces: ``F``.
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None``.
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None``.
         boundary: ``"edge_only"``, ``"edge_and_corner"`` or ``"none"``.
         crease_method: ``"uniform"`` or ``"chaikin"``.
         dtype: float dtype of the coefficients.
@@ -274,7 +290,7 @@ def subdivision_rules(
         :class:`SubdivisionRules`.
 
     Example:
-        >>> from torchgeo_cg.mesh.subdivision import mesh_topology
+        >>> from torchgeo_cg.mesh.subdivision._topology import mesh_topology
         >>> quad = torch.tensor([[0, 1, 2, 3]])
         >>> rules = subdivision_rules(mesh_topology(quad, 4), 4, 1, None, "edge_only",
         ...                           "uniform", torch.float64)
@@ -361,7 +377,7 @@ def limit_rules(topo, num_vertices, num_faces, tags, boundary, dtype):
             mask at this level: refine until the sharpness has decayed).
 
     Example:
-        >>> from torchgeo_cg.mesh.subdivision import mesh_topology
+        >>> from torchgeo_cg.mesh.subdivision._topology import mesh_topology
         >>> quad = torch.tensor([[0, 1, 2, 3]])
         >>> limit_rules(mesh_topology(quad, 4), 4, 1, None, "edge_and_corner", torch.float64)[0]
         tensor([2, 2, 2, 2])

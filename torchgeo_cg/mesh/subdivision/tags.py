@@ -2,7 +2,7 @@
 
 The tags travel with a control mesh from the file that holds them (OpenSubdiv's ``t``
 lines in OBJ, see :mod:`torchgeo_cg.mesh.io`) to the subdivision operators
-(:mod:`torchgeo_cg.mesh.subdivision`, :mod:`torchgeo_cg.mesh.loop`).
+(:mod:`torchgeo_cg.mesh.subdivision`, :mod:`torchgeo_cg.mesh.subdivision.loop`).
 
 Convention:
     Sharpness is OpenSubdiv's: ``0`` is smooth, values ``>= 10`` are infinitely sharp,
@@ -70,7 +70,7 @@ def check_tags(tags: SubdivisionTags) -> SubdivisionTags:
 
     A float index would be truncated and a wrong shape reshaped silently; the errors name
     the field (``TypeError`` for a dtype, ``ShapeError`` for a shape). Index ranges and
-    sharpness values are checked where the mesh is known (:mod:`torchgeo_cg.mesh.creasing`).
+    sharpness values are checked where the mesh is known (OpenSubdiv's rules).
 
     Example:
         >>> check_tags(SubdivisionTags.empty()._replace(holes=torch.tensor([0.0])))

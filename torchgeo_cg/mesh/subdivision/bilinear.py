@@ -18,9 +18,10 @@ from collections.abc import Sequence
 import torch
 
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import stencil_matrix, weights_dtype
-from torchgeo_cg.mesh.subdivision import SubdivisionOperator, mesh_topology
-from torchgeo_cg.mesh.tags import SubdivisionTags, check_tags
+from torchgeo_cg.mesh.subdivision._topology import mesh_topology
+from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
+from torchgeo_cg.mesh.subdivision.stencils import stencil_matrix, weights_dtype
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags, check_tags
 
 __all__ = ["bilinear_operator"]
 
@@ -43,7 +44,7 @@ def bilinear_operator(
         num_vertices: ``V0``.
         device: device of the operator (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags`; only ``holes`` matter
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags`; only ``holes`` matter
             (their children are left out of ``faces`` and listed in ``child_tags``).
 
     Returns:

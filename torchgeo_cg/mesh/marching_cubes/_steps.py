@@ -6,7 +6,7 @@
    direction), so neighbouring cells share the vertex of their common edge;
 3. :func:`triangulate` looks each cell's triangles up in the generated table (row
    chosen by the case and, with ``ambiguity="asymptotic"``, the face and interior
-   decisions of :mod:`torchgeo_cg.mesh._marching_cubes_decider`) and maps local
+   decisions of :mod:`torchgeo_cg.mesh.marching_cubes._decider`) and maps local
    edges to global vertex ids through a dense id map, one slab at a time;
 4. :func:`interpolate` places the vertices, ``t = (iso - f1) / (f2 - f1)``, and
    computes the normals (the only differentiable step besides 5);
@@ -22,7 +22,9 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh._marching_cubes_tables import corner_tables
+from torchgeo_cg.core.grid import edge_fraction
+from torchgeo_cg.core.numerics import power_of_two_scale
+from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
 __all__ = [
     "SLAB_CELLS",
@@ -35,8 +37,9 @@ __all__ = [
     "Centres",
     "find_centres",
     "place_centres",
-    "EdgeFraction",
+    "sample_stencil",
     "interpolate",
+    "place_vertices",
     "soft_weights",
 ]
 
@@ -260,7 +263,9 @@ def find_centres(cell_id, rows, centre_mask, decided, vert_key, cell_of_face, tr
     cells = take(cell_id, centre_cells)
     keys = cells[:, None] * 3 + key_delta  # (C, 12)
     members = torch.searchsorted(vert_key, keys).clamp_max(vert_key.shape[0] - 1)
-    weight = bits / bits.sum(1, keepdim=True)
+    # 1 / count in float64 (correctly rounded in every working dtype; a long / long
+    # division would give float32 weights for float64 volumes)
+    weight = bits.double() / bits.sum(1, keepdim=True).double()
     return Centres(members * bits, weight, cells // (X * Y * Z))
 
 
@@ -281,45 +286,7 @@ def place_centres(verts, normals, centres: Centres):
     return torch.cat([verts, pos]), torch.cat([normals, nrm])
 
 
-class EdgeFraction(torch.autograd.Function):
-    """``t = clamp((iso - f1) / (f2 - f1), delta, 1 - delta)`` with scale-free gradients.
-
-    The derivatives are written with one division each, ``dt/df1 = (t - 1) / den``,
-    ``dt/df2 = -t / den``, ``dt/diso = 1 / den`` (``den = f2 - f1``), so they stay finite
-    at any field scale (autograd's ``-num / den**2`` underflows to 0 and gives inf);
-    where the clamp is active the gradient is zero. ``den == 0`` (never for a crossing
-    edge of finite samples) divides by one instead.
-    """
-
-    generate_vmap_rule = True  # with setup_context: works under vmap / jacrev / grad
-
-    @staticmethod
-    def _fraction(f1, f2, iso):
-        """``(t, den)``: the unclamped fraction and its denominator (1 where ``f1 == f2``)."""
-        den = f2 - f1
-        den = torch.where(den == 0, torch.ones_like(den), den)
-        return (iso - f1) / den, den
-
-    @staticmethod
-    def forward(f1, f2, iso, delta: float):
-        t, _ = EdgeFraction._fraction(f1, f2, iso)
-        return t.clamp(delta, 1.0 - delta)
-
-    @staticmethod
-    def setup_context(ctx, inputs, output) -> None:
-        f1, f2, iso, delta = inputs
-        ctx.save_for_backward(*EdgeFraction._fraction(f1, f2, iso))
-        ctx.delta = delta
-
-    @staticmethod
-    def backward(ctx, grad):
-        t, den = ctx.saved_tensors
-        free = (t > ctx.delta) & (t < 1.0 - ctx.delta)
-        g = torch.where(free, grad, torch.zeros_like(grad)) / den
-        return g * (t - 1.0), -g * t, g, None
-
-
-def _sample_stencil(welded: Welded, sizes):
+def sample_stencil(welded: Welded, sizes):
     """Flat sample indices needed per vertex, gathered in one go (one backward scatter).
 
     Returns:
@@ -395,9 +362,8 @@ def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
     if max(-float(low), float(high), float(iso_high)) <= limit:
         return samples, iso_v
     top = torch.maximum(samples.detach().abs().amax(0), iso_v.detach().abs())  # (V,)
-    _, exponent = torch.frexp(torch.where(torch.isfinite(top) & (top > 0), top, 1.0))
-    scale = torch.ldexp(torch.ones_like(top), -exponent)  # (V,) powers of two
-    return samples * scale, iso_v * scale
+    scale = power_of_two_scale(top)  # (V,)
+    return samples / scale, iso_v / scale
 
 
 def interpolate(vol, welded: Welded, b_v, args, to_world):
@@ -414,17 +380,33 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
         ``(verts (V, 3), normals (V, 3))``.
     """
     sizes = vol.shape[1:]
-    stencil, axes, steps = _sample_stencil(welded, sizes)
+    stencil, axes, steps = sample_stencil(welded, sizes)
     flat = vol.reshape(-1)
     samples = take(flat, stencil.view(-1)).view(stencil.shape).to(args.work)  # (10, V)
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)
-    samples, iso_v = _keep_in_range(samples, iso_v)
-    delta = math.sqrt(torch.finfo(args.work).eps)
-    t = EdgeFraction.apply(samples[0], samples[1], iso_v, delta)  # (V,)
-    index_pos = welded.corner_ijk.to(args.work).scatter_add(  # (V, 3) index space
-        1, welded.d[:, None], t[:, None])
     spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)
-    verts = to_world(index_pos, b_v)
+    return place_vertices(samples, iso_v, welded, axes, steps, spacing_v,
+                          lambda index_pos: to_world(index_pos, b_v))
+
+
+def place_vertices(samples, iso_v, welded: Welded, axes, steps, spacing_v, to_world):
+    """Positions and unit normals from the stencil samples of :func:`sample_stencil`.
+
+    Args:
+        samples: ``(10, V)`` stencil samples in the working dtype; iso_v: ``(V,)``.
+        welded, axes, steps: the vertices and their stencil.
+        spacing_v: ``(V, 3)`` or ``(1, 3)`` grid spacing.
+        to_world: ``index_pos (V, 3) -> (V, 3)`` world positions.
+
+    Returns:
+        ``(verts (V, 3), normals (V, 3))``.
+    """
+    samples, iso_v = _keep_in_range(samples, iso_v)
+    delta = math.sqrt(torch.finfo(samples.dtype).eps)
+    t = edge_fraction(samples[0], samples[1], iso_v, delta)  # (V,)
+    index_pos = welded.corner_ijk.to(samples.dtype).scatter_add(  # (V, 3) index space
+        1, welded.d[:, None], t[:, None])
+    verts = to_world(index_pos)
     # normals depend on the ratios of the spacings only: relative spacings in (0, 1]
     # keep the world gradient from overflowing at a tiny spacing
     relative_v = spacing_v / spacing_v.amax(-1, keepdim=True)

@@ -32,7 +32,7 @@ Convention:
       corner ``k`` of face ``f`` has position ``faces[f, k]`` and value ``uv_faces[f, k]``.
     - The child value faces line up with the child position faces of
       :func:`~torchgeo_cg.mesh.subdivision.catmull_clark_operator` (or
-      :func:`~torchgeo_cg.mesh.loop.loop_operator`) built from the same ``faces``,
+      :func:`~torchgeo_cg.mesh.subdivision.loop.loop_operator`) built from the same ``faces``,
       ``boundary`` and ``tags``: same face order, same corner order, same holes left out.
     - Child value order: ``[value points (T') | face points (F) | edge points (E_uv)]``
       with ``T' >= T``; value ``i < T`` is the vertex point of input value ``i`` (for the
@@ -54,18 +54,21 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
-from torchgeo_cg.mesh.creasing import subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
-from torchgeo_cg.mesh.loop import loop_operator
-from torchgeo_cg.mesh.stencils import StencilMatrix, apply_stencils, stencil_matrix, weights_dtype
-from torchgeo_cg.mesh.subdivision import (
-    SubdivisionOperator,
-    catmull_clark_operator,
-    mesh_topology,
+from torchgeo_cg.mesh.subdivision._creasing import subdivision_rules
+from torchgeo_cg.mesh.subdivision._topology import mesh_topology
+from torchgeo_cg.mesh.subdivision.catmark import catmull_clark_operator
+from torchgeo_cg.mesh.subdivision.loop import loop_operator
+from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
+from torchgeo_cg.mesh.subdivision.stencils import (
+    StencilMatrix,
+    apply_stencils,
+    stencil_matrix,
+    weights_dtype,
 )
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
+from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__ = [
     "FVAR_INTERPOLATIONS",
@@ -81,7 +84,7 @@ _SCHEMES = ("catmark", "loop")
 _CORNER_RULE = 2  # SubdivisionRules.rule_v: 0 smooth, 1 crease, 2 corner
 
 
-class ValueMesh(NamedTuple):
+class _ValueMesh(NamedTuple):
     """The value mesh of a face-varying channel (values made distinct per vertex).
 
     Attributes:
@@ -91,7 +94,7 @@ class ValueMesh(NamedTuple):
         vertex: ``(T',)`` long mesh vertex of each value (``-1`` for an unused input value).
 
     Example:
-        >>> vm = value_mesh(torch.tensor([[0, 1, 2], [0, 2, 3]]),
+        >>> vm = _value_mesh(torch.tensor([[0, 1, 2], [0, 2, 3]]),
         ...                 torch.tensor([[0, 1, 2], [0, 2, 1]]), 4, 3)
         >>> vm.faces.tolist(), vm.num_values, vm.source.tolist(), vm.vertex.tolist()
         ([[0, 1, 2], [0, 2, 3]], 4, [0, 1, 2, 1], [0, 1, 2, 3])
@@ -103,8 +106,8 @@ class ValueMesh(NamedTuple):
     vertex: torch.Tensor
 
 
-def value_mesh(faces_fk: torch.Tensor, uv_faces_fk: torch.Tensor, num_vertices: int,
-               num_uvs: int) -> ValueMesh:
+def _value_mesh(faces_fk: torch.Tensor, uv_faces_fk: torch.Tensor, num_vertices: int,
+               num_uvs: int) -> _ValueMesh:
     """Split value indices shared by several vertices (OpenSubdiv: a value belongs to a
     vertex); input value ``i`` keeps id ``i`` for its first vertex, extra ids follow.
 
@@ -115,7 +118,7 @@ def value_mesh(faces_fk: torch.Tensor, uv_faces_fk: torch.Tensor, num_vertices: 
         num_uvs: ``T``.
 
     Returns:
-        :class:`ValueMesh`.
+        :class:`_ValueMesh`.
     """
     valid_fk = faces_fk >= 0
     vert_c, uv_c = faces_fk[valid_fk], uv_faces_fk[valid_fk]
@@ -132,7 +135,7 @@ def value_mesh(faces_fk: torch.Tensor, uv_faces_fk: torch.Tensor, num_vertices: 
     source[value_u] = uv_u
     vertex = torch.full((num_values,), -1, dtype=torch.long, device=faces_fk.device)
     vertex[value_u] = vert_u
-    return ValueMesh(value_fk, num_values, source, vertex)
+    return _ValueMesh(value_fk, num_values, source, vertex)
 
 
 def _per_end(lo_e, hi_e, mask_e, n: int) -> torch.Tensor:
@@ -154,7 +157,7 @@ def _edge_sharpness(topo, tags: SubdivisionTags | None, V: int, dtype) -> torch.
     return tag_e.scatter_reduce(0, pos, sharp, "amax")
 
 
-def _mode_corners(vm: ValueMesh, uv_topo, uv_sharp_e, pos_boundary_v, interpolation: str):
+def _mode_corners(vm: _ValueMesh, uv_topo, uv_sharp_e, pos_boundary_v, interpolation: str):
     """``(T',)`` bool: values the interpolation mode pins (module table)."""
     T2, V = vm.num_values, pos_boundary_v.numel()
     used = vm.vertex >= 0
@@ -177,10 +180,10 @@ def _mode_corners(vm: ValueMesh, uv_topo, uv_sharp_e, pos_boundary_v, interpolat
     return pinned | (pair_v[vert] & (count == 2) & used)
 
 
-def face_varying_tags(
+def _face_varying_tags(
     faces_fk: torch.Tensor,
     num_vertices: int,
-    vm: ValueMesh,
+    vm: _ValueMesh,
     interpolation: str,
     boundary: str,
     tags: SubdivisionTags | None,
@@ -198,10 +201,10 @@ def face_varying_tags(
     Args:
         faces_fk: ``(F, K)`` long position faces.
         num_vertices: ``V``.
-        vm: :class:`ValueMesh` of the channel.
+        vm: :class:`_ValueMesh` of the channel.
         interpolation: one of :data:`FVAR_INTERPOLATIONS`.
         boundary: position boundary mode.
-        tags: position :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None``.
+        tags: position :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None``.
         crease_method: ``"uniform"`` or ``"chaikin"``.
         dtype: float dtype of the sharpness.
 
@@ -210,10 +213,10 @@ def face_varying_tags(
 
     Example:
         >>> faces = torch.tensor([[0, 1, 4, 3], [1, 2, 5, 4]])  # no seam: values = vertices
-        >>> vm = value_mesh(faces, torch.tensor([[0, 1, 2, 3], [1, 4, 5, 2]]), 6, 6)
+        >>> vm = _value_mesh(faces, torch.tensor([[0, 1, 2, 3], [1, 4, 5, 2]]), 6, 6)
         >>> crease = SubdivisionTags.empty(torch.float64)._replace(
         ...     creases=torch.tensor([[1, 4]]), crease_sharpness=torch.tensor([2.0]).double())
-        >>> uv_tags, mode = face_varying_tags(faces, 6, vm, "boundaries", "edge_only", crease,
+        >>> uv_tags, mode = _face_varying_tags(faces, 6, vm, "boundaries", "edge_only", crease,
         ...                                   "uniform", torch.float64)
         >>> uv_tags.creases.tolist(), uv_tags.corners.tolist(), mode  # value 1-2 is edge 1-4
         ([[1, 2], [2, 1]], [0, 1, 2, 3, 4, 5], 'edge_and_corner')
@@ -260,12 +263,6 @@ def face_varying_tags(
     return uv_tags, ("edge_only" if interpolation == "none" else "edge_and_corner")
 
 
-def _check_choice(value: str, choices: tuple[str, ...], name: str) -> str:
-    if value not in choices:
-        raise ValueError(f"{name}: expected one of {choices}, got {value!r}")
-    return value
-
-
 def _check_uv_faces(faces_fk: torch.Tensor, uv_faces, num_uvs: int) -> torch.Tensor:
     """``uv_faces`` padded, in range, and shaped and padded like ``faces``."""
     uv_fk = check_faces(pad_faces(uv_faces, device=faces_fk.device), num_uvs, "uv_faces",
@@ -309,7 +306,7 @@ def face_varying_operator(
 
     Convention:
         See the module docstring: the value mesh is refined by the ``scheme``'s builder
-        with tags from :func:`face_varying_tags`; ``operator.faces`` are the child value
+        with tags from :func:`_face_varying_tags`; ``operator.faces`` are the child value
         faces, row for row and corner for corner those of the position operator built
         from ``(faces, num_vertices, boundary, tags)``. Apply it with
         :func:`~torchgeo_cg.mesh.subdivision.apply_operator`.
@@ -323,7 +320,7 @@ def face_varying_operator(
         scheme: ``"catmark"`` (default) or ``"loop"``.
         interpolation: one of :data:`FVAR_INTERPOLATIONS` (default ``"corners_only"``).
         boundary: position boundary mode, as for the position operator.
-        tags: position :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None``.
+        tags: position :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None``.
         crease_method: ``"uniform"`` (default) or ``"chaikin"``.
         triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (Catmark only).
         device: device of the operator (default: that of ``faces``).
@@ -355,9 +352,9 @@ def face_varying_operator(
                 [1., 1.],
                 [0., 1.]])
     """
-    _check_choice(scheme, _SCHEMES, "scheme")
-    _check_choice(interpolation, FVAR_INTERPOLATIONS, "interpolation")
-    _check_choice(boundary, ("edge_only", "edge_and_corner", "none"), "boundary")
+    check_choice(scheme, _SCHEMES, "scheme")
+    check_choice(interpolation, FVAR_INTERPOLATIONS, "interpolation")
+    check_choice(boundary, ("edge_only", "edge_and_corner", "none"), "boundary")
     if isinstance(num_uvs, bool) or not isinstance(num_uvs, int) or num_uvs < 0:
         raise ValueError(f"num_uvs: expected an int >= 0, got {num_uvs!r}")
     wdtype = weights_dtype(dtype)
@@ -366,8 +363,8 @@ def face_varying_operator(
         if device is not None:
             faces_fk = faces_fk.to(device)
         uv_fk = _check_uv_faces(faces_fk, uv_faces, num_uvs)
-        vm = value_mesh(faces_fk, uv_fk, num_vertices, num_uvs)
-        uv_tags, uv_boundary = face_varying_tags(faces_fk, num_vertices, vm, interpolation,
+        vm = _value_mesh(faces_fk, uv_fk, num_vertices, num_uvs)
+        uv_tags, uv_boundary = _face_varying_tags(faces_fk, num_vertices, vm, interpolation,
                                                  boundary, tags, crease_method, wdtype)
         if scheme == "catmark":
             op = catmull_clark_operator(vm.faces, vm.num_values, uv_boundary, dtype=wdtype,
@@ -388,7 +385,7 @@ class FaceVaryingSubdivision(nn.Module):
     Convention:
         See the module docstring. Level ``l`` refines the value mesh alongside the
         position mesh of :class:`~torchgeo_cg.mesh.subdivision.CatmullClark` (or
-        :class:`~torchgeo_cg.mesh.loop.LoopSubdivision`) built with the same arguments,
+        :class:`~torchgeo_cg.mesh.subdivision.loop.LoopSubdivision`) built with the same arguments,
         whose child faces and child tags it follows; ``.faces`` lines up with that
         module's ``.faces``. Buffers are plain non-persistent tensors (``.to()``,
         ``copy.deepcopy``, DDP).
@@ -402,7 +399,7 @@ class FaceVaryingSubdivision(nn.Module):
         scheme: ``"catmark"`` (default) or ``"loop"``.
         interpolation: one of :data:`FVAR_INTERPOLATIONS` (default ``"corners_only"``).
         boundary: position boundary mode (default ``"edge_only"``).
-        tags: position :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None``.
+        tags: position :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None``.
         crease_method: ``"uniform"`` (default) or ``"chaikin"``.
         triangle_rule: ``"catmark"`` (default) or ``"smooth"``.
         device: device of the buffers (default: that of ``faces``).

@@ -31,15 +31,17 @@ import math
 
 import torch
 
-from torchgeo_cg.mesh._marching_cubes_steps import take
-from torchgeo_cg.mesh._marching_cubes_tables import (
+from torchgeo_cg.core.numerics import power_of_two_scale
+from torchgeo_cg.mesh.marching_cubes._steps import take
+from torchgeo_cg.mesh.marching_cubes._tables import (
     MAX_TUBES,
     ConfigurationTables,
     configuration_tensors,
     corner_tables,
+    table_tensors,
 )
 
-__all__ = ["face_decisions", "interior_decisions", "asymptotic_rows"]
+__all__ = ["face_decisions", "interior_decisions", "asymptotic_rows", "cell_rows"]
 
 
 def face_decisions(g: torch.Tensor, cases: torch.Tensor, tables: ConfigurationTables):
@@ -48,7 +50,7 @@ def face_decisions(g: torch.Tensor, cases: torch.Tensor, tables: ConfigurationTa
     Args:
         g: ``(N, 8)`` corner values minus ``iso``.
         cases: ``(N,)`` long corner bits.
-        tables: :func:`~torchgeo_cg.mesh._marching_cubes_tables.configuration_tensors`.
+        tables: :func:`~torchgeo_cg.mesh.marching_cubes._tables.configuration_tensors`.
     """
     gr = g[:, tables.face_rings]  # (N, 6, 4)
     det = gr[..., 0] * gr[..., 2] - gr[..., 1] * gr[..., 3]  # (N, 6)
@@ -95,9 +97,7 @@ def _unit_scaled(g: torch.Tensor) -> torch.Tensor:
     while the products no longer underflow (fields of 1e-200) or overflow (1e200).
     Cells whose largest ``|g|`` is 0 or not finite are left as they are.
     """
-    big = g.abs().amax(1, keepdim=True)
-    _, exponent = torch.frexp(torch.where(torch.isfinite(big) & (big > 0), big, 1.0))
-    return g * torch.ldexp(torch.ones_like(big), -exponent)
+    return g / power_of_two_scale(g.abs().amax(1, keepdim=True))
 
 
 def _decider_values(f: torch.Tensor, iso_c: torch.Tensor) -> torch.Tensor:
@@ -128,7 +128,7 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
 
     Args:
         vol: ``(B, X, Y, Z)`` samples (detached); iso_b: ``(B,)``.
-        cell_id, cases: ``(A,)`` from :func:`~._marching_cubes_steps.classify`.
+        cell_id, cases: ``(A,)`` from :func:`~._steps.classify`.
         real: ``(A,)`` bool, cells that make triangles (padded cells read no values).
 
     Returns:
@@ -158,3 +158,36 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
         tube[ask] = interior_decisions(take(g, ask), take(config, ask), tables)
     rows[pick] = take(tables.row, config * MAX_TUBES + tube)
     return rows, pick, tables
+
+
+def cell_rows(vol: torch.Tensor, iso_b: torch.Tensor, mask: torch.Tensor | None,
+              cell_id: torch.Tensor, cases: torch.Tensor, ambiguity: str):
+    """Table rows, triangle counts (0 where a cell makes none) and the table, per active cell.
+
+    Args:
+        vol: ``(B, X, Y, Z)`` samples (detached); iso_b: ``(B,)`` (detached).
+        mask: ``None`` or bool ``(B, X, Y, Z)``: a cell makes triangles only where the
+            mask is True at its far corner (corner 7).
+        cell_id, cases: ``(A,)`` from :func:`~._steps.classify`.
+        ambiguity: ``"asymptotic"`` or ``"separate"``.
+
+    Returns:
+        ``(rows (A,), n_tri (A,), tri_table (R, T, 3), centre)``: ``centre`` is
+        ``(centre_mask (R,), decided (N,))`` for the asymptotic rule, else None.
+    """
+    B, X, Y, Z = vol.shape
+    k, j, layer = cell_id % Z, (cell_id // Z) % Y, cell_id // (Y * Z)
+    real = (layer % X < X - 1) & (j < Y - 1) & (k < Z - 1)  # padded cells make nothing
+    if mask is not None:  # the cell's far corner (corner 7) decides, as scikit-image
+        far = cell_id + (Y * Z + Z + 1)
+        real &= take(mask.view(-1), far.clamp_max(mask.numel() - 1))
+    centre = None
+    if ambiguity == "separate":
+        tri_table, num_tris = table_tensors(vol.device)[:2]
+        rows = cases
+    else:
+        rows, decided, tables = asymptotic_rows(vol, iso_b, cell_id, cases, real)
+        tri_table, num_tris = tables.triangles, tables.num_triangles
+        centre = (tables.centre_mask, decided)  # only decided cells can have a centre
+    n_tri = torch.where(real, take(num_tris, rows), 0)
+    return rows, n_tri, tri_table, centre

@@ -1,6 +1,6 @@
 """Loop subdivision of triangle meshes as a sparse operator (Loop 1987; OpenSubdiv "Loop").
 
-Built like :mod:`torchgeo_cg.mesh.subdivision`: the topology gives a sparse
+Built like :mod:`torchgeo_cg.mesh.subdivision.catmark`: the topology gives a sparse
 ``(V1, V0)`` matrix once, the geometry is refined by ``V1 = S @ V0``.
 
 Convention:
@@ -12,7 +12,7 @@ Convention:
       then the ``E0`` edge points, edges sorted by ``(min, max)``. ``V1 = V0 + E0``.
     - Rules (untagged): an edge with exactly two consistently wound faces is smooth,
       any other is sharp; non-manifold vertices are corners (OpenSubdiv). Tags,
-      holes and ``crease_method`` as in :mod:`torchgeo_cg.mesh.subdivision`.
+      holes and ``crease_method`` as in :mod:`torchgeo_cg.mesh.subdivision.catmark`.
       Smooth edge point ``3/8 (a + b) + 1/8 (c + d)`` (``c, d`` the opposite
       corners); sharp edge point ``1/2 (a + b)``. Vertex with ``n`` edges and ``s``
       sharp ones: ``s <= 1``: ``(1 - n beta) V + beta sum(nbrs)``,
@@ -25,24 +25,24 @@ Convention:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float
 from torchgeo_cg.core.numerics import working_dtype
-from torchgeo_cg.mesh.creasing import child_tags, limit_rules, subdivision_rules
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.stencils import StencilMatrix, stencil_matrix, weights_dtype
-from torchgeo_cg.mesh.subdivision import (
-    SubdivisionOperator,
-    _check_boundary,
-    _check_crease_method,
-    _SubdivisionModule,
+from torchgeo_cg.mesh.subdivision._creasing import child_tags, subdivision_rules
+from torchgeo_cg.mesh.subdivision._levels import SubdivisionModule
+from torchgeo_cg.mesh.subdivision._limit_masks import loop_beta
+from torchgeo_cg.mesh.subdivision._topology import (
+    check_boundary,
+    check_crease_method,
     mesh_topology,
 )
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
+from torchgeo_cg.mesh.subdivision.stencils import stencil_matrix, weights_dtype
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 __all__ = ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 
@@ -70,8 +70,8 @@ def loop_operator(
             become holes).
         device: device of the operator (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
-            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Returns:
@@ -90,14 +90,14 @@ def loop_operator(
         (torch.Size([9, 4]), torch.Size([8, 3]))
         >>> op.matrix.to_dense()[5]  # the shared edge (0, 2): 3/8, 3/8 and 1/8, 1/8
         tensor([0.3750, 0.1250, 0.3750, 0.1250])
-        >>> from torchgeo_cg.mesh.tags import SubdivisionTags
+        >>> from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
         >>> sharp = SubdivisionTags.empty()._replace(
         ...     creases=torch.tensor([[0, 2]]), crease_sharpness=torch.tensor([0.5]))
         >>> loop_operator([[0, 1, 2], [0, 2, 3]], 4, tags=sharp).matrix.to_dense()[5]
         tensor([0.4375, 0.0625, 0.4375, 0.0625])
     """
-    _check_boundary(boundary)
-    _check_crease_method(crease_method)
+    check_boundary(boundary)
+    check_crease_method(crease_method)
     with torch.no_grad():
         faces_f3 = check_faces(faces, num_vertices)
         if faces_f3.shape[0] and (faces_f3.shape[1] != 3 or bool((faces_f3 < 0).any())):
@@ -160,7 +160,7 @@ def loop_operator(
     )
 
 
-class LoopSubdivision(_SubdivisionModule):
+class LoopSubdivision(SubdivisionModule):
     """Loop subdivision, ``levels`` steps, operators built once and cached as buffers.
 
     Convention:
@@ -176,8 +176,8 @@ class LoopSubdivision(_SubdivisionModule):
             become holes).
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` (creases, corners, holes)
-            or ``None``; sharpness follows OpenSubdiv (see :mod:`torchgeo_cg.mesh.creasing`).
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
+            or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
 
     Shape:
@@ -215,7 +215,7 @@ def loop_subdivide(
         boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
             boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
             become holes).
-        tags: :class:`~torchgeo_cg.mesh.tags.SubdivisionTags` or ``None`` (see
+        tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None`` (see
             :func:`loop_operator`); carried from level to level.
         crease_method: ``"uniform"`` (default) or ``"chaikin"``.
 
@@ -246,60 +246,3 @@ def loop_subdivide(
         tags=tags, crease_method=crease_method,
     )
     return module(verts), module.faces
-
-
-def loop_beta(valence: torch.Tensor) -> torch.Tensor:
-    """Loop's neighbour weight ``beta = (5/8 - (3/8 + 1/4 cos(2 pi / n))^2) / n``.
-
-    Args:
-        valence: ``(*,)`` float vertex valences ``n >= 1``.
-
-    Returns:
-        ``(*,)`` float ``beta``.
-
-    Example:
-        >>> loop_beta(torch.tensor([3.0, 6.0]))  # 3/16 and 1/16
-        tensor([0.1875, 0.0625])
-    """
-    cos_v = torch.cos(2.0 * math.pi / valence)
-    return (0.625 - (0.375 + 0.25 * cos_v) ** 2) / valence
-
-
-def loop_limit_stencils(
-    faces_f3: torch.Tensor,
-    num_vertices: int,
-    boundary: str,
-    dtype: torch.dtype,
-    tags: SubdivisionTags | None = None,
-) -> StencilMatrix:
-    """``(V, V)`` Loop limit masks of a triangle mesh (OpenSubdiv's Loop limit masks).
-
-    Smooth vertex of valence ``n``: ``(1 - n chi) V + chi sum(nbrs)`` with
-    ``chi = 1 / (n + 3 / (8 beta))``; crease/boundary vertex ``(a + 4 V + b) / 6``
-    (``a, b`` its sharp neighbours); corners and unreferenced vertices ``V``.
-
-    Example:
-        >>> ring = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 6], [0, 6, 1]]
-        >>> loop_limit_stencils(torch.tensor(ring), 7, "edge_only", torch.float64).dense()[0] * 12
-        tensor([6., 1., 1., 1., 1., 1., 1.], dtype=torch.float64)
-    """
-    V = num_vertices
-    with torch.no_grad():
-        topo = mesh_topology(faces_f3, V, boundary)
-        n_v = topo.valence_v.to(dtype).clamp(min=1)
-        chi_v = 1.0 / (n_v + 3.0 / (8.0 * loop_beta(n_v)))
-        rule_v, sharp_e = limit_rules(topo, V, faces_f3.shape[0], tags, boundary, dtype)
-        smooth_v, crease_v = rule_v == 0, rule_v == 1
-        self_v = torch.where(smooth_v, 1.0 - n_v * chi_v, 1.0 - crease_v.to(dtype) / 3.0)
-        v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
-        nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
-        sharp_side = torch.cat([sharp_e, sharp_e])
-        rule_side = rule_v[v_side]
-        w_side = torch.where(
-            rule_side == 0, chi_v[v_side], ((rule_side == 1) & sharp_side).to(dtype) / 6.0
-        )
-        arange_v = torch.arange(V, device=faces_f3.device)
-        return stencil_matrix(
-            torch.cat([arange_v, v_side]), torch.cat([arange_v, nbr_side]),
-            torch.cat([self_v, w_side]), (V, V),
-        )
