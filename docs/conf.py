@@ -76,14 +76,16 @@ def _heading(text: str, char: str) -> list[str]:
     return [text, char * len(text), ""]
 
 
-def _defining_module(subpackage: str, name: str) -> str:
-    """The public module of ``subpackage`` under which ``name`` is documented: the deepest
-    one that lists the same object, else ``subpackage`` itself."""
-    obj = getattr(importlib.import_module(subpackage), name)
-    for module in reversed(modules_of(subpackage)[1:]):
-        if name in INVENTORY[module] and getattr(importlib.import_module(module), name) is obj:
-            return module
-    return subpackage
+def _defining_module(module: str, name: str) -> str:
+    """The public module under which ``module.name`` is documented: the deepest module
+    inside ``module`` that lists the same object, else ``module`` itself."""
+    obj = getattr(importlib.import_module(module), name)
+    inner = sorted((m for m in INVENTORY if m.startswith(module + ".")),
+                   key=lambda m: -m.count("."))
+    for other in inner:
+        if name in INVENTORY[other] and getattr(importlib.import_module(other), name) is obj:
+            return other
+    return module
 
 
 def _document(module: str, name: str) -> list[str]:
@@ -102,20 +104,22 @@ def api_page(subpackage: str) -> str:
     each public module with the objects of its ``__all__``."""
     lines = _heading(f"``{subpackage}``", "=") + [
         f".. automodule:: {subpackage}", "   :no-members:", ""]
-    local = [n for n in INVENTORY[subpackage] if _defining_module(subpackage, n) == subpackage]
     if INVENTORY[subpackage]:
         lines += [f"Importable as ``from {subpackage} import ...``:", ""]
         for name in INVENTORY[subpackage]:
             where = _defining_module(subpackage, name)
             lines.append(f"- :py:obj:`{name} <{where}.{name}>`")
         lines.append("")
-    for name in local:
-        lines += _document(subpackage, name)
-    for module in modules_of(subpackage)[1:]:
-        lines += _heading(f"``{module}``", "-") + [
-            f".. automodule:: {module}", "   :no-members:", ""]
+    for module in modules_of(subpackage):
+        if module != subpackage:
+            lines += _heading(f"``{module}``", "-") + [
+                f".. automodule:: {module}", "   :no-members:", ""]
         for name in INVENTORY[module]:
-            lines += _document(module, name)
+            where = _defining_module(module, name)
+            if where == module:
+                lines += _document(module, name)
+            elif module != subpackage:
+                lines += [f"- :py:obj:`{name} <{where}.{name}>` (from ``{where}``)", ""]
     return "\n".join(lines)
 
 
@@ -139,7 +143,7 @@ def api_index() -> str:
 
 def gallery_page() -> str:
     from torchgeo_cg.viz import registered_figures
-    from torchgeo_cg.viz.gallery import load_figure_modules
+    from torchgeo_cg.viz._gallery import load_figure_modules
 
     load_figure_modules()
     source = os.environ.get("TORCHGEO_CG_DOCS_FIGURES") or (

@@ -35,9 +35,9 @@ ALLOWED: dict[str, set[str] | None] = {
 FUNCTION_LEVEL_OK: dict[tuple[str, str], str] = {
     ("sdf/engines.py", "torchgeo_cg.sdf.engine_warp"):
         "the optional engine: importing it imports and initialises Warp",
-    ("viz/glyph_fit.py", "torchgeo_cg.viz.style"):
+    ("viz/glyph_fit.py", "torchgeo_cg.viz._style"):
         "matplotlib (extra 'plot') only for the figure, not for the fit",
-    ("viz/torus_fit.py", "torchgeo_cg.viz.style"):
+    ("viz/torus_fit.py", "torchgeo_cg.viz._style"):
         "matplotlib (extra 'plot') only for the figure, not for the fit",
 }
 #: Private imports across modules that stay, with why: (file, imported name) -> reason.

@@ -408,7 +408,6 @@ EXEMPT: dict[str, str] = {
     "core.working_dtype": "dtype helper (tests/core/test_numerics.py)",
     "core.power_of_two_scale": "a detached constant factor, exact by construction "
                                "(tests/core/test_numerics.py)",
-    "curves.check_knots": "validation helper (tests/curves/test_hermite.py)",
     "curves.SplitResult": "NamedTuple result type",
     "curves.HermiteControls": "NamedTuple result type",
     "curves.grid_2d": "factory of numbers (n, low, high), no tensor input; tests/curves",

@@ -20,7 +20,7 @@ import sys
 import torchgeo_cg.cli as cli
 from torchgeo_cg.cli import CommandError
 
-__all__ = ["OneLineParser", "build_parser", "main"]
+__all__ = ["main"]
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -26,7 +26,6 @@ __all__ = [
     "check_tensor",
     "check_broadcastable",
     "check_choice",
-    "format_shape",
 ]
 
 

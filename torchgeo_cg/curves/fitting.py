@@ -37,7 +37,7 @@ import torch
 from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_norm, safe_sqrt
 
-__all__ = ["BezierFit", "fit_parameters", "fit_bezier", "as_padded_strokes"]
+__all__ = ["BezierFit", "fit_parameters", "fit_bezier"]
 
 _METHODS = ("uniform", "chord", "centripetal")
 

@@ -42,7 +42,6 @@ __all__ = [
     "hermite_to_bezier",
     "bezier_to_hermite",
     "HermiteCurve",
-    "check_knots",
     "hermite_spline",
     "HermiteSpline",
     "pchip_tangents",

@@ -36,7 +36,7 @@ from torchgeo_cg.mesh.io_text import (  # read_text: doctests
     read_text,  # noqa: F401
 )
 
-__all__ = ["ObjTags", "parse_tags", "check_tags", "format_tags", "OPTION_TAGS"]
+__all__: list[str] = []
 
 OPTION_TAGS = {
     "interpolateboundary": ("boundary", ("none", "edge_and_corner", "edge_only")),

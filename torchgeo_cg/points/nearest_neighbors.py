@@ -35,7 +35,7 @@ from torchgeo_cg.core.numerics import cast_back, power_of_two_scale, working_dty
 from torchgeo_cg.points.search_brute import brute_knn_indices
 from torchgeo_cg.points.search_grid import grid_knn_indices
 
-__all__ = ["KNNResult", "knn", "check_lengths", "BRUTE_FORCE_PAIRS"]
+__all__ = ["KNNResult", "knn"]
 
 #: Below this many (query, reference) pairs the brute-force search is used on the CPU.
 BRUTE_FORCE_PAIRS = 1 << 18

@@ -35,8 +35,7 @@ try:
 except ImportError:  # the optional extra "fast" is not installed
     wp = None
 
-__all__ = ["WarpSearch", "WarpAnswer", "morton_order", "face_rings", "build_warp_search",
-           "warp_closest_faces"]
+__all__: list[str] = []
 
 if wp is not None:  # kernels exist only with the optional extra
     # Warp's info banner and kernel-load lines would print on every import; warnings stay

@@ -36,15 +36,7 @@ from torchgeo_cg.sdf.mesh_search import (
     torch_closest_faces,
 )
 
-__all__ = [
-    "ENGINES",
-    "available_engines",
-    "resolve_backend",
-    "build_search",
-    "search_faces",
-    "engine_sdf",
-    "new_cache_key",
-]
+__all__ = ["ENGINES", "available_engines"]
 
 #: Engine name -> the module that must be importable, fastest first.
 ENGINES = {"warp": "warp"}

@@ -32,7 +32,7 @@ from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.grid import Volume, check_spacing
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
-__all__ = ["grid_spacing", "grid_points", "sample_grid", "grid_interpolate", "parse_bounds"]
+__all__ = ["grid_spacing", "grid_points", "sample_grid", "grid_interpolate"]
 
 
 def _resolution(resolution: int | Sequence[int]) -> tuple[int, int, int]:

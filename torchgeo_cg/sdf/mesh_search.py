@@ -40,14 +40,7 @@ import torch
 
 from torchgeo_cg.sdf._triangle import face_table, gather_rows, pair_d2
 
-__all__ = [
-    "far_radius",
-    "pull_in_far_points",
-    "FaceGrid",
-    "TorchSearch",
-    "build_torch_search",
-    "torch_closest_faces",
-]
+__all__: list[str] = []
 
 
 def far_radius(dtype: torch.dtype) -> float:

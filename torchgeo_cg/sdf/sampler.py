@@ -48,14 +48,7 @@ from torchgeo_cg.mesh.faces import check_mesh
 from torchgeo_cg.sdf.engines import resolve_backend
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
-__all__ = [
-    "SDFSamples",
-    "SDFSampler",
-    "sample_mesh_surface",
-    "worker_seed",
-    "save_samples",
-    "load_samples",
-]
+__all__ = ["SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples", "load_samples"]
 
 
 class SDFSamples(NamedTuple):

@@ -17,7 +17,7 @@ from torchgeo_cg.mesh.subdivision import (
     sample_limit_surface,
 )
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
+from torchgeo_cg.viz._style import plt, save
 
 __all__: list[str] = []
 

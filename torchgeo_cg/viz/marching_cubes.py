@@ -13,8 +13,8 @@ from torchgeo_cg.mesh.marching_cubes import marching_cubes
 from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS
 from torchgeo_cg.sdf.grid import sample_grid
 from torchgeo_cg.sdf.primitives import torus
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 

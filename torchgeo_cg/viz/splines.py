@@ -9,8 +9,8 @@ import torch
 
 from torchgeo_cg.curves import nurbs, nurbs_derivative
 from torchgeo_cg.surfaces import BSplineSurface, surface_mesh
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 

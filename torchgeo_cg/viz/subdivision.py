@@ -11,8 +11,8 @@ from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.mesh.faces import pad_faces
 from torchgeo_cg.mesh.io import to_trimesh
 from torchgeo_cg.mesh.subdivision import catmull_clark
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 

@@ -12,8 +12,8 @@ import torch
 from torchgeo_cg.mesh.subdivision import catmull_clark
 from torchgeo_cg.mesh.subdivision.face_varying import face_varying_subdivide
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 

@@ -37,16 +37,7 @@ import torch
 
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags, check_tags
 
-__all__ = [
-    "CREASE_METHODS",
-    "SubdivisionRules",
-    "decrement_sharpness",
-    "subdivision_rules",
-    "vertex_rule",
-    "limit_rules",
-    "child_tags",
-    "component_labels",
-]
+__all__: list[str] = []
 
 CREASE_METHODS = ("uniform", "chaikin")
 SMOOTH, CREASE, CORNER = 0, 1, 2

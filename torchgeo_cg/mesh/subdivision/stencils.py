@@ -29,7 +29,7 @@ from torch import Tensor
 
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
-__all__ = ["StencilMatrix", "stencil_matrix", "apply_stencils"]
+__all__: list[str] = []
 
 _CHUNK_COLUMNS = 12  # dense columns per sparse matmul: keeps the gathered rows in cache
 

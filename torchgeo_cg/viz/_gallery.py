@@ -12,7 +12,7 @@ from torchgeo_cg.viz.registry import GalleryFigure, registered_figures
 
 __all__ = ["build_gallery", "check_output_folder", "check_sections", "load_figure_modules"]
 
-_SKIP = {"registry", "gallery", "style"}  # helpers, not figure modules
+_SKIP = {"registry"}  # the registry itself; private helpers start with "_"
 
 
 def load_figure_modules() -> list[str]:

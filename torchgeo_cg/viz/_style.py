@@ -9,7 +9,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-__all__ = ["plt", "save", "closed"]
+__all__ = ["closed", "save"]
 
 
 def save(fig, path: Path, dpi: int = 110) -> None:
