@@ -7,7 +7,7 @@ from torchgeo_cg.core.check import (
     check_shape,
     check_tensor,
 )
-from torchgeo_cg.core.coerce import as_tensor_like, check_same_dtype
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype, check_same_dtype
 from torchgeo_cg.core.numerics import (
     cast_back,
     clamp_away_from_zero,
@@ -24,6 +24,7 @@ __all__ = [
     "cast_back",
     "check_broadcastable",
     "check_float",
+    "check_module_dtype",
     "check_same_dtype",
     "check_shape",
     "check_tensor",

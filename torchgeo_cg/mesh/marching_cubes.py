@@ -72,6 +72,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh._marching_cubes_args import parse_arguments
 from torchgeo_cg.mesh._marching_cubes_decider import asymptotic_rows
@@ -379,5 +380,7 @@ class MarchingCubes(nn.Module):
                 setattr(self, name, value)
 
     def forward(self, volume: torch.Tensor | Volume) -> MarchingCubesResult:
+        check_module_dtype(self, volume.values if isinstance(volume, Volume) else volume,
+                           "volume")
         return marching_cubes(volume, self.iso, self.origin, self.spacing, self.temperature,
                               self.mask, self.ambiguity)

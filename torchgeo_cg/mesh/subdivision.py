@@ -52,6 +52,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.creasing import (
     CREASE_METHODS,
@@ -554,6 +555,7 @@ class _SubdivisionModule(nn.Module):
         return StencilMatrix(*(getattr(self, f"{f}_{level}") for f in StencilMatrix._fields))
 
     def forward(self, verts: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, verts, "verts", exclude=("tags_",))  # tags built the operators
         _check_verts(verts, self.num_vertices_in)
         for level in range(self.levels):
             verts = apply_stencils(self._stencils(level), verts)

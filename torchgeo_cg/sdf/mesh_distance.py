@@ -48,7 +48,7 @@ from torchgeo_cg.core.check import (
     check_shape,
     check_tensor,
 )
-from torchgeo_cg.core.coerce import check_same_dtype
+from torchgeo_cg.core.coerce import check_module_dtype, check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, hypot, working_dtype
 from torchgeo_cg.mesh.faces import triangulate_faces
 from torchgeo_cg.sdf.mesh_search import far_radius, power_of_two_scale, pull_in_far_points
@@ -704,6 +704,7 @@ class MeshSDF(nn.Module):
     def forward(self, points: torch.Tensor, return_closest: bool = False,
                 progress: bool = False) -> MeshSDFResult:
         """Signed distances of ``points (*, N, 3)``: :class:`MeshSDFResult`."""
+        check_module_dtype(self, points, "points")
         from torchgeo_cg.sdf.engines import resolve_backend
 
         check_float(points, "points")
