@@ -31,14 +31,14 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.core": [
         "ShapeError", "as_tensor_like", "cast_back", "check_broadcastable", "check_float",
-        "check_same_dtype", "check_shape", "check_tensor", "clamp_away_from_zero", "hypot",
+        "check_module_dtype", "check_same_dtype", "check_shape", "check_tensor", "clamp_away_from_zero", "hypot",
         "safe_div", "safe_norm", "safe_sqrt", "working_dtype"
     ],
     "torchgeo_cg.core.check": [
         "ShapeError", "check_broadcastable", "check_float", "check_shape", "check_tensor",
         "format_shape"
     ],
-    "torchgeo_cg.core.coerce": ["as_tensor_like", "check_same_dtype"],
+    "torchgeo_cg.core.coerce": ["as_tensor_like", "check_module_dtype", "check_same_dtype"],
     "torchgeo_cg.core.numerics": [
         "cast_back", "clamp_away_from_zero", "hypot", "safe_div", "safe_norm", "safe_sqrt",
         "working_dtype"

@@ -396,6 +396,7 @@ EXEMPT: dict[str, str] = {
     "core.ShapeError": "exception type",
     "core.as_tensor_like": "coercion helper (tests/core/test_coerce.py)",
     "core.check_same_dtype": "validation helper (tests/core/test_coerce.py)",
+    "core.check_module_dtype": "validation helper (tests/test_module_machinery.py)",
     "core.check_broadcastable": "validation helper (tests/core/test_check.py)",
     "core.check_float": "validation helper (tests/core/test_check.py)",
     "core.check_shape": "validation helper (tests/core/test_check.py)",
