@@ -31,7 +31,7 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
-from torchgeo_cg.sdf.grid import Volume, check_spacing
+from torchgeo_cg.core.grid import Volume, check_spacing
 
 __all__ = ["LevelSetPoints", "zero_level_set"]
 
@@ -64,12 +64,12 @@ def zero_level_set(
     cubes for a mesh.
 
     Convention:
-        Grid convention of :mod:`torchgeo_cg.sdf.grid` (``"ij"``; index ``(i, j, k)`` at
+        Grid convention of :mod:`torchgeo_cg.core.grid` (``"ij"``; index ``(i, j, k)`` at
         ``origin + spacing * (i, j, k)``). Points come in C order of ``(b, i, j, k)``.
         Not differentiable (a selection).
 
     Args:
-        volume: a :class:`~torchgeo_cg.sdf.grid.Volume`, or values ``(X, Y, Z)`` /
+        volume: a :class:`~torchgeo_cg.core.grid.Volume`, or values ``(X, Y, Z)`` /
             ``(B, X, Y, Z)`` with ``origin`` and ``spacing``.
         origin: ``(3,)``; taken from the Volume when omitted.
         spacing: ``(3,)``, positive; taken from the Volume when omitted.

@@ -1,24 +1,20 @@
-"""Homogeneous 2D transforms, articulated scene graphs and transform estimation."""
+"""Homogeneous 2D and 3D transforms, rotations, articulated scene graphs and estimation."""
 
-from torchgeo_cg.transforms.decompose import AffineDecomposition, decompose_affine
-from torchgeo_cg.transforms.estimation import (
+from torchgeo_cg.transforms import rotations
+from torchgeo_cg.transforms._correspondences import TransformFit
+from torchgeo_cg.transforms.correspondences import (
     HartleyNormalization,
-    HomographyFit,
-    find_affine,
-    find_euclidean,
-    find_homography_dlt,
-    find_similarity,
-    find_translation,
     hartley_normalize,
     reprojection_error,
 )
-from torchgeo_cg.transforms.fitting import (
-    FitResult,
-    HomographyModel,
-    fit_transform,
-    matrix_to_parameters,
-    parameters_to_matrix,
+from torchgeo_cg.transforms.decompose import AffineDecomposition, decompose_affine
+from torchgeo_cg.transforms.estimation import (
+    find_affine,
+    find_euclidean,
+    find_similarity,
+    find_translation,
 )
+from torchgeo_cg.transforms.fitting import FitResult, HomographyModel, fit_transform
 from torchgeo_cg.transforms.homogeneous import (
     compose,
     compose_trs,
@@ -32,7 +28,9 @@ from torchgeo_cg.transforms.homogeneous import (
     transform_points,
     translation,
 )
+from torchgeo_cg.transforms.homography_dlt import find_homography_dlt
 from torchgeo_cg.transforms.modules import HomogeneousTransform, TRSTransform
+from torchgeo_cg.transforms.parametrization import matrix_to_parameters, parameters_to_matrix
 from torchgeo_cg.transforms.ransac import RobustFit, find_transform_ransac
 from torchgeo_cg.transforms.registration import (
     RegistrationResult,
@@ -46,6 +44,7 @@ from torchgeo_cg.transforms.report_shapes import (
     fit_report_shapes,
     report_shapes,
 )
+from torchgeo_cg.transforms.robust import robust_loss, robust_weights
 from torchgeo_cg.transforms.scene_graph import (
     FixedTransform,
     Orbit,
@@ -58,7 +57,7 @@ __all__ = [
     "AffineDecomposition",
     "FitResult",
     "HartleyNormalization",
-    "HomographyFit",
+    "TransformFit",
     "HomographyModel",
     "RegistrationResult",
     "ReportShapes",
@@ -79,6 +78,9 @@ __all__ = [
     "report_shapes",
     "register_images",
     "reprojection_error",
+    "robust_loss",
+    "robust_weights",
+    "rotations",
     "warp_image",
     "WarpedImage",
     "FixedTransform",

@@ -1,4 +1,4 @@
-"""Gradient-descent fitting of 2D transforms to point correspondences, batched.
+"""Iterative fitting of 2D transforms to point correspondences, batched.
 
 The design asks for homographies fitted by gradient descent, so that a network can
 be trained through them. :func:`fit_transform` fits one transform per problem of a
@@ -27,44 +27,41 @@ from typing import NamedTuple
 
 import torch
 from torch import nn
+from tqdm.auto import tqdm
 
-from torchgeo_cg.core.check import check_float, check_shape
-from torchgeo_cg.core.coerce import check_same_dtype
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
-from torchgeo_cg.transforms.estimation import (
-    DLT_M_INDEX,
-    DLT_M_SIGN,
+from torchgeo_cg.transforms._correspondences import (
     check_pair,
     check_points_nonempty,
     effective_weights,
     hartley_weighted,
-    similarity_matrix,
+)
+from torchgeo_cg.transforms._objective import Objective, denormalize, loss_terms, normalize_problem
+from torchgeo_cg.transforms._solvers import (
+    ParamFn,
+    first_order,
+    gauss_newton_step,
+    levenberg_marquardt,
 )
 from torchgeo_cg.transforms.homogeneous import inverse, transform_points
+from torchgeo_cg.transforms.parametrization import (
+    MODELS,
+    PARAMETRIZATIONS,
+    matrix_to_parameters,
+    parameters_to_matrix,
+)
+from torchgeo_cg.transforms.robust import LOSSES
 
 __all__ = [
     "FitResult",
-    "LOSSES",
-    "MODELS",
-    "PARAMETRIZATIONS",
     "fit_transform",
-    "parameters_to_matrix",
-    "matrix_to_parameters",
     "HomographyModel",
 ]
 
-#: Number of parameters of each model.
-MODELS: dict[str, int] = {
-    "homography": 8,
-    "affine": 6,
-    "similarity": 4,
-    "euclidean": 3,
-    "translation": 2,
-    "trs": 5,
-}
-#: Parametrizations of the homography model.
-PARAMETRIZATIONS: tuple[str, ...] = ("entries", "corners", "sl3")
 _DEFAULT_STEPS = {"adam": 200, "lbfgs": 50, "lm": 10}
+
+
 _DEFAULT_LR = {"adam": 0.05, "lbfgs": 1.0, "lm": 1e-3}
 
 
@@ -84,537 +81,6 @@ class FitResult(NamedTuple):
     params: torch.Tensor
     loss: torch.Tensor
     history: torch.Tensor
-
-
-def _check_choice(value: str, choices, name: str) -> str:
-    if value not in choices:
-        raise ValueError(f"{name}: expected one of {sorted(choices)}, got {value!r}")
-    return value
-
-
-# ---------------------------------------------------------------- parametrizations
-
-_CORNERS = ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))
-
-
-def _square_to_quad(quad: torch.Tensor) -> torch.Tensor:
-    """Homography taking (0,0), (1,0), (1,1), (0,1) to ``quad`` (*, 4, 2) (Heckbert 1989)."""
-    x, y = quad[..., 0], quad[..., 1]
-    sx = x[..., 0] - x[..., 1] + x[..., 2] - x[..., 3]
-    sy = y[..., 0] - y[..., 1] + y[..., 2] - y[..., 3]
-    dx1, dx2 = x[..., 1] - x[..., 2], x[..., 3] - x[..., 2]
-    dy1, dy2 = y[..., 1] - y[..., 2], y[..., 3] - y[..., 2]
-    den = dx1 * dy2 - dx2 * dy1
-    ok = den.abs() > 1e-12
-    den = torch.where(ok, den, torch.ones_like(den))  # degenerate quad: affine fallback
-    g = torch.where(ok, (sx * dy2 - dx2 * sy) / den, torch.zeros_like(den))
-    h = torch.where(ok, (dx1 * sy - sx * dy1) / den, torch.zeros_like(den))
-    a, b = x[..., 1] - x[..., 0] + g * x[..., 1], x[..., 3] - x[..., 0] + h * x[..., 3]
-    d, e = y[..., 1] - y[..., 0] + g * y[..., 1], y[..., 3] - y[..., 0] + h * y[..., 3]
-    one = torch.ones_like(a)
-    rows = [a, b, x[..., 0], d, e, y[..., 0], g, h, one]
-    return torch.stack(rows, dim=-1).unflatten(-1, (3, 3))
-
-
-def _sl3_basis(like: torch.Tensor) -> torch.Tensor:
-    """(8, 3, 3) traceless generators: x/y translation, shear, rotation, scales, perspective."""
-    e = torch.zeros(8, 3, 3, dtype=like.dtype, device=like.device)
-    e[0, 0, 2] = e[1, 1, 2] = 1.0  # translations
-    e[2, 0, 1] = 1.0  # x shear
-    e[3, 1, 0] = 1.0  # y shear
-    e[4, 0, 0], e[4, 1, 1] = 1.0, -1.0  # anisotropic scale
-    e[5, 0, 0] = e[5, 1, 1] = 1.0
-    e[5, 2, 2] = -2.0  # isotropic scale (traceless)
-    e[6, 2, 0] = e[7, 2, 1] = 1.0  # perspective
-    return e
-
-
-def _rows_to_matrix(rows: list[torch.Tensor]) -> torch.Tensor:
-    return torch.stack(rows, dim=-1).unflatten(-1, (3, 3))
-
-
-def parameters_to_matrix(
-    params: torch.Tensor,
-    model: str = "homography",
-    parametrization: str = "entries",
-    base: torch.Tensor | None = None,
-) -> torch.Tensor:
-    """The normalized-frame transform ``Ĥ`` of ``params`` for ``model``.
-
-    Convention:
-        Column vectors; ``params = 0`` is the identity (or ``base``). ``base``
-        must have the dtype of ``params`` (else ``TypeError`` naming both);
-        float16/bfloat16 are computed in float32 and returned in their dtype.
-
-        - ``homography`` / ``entries``: ``Ĥ = I + [p0..p7, 0]`` row-major (``h33 = 1``).
-        - ``homography`` / ``corners``: ``p`` moves the images of the corners
-          ``(-1,-1), (1,-1), (1,1), (-1,1)`` (x, y pairs); ``Ĥ`` maps the corners there.
-        - ``homography`` / ``sl3``: ``Ĥ = base · exp(Σ p_i G_i)`` with traceless
-          generators ``G`` (translations, shears, scales, perspective).
-        - ``affine``: ``Ĥ = I + [[p0, p1, p2], [p3, p4, p5], [0, 0, 0]]``.
-        - ``similarity``: ``[[1 + p0, -p1, p2], [p1, 1 + p0, p3], [0, 0, 1]]``.
-        - ``euclidean``: ``T(p1, p2) · R(p0)``, ``p0`` in radians, counter-clockwise.
-        - ``translation``: ``T(p0, p1)``.
-        - ``trs``: ``T(p0, p1) · R(p2) · S(exp p3, exp p4)``, the report's T·R·Xs·Ys.
-
-    Args:
-        params: ``(*, P)`` with ``P = MODELS[model]``.
-        model: one of :data:`MODELS`.
-        parametrization: homography parametrization, one of :data:`PARAMETRIZATIONS`.
-        base: ``(*, 3, 3)`` left factor of the ``sl3`` parametrization (identity if None).
-
-    Returns:
-        ``(*, 3, 3)`` matrices.
-
-    Example:
-        >>> parameters_to_matrix(torch.tensor([1.0, 2.0, 0.0, 0.0, 0.0]), "trs")
-        tensor([[1., 0., 1.],
-                [0., 1., 2.],
-                [0., 0., 1.]])
-    """
-    _check_choice(model, MODELS, "model")
-    _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
-    check_shape(params, ["*", str(MODELS[model])], "params")
-    check_float(params, "params")
-    if base is not None:
-        check_shape(base, ["*", "3", "3"], "base")
-        check_same_dtype({"params": params, "base": check_float(base, "base")})
-    work = working_dtype(params.dtype)  # float16/bfloat16: computed in float32
-    out = _parameters_to_matrix(params.to(work), model, parametrization,
-                                None if base is None else base.to(work))
-    return cast_back(out, params.dtype)
-
-
-def _parameters_to_matrix(params, model, parametrization, base):
-    p = params.unbind(-1)
-    one, zero = torch.ones_like(p[0]), torch.zeros_like(p[0])
-    if model == "homography":
-        if parametrization == "entries":
-            return _rows_to_matrix([one + p[0], p[1], p[2], p[3], one + p[4], p[5], p[6], p[7],
-                                    one])
-        if parametrization == "corners":
-            corners = torch.tensor(_CORNERS, dtype=params.dtype, device=params.device)
-            quad = corners + params.unflatten(-1, (4, 2))  # (*, 4, 2)
-            # unit square (u, v) from corner frame: u = (x + 1) / 2
-            half = torch.tensor([[0.5, 0, 0.5], [0, 0.5, 0.5], [0, 0, 1.0]],
-                                dtype=params.dtype, device=params.device)
-            return _square_to_quad(quad) @ half
-        gen = torch.einsum("...i,ijk->...jk", params, _sl3_basis(params))
-        h = torch.linalg.matrix_exp(gen)
-        return h if base is None else base @ h
-    if model == "affine":
-        return _rows_to_matrix([one + p[0], p[1], p[2], p[3], one + p[4], p[5], zero, zero, one])
-    if model == "similarity":
-        return _rows_to_matrix([one + p[0], -p[1], p[2], p[1], one + p[0], p[3], zero, zero, one])
-    if model == "euclidean":
-        c, s = torch.cos(p[0]), torch.sin(p[0])
-        return _rows_to_matrix([c, -s, p[1], s, c, p[2], zero, zero, one])
-    if model == "translation":
-        return _rows_to_matrix([one, zero, p[0], zero, one, p[1], zero, zero, one])
-    c, s = torch.cos(p[2]), torch.sin(p[2])
-    sx, sy = torch.exp(p[3]), torch.exp(p[4])
-    return _rows_to_matrix([c * sx, -s * sy, p[0], s * sx, c * sy, p[1], zero, zero, one])
-
-
-def matrix_to_parameters(
-    matrix: torch.Tensor, model: str = "homography", parametrization: str = "entries"
-) -> torch.Tensor:
-    """Parameters of ``matrix`` for ``model`` (the inverse of :func:`parameters_to_matrix`).
-
-    Convention:
-        Exact for matrices of the model's class; other matrices are projected
-        (e.g. the rotation of a ``euclidean`` model is the polar angle of the
-        linear part). For ``sl3`` the parameters are zero: pass ``matrix`` as
-        ``base`` instead. ``h33`` is divided out first (unless it is exactly 0).
-        A NaN or inf entry anywhere gives NaN parameters, also for an entry the
-        model ignores. float16/bfloat16 are computed in float32.
-
-    Args:
-        matrix: ``(*, 3, 3)`` normalized-frame transforms.
-        model: one of :data:`MODELS`.
-        parametrization: one of :data:`PARAMETRIZATIONS`.
-
-    Returns:
-        ``(*, P)`` parameters.
-
-    Example:
-        >>> m = parameters_to_matrix(torch.tensor([0.1, 0.2, 0.3, 0.4, 0.5]), "trs")
-        >>> matrix_to_parameters(m, "trs")
-        tensor([0.1000, 0.2000, 0.3000, 0.4000, 0.5000])
-    """
-    _check_choice(model, MODELS, "model")
-    _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
-    check_shape(matrix, ["*", "3", "3"], "matrix")
-    check_float(matrix, "matrix")
-    work = working_dtype(matrix.dtype)  # float16/bfloat16: computed in float32
-    m = matrix.to(work)
-    h33 = m[..., 2, 2]
-    m = m / torch.where(h33 == 0, torch.ones_like(h33), h33)[..., None, None]  # NaN stays
-    # a non-finite entry anywhere makes every parameter NaN, also those a model ignores
-    poison = (m * 0).sum((-2, -1))[..., None]
-    return cast_back(_matrix_to_parameters(m, model, parametrization) + poison, matrix.dtype)
-
-
-def _matrix_to_parameters(m: torch.Tensor, model: str, parametrization: str) -> torch.Tensor:
-    eye = torch.eye(3, dtype=m.dtype, device=m.device)
-    if model == "homography":
-        if parametrization == "entries":
-            return (m - eye).flatten(-2)[..., :8]
-        if parametrization == "corners":
-            corners = torch.tensor(_CORNERS, dtype=m.dtype, device=m.device)
-            return (transform_points(m, corners.expand(*m.shape[:-2], 4, 2)) - corners).flatten(-2)
-        return m.new_zeros(*m.shape[:-2], 8)  # zeros: the matrix goes into ``base``
-    if model == "affine":
-        return (m - eye)[..., :2, :].flatten(-2)
-    t = m[..., :2, 2]
-    if model == "similarity":
-        a = (m[..., 0, 0] + m[..., 1, 1]) / 2 - 1
-        b = (m[..., 1, 0] - m[..., 0, 1]) / 2
-        return torch.cat([torch.stack([a, b], -1), t], -1)
-    if model == "euclidean":
-        angle = torch.atan2(m[..., 1, 0] - m[..., 0, 1], m[..., 0, 0] + m[..., 1, 1])
-        return torch.cat([angle[..., None], t], -1)
-    if model == "translation":
-        return t.clone()
-    angle = torch.atan2(m[..., 1, 0], m[..., 0, 0])
-    c, s = torch.cos(angle), torch.sin(angle)
-    sx = torch.hypot(m[..., 0, 0], m[..., 1, 0])
-    sy = -s * m[..., 0, 1] + c * m[..., 1, 1]
-    tiny = torch.finfo(m.dtype).tiny
-    log_s = torch.stack([sx, sy], -1).clamp_min(tiny).log()
-    return torch.cat([t, angle[..., None], log_s], -1)
-
-
-# ---------------------------------------------------------------- residuals
-
-
-def _project(h: torch.Tensor, p: torch.Tensor):
-    """π(H p) entrywise: h (B, 3, 3), batch-last points p (2, N, B) -> x', y', w (N, B) each.
-
-    Batch-last keeps every reduction over N off the innermost axis (fast on CPU).
-    """
-    x, y = p[0], p[1]
-    e = h.permute(1, 2, 0)  # (3, 3, B): e[i, j] broadcasts over N
-    w = e[2, 0] * x + e[2, 1] * y + e[2, 2]
-    w = torch.where(w.abs() > 1e-12, w, torch.full_like(w, 1e-12))  # guard before dividing
-    return (e[0, 0] * x + e[0, 1] * y + e[0, 2]) / w, (e[1, 0] * x + e[1, 1] * y + e[1, 2]) / w, w
-
-
-def _squared_transfer(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
-    """Squared transfer error per point (N, B) of ``π(H p) - q``; p, q (2, N, B)."""
-    xp, yp, _ = _project(h, p)
-    return (xp - q[0]).square() + (yp - q[1]).square()
-
-
-#: Robust losses of :func:`fit_transform`, as functions of the squared residual.
-LOSSES: tuple[str, ...] = ("l2", "huber", "cauchy", "tukey")
-
-
-def robust_rho(sq: torch.Tensor, kind: str, c2: torch.Tensor) -> torch.Tensor:
-    """``ρ(s)`` of squared residuals ``sq`` (N, B) with squared scale ``c2`` (B,).
-
-    With ``s = r²`` and scale ``c`` (Triggs et al. 2000, table of M-estimators):
-    l2 ``s``; huber ``s`` for ``s <= c²`` else ``2 c √s - c²``; cauchy
-    ``c² log(1 + s / c²)``; tukey ``c²/3 (1 - (1 - s/c²)³)``, constant ``c²/3``
-    beyond ``c``. Each is ``s`` near 0 and homogeneous: ``ρ(k² s; k c) = k² ρ(s; c)``.
-    """
-    if kind == "l2":
-        return sq
-    t = sq / c2
-    if kind == "huber":
-        inside = t <= 1
-        t_safe = torch.where(inside, torch.ones_like(t), t)  # sqrt only where t > 1
-        return torch.where(inside, sq, c2 * (2 * t_safe.sqrt() - 1))
-    if kind == "cauchy":
-        return c2 * torch.log1p(t)
-    return c2 / 3 * (1 - (1 - t.clamp(max=1)).pow(3))
-
-
-def robust_weight(sq: torch.Tensor, kind: str, c2: torch.Tensor) -> torch.Tensor:
-    """IRLS weight ``ρ'(s)`` (N, B): the weight of each squared residual in one GN step."""
-    if kind == "l2":
-        return torch.ones_like(sq)
-    t = sq / c2
-    if kind == "huber":
-        inside = t <= 1
-        t_safe = torch.where(inside, torch.ones_like(t), t)
-        return torch.where(inside, torch.ones_like(t), t_safe.rsqrt())
-    if kind == "cauchy":
-        return 1 / (1 + t)
-    return (1 - t.clamp(max=1)).square()
-
-
-def _normal_equations(h, p, q, wn):
-    """Gauss-Newton ``JᵀJ`` (B, 9, 9) and ``Jᵀr`` (B, 9) of the transfer error wrt vec(H).
-
-    The rows of ``J`` for one point are ``jx = [P, 0, -x' P] / w`` and
-    ``jy = [0, P, -y' P] / w`` with ``P = (x, y, 1)``, so ``JᵀJ`` has the block
-    structure of the DLT matrix, ``[[S0, 0, -Sx], [0, S0, -Sy], [-Sx, -Sy, Sxy]]``
-    with ``S_c = Σ wn c P Pᵀ / w²``: it is built from 24 moments, not from ``J``.
-    Points p, q are batch-last (2, N, B), ``wn`` is (N, B).
-    """
-    x, y = p[0], p[1]
-    xp, yp, w = _project(h, p)
-    rx, ry = xp - q[0], yp - q[1]
-    a = wn / w.square()  # (N, B)
-    b = wn / w
-    one = torch.ones_like(x)
-    pp = torch.stack([x * x, x * y, x, y * y, y, one])  # (6, N, B)
-    coef = torch.stack([a, a * xp, a * yp, a * (xp * xp + yp * yp)])  # (4, N, B)
-    moments = (pp[:, None] * coef[None]).sum(2).flatten(0, 1)  # (24, B)
-    moments = torch.cat([moments, torch.zeros_like(moments[:1])])  # (25, B)
-    index = torch.tensor(DLT_M_INDEX, device=x.device)
-    sign = torch.tensor(DLT_M_SIGN, dtype=x.dtype, device=x.device)
-    jtj = (torch.index_select(moments, 0, index) * sign[:, None]).T.unflatten(-1, (9, 9))
-    c = torch.stack([b * rx, b * ry, -b * (xp * rx + yp * ry)])  # (3, N, B)
-    ph = torch.stack([x, y, one])  # (3, N, B)
-    jtr = (c[:, None] * ph[None]).sum(2).flatten(0, 1).T  # (B, 9): Σ c_i P_j
-    return jtj, jtr
-
-
-class _Objective(NamedTuple):
-    symmetric: bool
-    kind: str  # one of LOSSES
-    c2_dst: torch.Tensor | None  # (B,) squared robust scale in the normalized dst frame
-    c2_src: torch.Tensor | None  # (B,) the same in the normalized src frame
-
-
-def _irls(h, p, q, wn, kind, c2):
-    """Weights (N, B) of the IRLS step at ``h``: ``wn ρ'(s)``."""
-    if kind == "l2":
-        return wn
-    return wn * robust_weight(_squared_transfer(h, p, q), kind, c2)
-
-
-def _system(hn, prob, objective: _Objective):
-    """``JᵀJ`` (B, 9, 9) and ``Jᵀr`` (B, 9) of the (IRLS-reweighted) objective wrt vec(Ĥ)."""
-    kind = objective.kind
-    wn = _irls(hn, prob.p, prob.q, prob.wn, kind, objective.c2_dst)
-    jtj, jtr = _normal_equations(hn, prob.p, prob.q, wn)
-    if objective.symmetric:
-        g = inverse(hn)
-        wn_b = _irls(g, prob.q, prob.p, prob.wn, kind, objective.c2_src)
-        jtj_b, jtr_b = _normal_equations(g, prob.q, prob.p, wn_b)
-        # dG = -G dĤ G: d vec(G)_ij / d vec(Ĥ)_kl = -G_ik G_lj
-        dg = -torch.einsum("bik,blj->bijkl", g, g).flatten(1, 2).flatten(2, 3)  # (B, 9, 9)
-        jtj = jtj + dg.mT @ jtj_b @ dg
-        jtr = jtr + (dg.mT @ jtr_b[..., None]).squeeze(-1)
-    return jtj, jtr
-
-
-class _Problem(NamedTuple):
-    p: torch.Tensor  # (2, N, B) normalized src, batch last
-    q: torch.Tensor  # (2, N, B) normalized dst
-    wn: torch.Tensor  # (N, B) weights / Σ weights
-    t_src: torch.Tensor  # (B, 3, 3)
-    t_dst: torch.Tensor
-    scale_src: torch.Tensor  # (B,)
-    scale_dst: torch.Tensor
-
-
-def _normalize(src, dst, w, model: str) -> _Problem:
-    ns, nd = hartley_weighted(src, w), hartley_weighted(dst, w)
-    wn = (w / w.sum(-1, keepdim=True)).T.contiguous()  # (N, B)
-
-    def last(points):  # (B, N, 2) -> (2, N, B)
-        return points.permute(2, 1, 0).contiguous()
-
-    if model in ("homography", "affine"):
-        return _Problem(last(ns.points), last(nd.points), wn, ns.transform, nd.transform,
-                        ns.scale, nd.scale)
-    # one shared scale keeps similarity/euclidean/translation/trs in their class
-    scale = 2.0 / (1.0 / ns.scale + 1.0 / nd.scale)
-    t_src, t_dst = similarity_matrix(scale, ns.centroid), similarity_matrix(scale, nd.centroid)
-    p = (src - ns.centroid[..., None, :]) * scale[..., None, None]
-    q = (dst - nd.centroid[..., None, :]) * scale[..., None, None]
-    return _Problem(last(p), last(q), wn, t_src, t_dst, scale, scale)
-
-
-def _loss_terms(hn, prob: _Problem, objective: _Objective):
-    """(objective (B,) in normalized units, loss (B,) in input units)."""
-    kind = objective.kind
-    fwd = (robust_rho(_squared_transfer(hn, prob.p, prob.q), kind, objective.c2_dst)
-           * prob.wn).sum(0)
-    loss = fwd / prob.scale_dst.square()
-    if objective.symmetric:
-        bwd = (robust_rho(_squared_transfer(inverse(hn), prob.q, prob.p), kind,
-                          objective.c2_src) * prob.wn).sum(0)
-        return fwd + bwd, loss + bwd / prob.scale_src.square()
-    return fwd, loss
-
-
-def _denormalize(hn: torch.Tensor, prob: _Problem) -> torch.Tensor:
-    """M = T_dst⁻¹ Ĥ T_src, scaled to ``m33 = 1`` where possible (entrywise, no tiny bmm)."""
-    # T = [[s, 0, -s cx], [0, s, -s cy], [0, 0, 1]]: Ĥ T_src scales the first two columns
-    # and shifts the third; T_dst⁻¹ = [[1/s, 0, cx], [0, 1/s, cy], [0, 0, 1]] acts on rows.
-    ss, sd = prob.t_src[:, 0, 0, None], prob.t_dst[:, 0, 0, None]  # (B, 1)
-    cs = -prob.t_src[:, :2, 2] / ss  # (B, 2) centroids
-    cd = -prob.t_dst[:, :2, 2] / sd
-    c0, c1 = hn[..., 0] * ss, hn[..., 1] * ss  # (B, 3) columns of Ĥ T_src
-    c2 = hn[..., 2] - c0 * cs[:, :1] - c1 * cs[:, 1:]
-    cols = torch.stack([c0, c1, c2], dim=-1)  # (B, 3, 3)
-    h = torch.stack([cols[:, 0] / sd + cd[:, :1] * cols[:, 2],
-                     cols[:, 1] / sd + cd[:, 1:] * cols[:, 2], cols[:, 2]], dim=1)
-    h33 = h[..., 2, 2]
-    ok = h33 != 0  # only 0 is undefined (pixel units: no absolute threshold)
-    return h / torch.where(ok, h33, torch.ones_like(h33))[..., None, None]
-
-
-# ---------------------------------------------------------------- optimizers
-
-
-def _param_jacobian(fn, theta: torch.Tensor) -> torch.Tensor:
-    """d vec(fn(θ)) / dθ, (B, 9, P), batched with torch.func (row-major vec)."""
-    from torch.func import jacrev, vmap
-
-    jac = vmap(jacrev(lambda t: fn(t[None], with_base=False)[0].flatten()))(theta)
-    if fn.base is None:
-        return jac
-    # d vec(base · E) = base applied to each column block of d vec(E)
-    return torch.einsum("bik,bkjp->bijp", fn.base, jac.unflatten(1, (3, 3))).flatten(1, 2)
-
-
-def _spd_solve(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """Solve ``a x = b`` for small SPD ``a`` (B, P, P), ``b`` (B, P) by Cholesky, batch last.
-
-    Loops over the P <= 9 columns only; every operation acts on all B problems at
-    once, which beats per-matrix LAPACK calls for thousands of 8x8 systems on CPU.
-    Differentiable; a non-positive pivot is clamped (no NaN).
-    """
-    size = a.shape[-1]
-    al, bl = a.permute(1, 2, 0), b.T  # (P, P, B), (P, B)
-    tiny = torch.finfo(a.dtype).tiny
-    cols = []  # cols[j] = L[j:, j], (P - j, B)
-    for j in range(size):
-        s = al[j:, j]
-        for k in range(j):
-            s = s - cols[k][j - k:] * cols[k][j - k]
-        cols.append(s / s[0].clamp_min(tiny).sqrt())
-    z, r = [], bl  # forward substitution, L z = b
-    for j in range(size):
-        z.append(r[0] / cols[j][0])
-        r = r[1:] - cols[j][1:] * z[j]
-    x = [None] * size  # back substitution, Lᵀ x = z
-    for i in reversed(range(size)):
-        rest = z[i]
-        if i + 1 < size:
-            rest = rest - (cols[i][1:] * torch.stack(x[i + 1:])).sum(0)
-        x[i] = rest / cols[i][0]
-    return torch.stack(x, dim=-1)
-
-
-def _lm(fn, theta, prob, objective, steps, mu0, tol, bar, history):
-    """Levenberg-Marquardt (Marquardt's diagonal scaling), per problem, unrolled."""
-    constant_jac = None
-    mu = torch.full_like(theta[:, 0], mu0)
-    obj, loss = _loss_terms(fn(theta), prob, objective)
-    for _ in bar:
-        jtj, jtr = _system(fn(theta), prob, objective)  # wrt vec(Ĥ)
-        if fn.model == "homography" and fn.parametrization == "entries":
-            a, g = jtj[:, :8, :8], jtr[:, :8, None]  # d vec(Ĥ) / dθ selects 8 entries
-        elif fn.linear:  # one constant (9, P) Jacobian: plain GEMMs, no tiny bmm
-            if constant_jac is None:  # constant: taken at θ = 0 (also for an empty batch)
-                constant_jac = _param_jacobian(fn, theta.new_zeros(1, theta.shape[-1]))[0]
-            d = constant_jac
-            a = (jtj @ d).mT @ d  # (B, P, P)
-            g = (jtr @ d)[..., None]  # (B, P, 1)
-        else:
-            d = _param_jacobian(fn, theta)  # (B, 9, P)
-            a = d.mT @ jtj @ d
-            g = d.mT @ jtr[..., None]
-        diag = a.diagonal(dim1=-2, dim2=-1)
-        damp = mu[:, None] * diag + 1e-12 * diag.sum(-1, keepdim=True) + 1e-30
-        step = -_spd_solve(a + torch.diag_embed(damp), g.squeeze(-1))  # (B, P)
-        step = torch.where(torch.isfinite(step), step, torch.zeros_like(step))
-        trial = theta + step
-        obj_new, loss_new = _loss_terms(fn(trial), prob, objective)
-        accept = obj_new < obj
-        theta = torch.where(accept[:, None], trial, theta)
-        decrease = torch.where(accept, obj - obj_new, torch.zeros_like(obj))
-        obj = torch.where(accept, obj_new, obj)
-        loss = torch.where(accept, loss_new, loss)
-        mu = torch.where(accept, mu * 0.1, mu * 10.0).clamp(1e-12, 1e12)
-        history.append(loss.detach())
-        bar.set_postfix(loss=float(loss.detach().mean()))
-        small = step.norm(dim=-1) <= math.sqrt(tol) * (1 + theta.norm(dim=-1))
-        converged = ((decrease <= tol * obj) & small) | (obj <= 1e-30) | (mu >= 1e12)
-        if bool(converged.all()):
-            break
-    return theta
-
-
-def _gauss_newton_step(fn, theta, prob, objective):
-    """One Gauss-Newton step from a detached optimum: carries the implicit gradient."""
-    theta = theta.detach()
-    with torch.no_grad():
-        d = _param_jacobian(fn, theta)  # (B, 9, P)
-        jtj, _ = _system(fn(theta), prob, objective)
-        a = d.mT @ jtj @ d
-        diag = a.diagonal(dim1=-2, dim2=-1)
-        eye = torch.eye(theta.shape[-1], dtype=theta.dtype, device=theta.device)
-        chol, _ = torch.linalg.cholesky_ex(a + 1e-12 * diag.sum(-1)[:, None, None] * eye)
-    _, jtr = _system(fn(theta), prob, objective)  # attached to the inputs
-    return theta - torch.cholesky_solve(d.mT @ jtr[..., None], chol).squeeze(-1)
-
-
-def _first_order(kind, fn, theta, prob, objective, steps, lr, tol, patience, bar, history):
-    if theta.shape[0] == 0:  # an empty batch: nothing to descend (torch's L-BFGS raises)
-        return theta.detach()
-    theta = theta.detach().clone().requires_grad_(True)
-    prob_d = _Problem(*(t.detach() for t in prob))
-    objective = objective._replace(c2_dst=objective.c2_dst.detach(),
-                                   c2_src=objective.c2_src.detach())
-    if kind == "adam":
-        opt = torch.optim.Adam([theta], lr=lr)
-        sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(steps, 1),
-                                                           eta_min=lr * 1e-3)
-    else:
-        # one iteration per step (for the history); max_eval leaves room for the line search
-        opt = torch.optim.LBFGS([theta], lr=lr, max_iter=1, max_eval=25, history_size=20,
-                                tolerance_grad=0.0, tolerance_change=0.0,
-                                line_search_fn="strong_wolfe")
-        sched = None
-    with torch.no_grad():
-        best, _ = _loss_terms(fn(theta), prob_d, objective)
-    best_theta = theta.detach().clone()
-    stale = 0
-    for _ in bar:
-        def closure():
-            opt.zero_grad()
-            obj, _ = _loss_terms(fn(theta), prob_d, objective)
-            total = obj.sum()
-            total.backward()
-            return total
-
-        with torch.enable_grad():
-            opt.step(closure)
-        if sched is not None:
-            sched.step()
-        with torch.no_grad():
-            obj, loss = _loss_terms(fn(theta), prob_d, objective)
-        history.append(loss)
-        bar.set_postfix(loss=float(loss.mean()))
-        improved = obj < best * (1 - tol)
-        lower = obj < best  # keep the best iterate of each problem (Adam may overshoot)
-        best_theta = torch.where(lower[:, None], theta.detach(), best_theta)
-        best = torch.where(lower, obj, best)
-        stale = 0 if bool(improved.any()) else stale + 1
-        if stale >= patience or bool((obj <= 1e-30).all()):
-            break
-    return best_theta
-
-
-class _ParamFn:
-    """θ -> Ĥ for one model, with ``linear`` telling whether d vec(Ĥ)/dθ is constant."""
-
-    def __init__(self, model: str, parametrization: str, base: torch.Tensor | None):
-        self.model, self.parametrization, self.base = model, parametrization, base
-        self.linear = model in ("affine", "similarity", "translation") or (
-            model == "homography" and parametrization == "entries")
-
-    def __call__(self, theta: torch.Tensor, with_base: bool = True) -> torch.Tensor:
-        base = self.base if with_base else None
-        return parameters_to_matrix(theta, self.model, self.parametrization, base)
 
 
 def fit_transform(
@@ -643,7 +109,7 @@ def fit_transform(
         Column vectors; ``dst ~ matrix @ [x, y, 1]ᵀ``. The loss is the weighted
         mean robust transfer error ``Σ w ρ(‖π(M p) - q‖²) / Σ w`` (plus
         ``Σ w ρ(‖π(M⁻¹ q) - p‖²) / Σ w`` if ``symmetric``), with ``ρ`` of
-        ``robust_rho`` (this module) at ``scale`` (input units, pixels): ``"l2"`` is the
+        :func:`robust_loss` at ``scale`` (input units, pixels): ``"l2"`` is the
         plain mean squared error. It is optimized in the Hartley-normalized
         frame (the scale moves with it) and reported in input units squared.
         ``"lm"`` solves robust losses by iteratively reweighted least squares
@@ -703,10 +169,10 @@ def fit_transform(
                             parametrization, loss, None if weights is None else weights.to(work),
                             lr, tol, patience, progress, scale, symmetric)
         return FitResult(*(cast_back(t, src.dtype) for t in fit))
-    _check_choice(model, MODELS, "model")
-    _check_choice(optimizer, _DEFAULT_STEPS, "optimizer")
-    _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
-    _check_choice(loss, (*LOSSES, "transfer", "symmetric"), "loss")
+    check_choice(model, MODELS, "model")
+    check_choice(optimizer, _DEFAULT_STEPS, "optimizer")
+    check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
+    check_choice(loss, (*LOSSES, "transfer", "symmetric"), "loss")
     scale = float(scale)
     if not (math.isfinite(scale) and scale > 0):
         raise ValueError(f"scale: expected a finite positive number of pixels, got {scale!r}")
@@ -715,10 +181,13 @@ def fit_transform(
         raise ValueError(f"steps: expected a non-negative int, got {steps!r}")
     lr = _DEFAULT_LR[optimizer] if lr is None else float(lr)
     tol = 1000 * torch.finfo(src.dtype).eps if tol is None else float(tol)
+    if not (math.isfinite(tol) and tol >= 0):
+        raise ValueError(f"tol: expected a finite number >= 0 (a relative improvement), "
+                         f"got {tol!r}")
     batch, n = src.shape[:-2], src.shape[-2]
     p_in, q_in = src.reshape(-1, n, 2), dst.reshape(-1, n, 2)
     w = effective_weights(p_in, None if weights is None else weights.reshape(-1, n))
-    prob = _normalize(p_in, q_in, w, model)
+    prob = normalize_problem(p_in, q_in, w, model)
     base = None
     if init is not None:
         check_shape(init, ["*", "3", "3"], "init")
@@ -730,29 +199,26 @@ def fit_transform(
             base = init_n.detach()
     else:
         theta = src.new_zeros(p_in.shape[0], MODELS[model])
-    fn = _ParamFn(model, parametrization, base)
+    fn = ParamFn(model, parametrization, base)
     symmetric = bool(symmetric) or loss == "symmetric"
     kind = "l2" if loss in ("transfer", "symmetric") else loss
-    objective = _Objective(symmetric, kind, (scale * prob.scale_dst).square(),
-                           (scale * prob.scale_src).square())
-    from tqdm.auto import tqdm
-
+    objective = Objective(symmetric, kind, scale * prob.scale_dst, scale * prob.scale_src)
     bar = tqdm(range(steps), disable=not progress, desc=f"fit {model} ({optimizer})")
     with torch.no_grad():
-        history = [_loss_terms(fn(theta), prob, objective)[1]]
+        history = [loss_terms(fn(theta), prob, objective)[1]]
     if optimizer == "lm":
-        theta = _lm(fn, theta, prob, objective, steps, lr, tol, bar, history)
+        theta = levenberg_marquardt(fn, theta, prob, objective, steps, lr, tol, bar, history)
     else:
-        theta = _first_order(optimizer, fn, theta, prob, objective, steps, lr, tol, patience,
+        theta = first_order(optimizer, fn, theta, prob, objective, steps, lr, tol, patience,
                              bar, history)
         if torch.is_grad_enabled() and any(
             t.requires_grad for t in (src, dst, weights) if t is not None
         ):
-            theta = _gauss_newton_step(fn, theta, prob, objective)
+            theta = gauss_newton_step(fn, theta, prob, objective)
     bar.close()
     hn = fn(theta)
-    matrix = _denormalize(hn, prob)
-    _, final = _loss_terms(hn, prob, objective)
+    matrix = denormalize(hn, prob)
+    _, final = loss_terms(hn, prob, objective)
     return FitResult(
         matrix.reshape(*batch, 3, 3),
         theta.reshape(*batch, theta.shape[-1]),
@@ -804,7 +270,7 @@ class HomographyModel(nn.Module):
         dtype: torch.dtype | None = None,
     ) -> None:
         super().__init__()
-        _check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
+        check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
         self.parametrization = parametrization
         given = [(name, t) for name, t in (("src", src), ("dst", dst), ("init", init))
                  if t is not None]
@@ -856,4 +322,3 @@ class HomographyModel(nn.Module):
         """Transform ``points`` ``(*batch_shape, N, 2)`` -> ``(*batch_shape, N, 2)``."""
         check_shape(points, ["*", "N", "2"], "points")
         return transform_points(self.matrix(), points)
-

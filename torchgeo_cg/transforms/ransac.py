@@ -31,19 +31,16 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.transforms._correspondences import check_pair, hartley_weighted, similarity_matrix
+from torchgeo_cg.transforms._dlt import adjugate3, dlt_moments, dlt_smallest_eigenpair, matmul3
 from torchgeo_cg.transforms.estimation import (
-    adjugate3,
-    check_pair,
-    dlt_moments,
-    dlt_smallest_eigenpair,
     find_affine,
     find_euclidean,
     find_similarity,
-    hartley_weighted,
-    matmul3,
-    similarity_matrix,
 )
+from torchgeo_cg.transforms.fitting import fit_transform
 
 __all__ = ["RobustFit", "SAMPLE_SIZES", "find_transform_ransac"]
 
@@ -144,7 +141,7 @@ def _minimal_fits(model: str, ps: torch.Tensor, qs: torch.Tensor):
     else:
         dp, dq = ps[..., 1, :] - ps[..., 0, :], qs[..., 1, :] - qs[..., 0, :]
         valid = (dp.square().sum(-1) > tol) & (dq.square().sum(-1) > tol)
-    return _CLOSED_FORMS[model](ps, qs), valid
+    return _CLOSED_FORMS[model](ps, qs).matrix, valid
 
 
 def _squared_errors(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
@@ -282,11 +279,9 @@ def _dlt_in_frame(frame: _Frame, w_fit: torch.Tensor):
 def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, final: bool):
     """Least-squares refit on weights w_fit (B, N): DLT (or LM from ``init`` when ``final``)."""
     if model != "homography":
-        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit), (w_fit > 0).sum(-1) >= 2
+        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit).matrix, (w_fit > 0).sum(-1) >= 2
     if not final:
         return _dlt_in_frame(frame, w_fit)
-    from torchgeo_cg.transforms.fitting import fit_transform
-
     ok = (w_fit > 0).sum(-1) >= 4
     safe_w = torch.where(ok[:, None], w_fit, frame.w)
     return fit_transform(frame.p, frame.q, "homography", "lm", steps=5, init=init,
@@ -328,8 +323,7 @@ def _final_refit(frame: _Frame, model, best):
 
 def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
               lo_iterations, min_inliers):
-    if model not in SAMPLE_SIZES:
-        raise ValueError(f"model: expected one of {sorted(SAMPLE_SIZES)}, got {model!r}")
+    check_choice(model, SAMPLE_SIZES, "model")
     if not (isinstance(threshold, (int, float)) and math.isfinite(threshold) and threshold > 0):
         raise ValueError(f"threshold: expected a finite positive number, got {threshold!r}")
     if not (isinstance(confidence, (int, float)) and 0 < confidence < 1):
@@ -341,7 +335,6 @@ def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round
         if value is not None and (isinstance(value, bool) or not isinstance(value, int)
                                   or value < low):
             raise ValueError(f"{name}: expected an int >= {low}, got {value!r}")
-
 
 
 def _prepare(src, dst, weights):

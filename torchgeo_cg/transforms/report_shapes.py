@@ -22,7 +22,6 @@ import torch
 
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.decompose import decompose_affine
-from torchgeo_cg.transforms.estimation import find_homography_dlt
 from torchgeo_cg.transforms.fitting import fit_transform
 from torchgeo_cg.transforms.homogeneous import (
     compose,
@@ -35,6 +34,7 @@ from torchgeo_cg.transforms.homogeneous import (
     transform_points,
     translation,
 )
+from torchgeo_cg.transforms.homography_dlt import find_homography_dlt
 
 __all__ = [
     "ReportShapes",
