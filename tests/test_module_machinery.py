@@ -370,6 +370,11 @@ def test_to_float64(name):
     torch.testing.assert_close(out64.float(), expected, rtol=1e-5, atol=1e-5)
 
 
+# Documented departures: the mesh of MeshSDF follows its query points, as in mesh_sdf
+# (float64 trimesh vertices with float32 points work, README SDF tour).
+FOLLOWS_INPUT = {"torchgeo_cg.sdf.mesh_distance.MeshSDF"}
+
+
 def _has_floating_state(module: nn.Module) -> bool:
     return bool(_floating_tensors(module))
 
@@ -380,7 +385,7 @@ def test_state_and_input_of_different_dtypes_raise(name):
     ``TypeError`` names both dtypes (as ``nn.Linear``); nothing is cast silently."""
     spec = SPECS[name]
     x = spec.sample(3)
-    if not _has_floating_state(spec.make()):  # nothing to disagree with: follows the input
+    if name in FOLLOWS_INPUT or not _has_floating_state(spec.make()):  # follows the input
         assert _out(spec, spec.make(), x.double()).dtype == torch.float64
         assert _out(spec, spec.make().double(), x).dtype == torch.float32
         return

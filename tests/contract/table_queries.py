@@ -135,7 +135,7 @@ ENTRIES: list[Entry] = [
     Entry("sdf.mesh_sdf[winding]", _mesh_sdf_points_first, (QUERY, VERTS),
           out=("length", "length"), bad=((2, 5, 2), (3,)), mixed=("follow", 0)),
     Entry("sdf.MeshSDF", _module, (QUERY, VERTS), out=("length", "length"),
-          bad=((2, 5, 2), (3,)), mixed="raise"),
+          bad=((2, 5, 2), (3,)), mixed=("follow", 0)),
     # --- samples
     # vertices must be finite (documented ValueError); the empty input is an empty batch
     Entry("sdf.SDFSampler", _sampler, (VERTS, Arg("sigma", (2,), "small_positive")),

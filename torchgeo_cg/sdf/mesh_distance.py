@@ -48,7 +48,6 @@ from torchgeo_cg.core.check import (
     check_shape,
     check_tensor,
 )
-from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, hypot, power_of_two_scale, working_dtype
 from torchgeo_cg.mesh.faces import check_mesh
 from torchgeo_cg.sdf._triangle import (
@@ -451,7 +450,6 @@ class MeshSDF(nn.Module):
     def forward(self, points: torch.Tensor, return_closest: bool = False,
                 progress: bool = False) -> MeshSDFResult:
         """Signed distances of ``points (*, N, 3)``: :class:`MeshSDFResult`."""
-        check_module_dtype(self, points, "points")
         check_float(points, "points")
         check_shape(points, ["*", "N", "3"], "points")
         if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: in float32

@@ -222,7 +222,10 @@ class SceneGraph(nn.Module):
                 f"SceneGraph.add: parent {parent!r} of {name!r} is not a node; have {self.names}"
             )
         if local_transform is None:
-            local_transform = FixedTransform(torch.eye(3))
+            # the identity has no dtype of its own: it follows theta
+            local_transform = _CallableTransform(
+                lambda theta: torch.eye(3, dtype=theta.dtype, device=theta.device).expand(
+                    *theta.shape, 3, 3) + 0 * theta[..., None, None])
         elif isinstance(local_transform, torch.Tensor):
             local_transform = FixedTransform(local_transform)
         elif not isinstance(local_transform, nn.Module):
