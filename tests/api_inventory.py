@@ -47,6 +47,7 @@ INVENTORY: dict[str, list[str]] = {
         "check_broadcastable",
         "check_choice",
         "check_float",
+        "check_module_dtype",
         "check_same_dtype",
         "check_shape",
         "check_spacing",
@@ -71,6 +72,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.core.coerce": [
         "as_tensor_like",
+        "check_module_dtype",
         "check_same_dtype",
     ],
     "torchgeo_cg.core.grid": [

@@ -370,6 +370,35 @@ def test_to_float64(name):
     torch.testing.assert_close(out64.float(), expected, rtol=1e-5, atol=1e-5)
 
 
+# Documented departures: the mesh of MeshSDF follows its query points, as in mesh_sdf
+# (float64 trimesh vertices with float32 points work, README SDF tour).
+FOLLOWS_INPUT = {"torchgeo_cg.sdf.mesh_distance.MeshSDF"}
+
+
+def _has_floating_state(module: nn.Module) -> bool:
+    return bool(_floating_tensors(module))
+
+
+@pytest.mark.parametrize("name", _params(_ALL))
+def test_state_and_input_of_different_dtypes_raise(name):
+    """One rule: floating module state and a floating input share one dtype, else a
+    ``TypeError`` names both dtypes (as ``nn.Linear``); nothing is cast silently."""
+    spec = SPECS[name]
+    x = spec.sample(3)
+    if name in FOLLOWS_INPUT or not _has_floating_state(spec.make()):  # follows the input
+        assert _out(spec, spec.make(), x.double()).dtype == torch.float64
+        assert _out(spec, spec.make().double(), x).dtype == torch.float32
+        return
+    for module_dtype, input_dtype in ((torch.float64, torch.float32),
+                                      (torch.float32, torch.float64)):
+        module = spec.make().to(module_dtype)
+        with pytest.raises(TypeError) as err:
+            _out(spec, module, x.to(input_dtype))
+        message = str(err.value)
+        assert str(module_dtype) in message and str(input_dtype) in message, message
+        assert _out(spec, module, x.to(module_dtype)).dtype == module_dtype
+
+
 @pytest.mark.parametrize("name", _params(_ALL))
 def test_swa_averaged_model(name):
     spec = SPECS[name]

@@ -167,7 +167,7 @@ ENTRIES: list[Entry] = [
           empty=None,  # split() of an empty batch is an empty list: no tensor to check
           bad=BAD_VOL, mixed=("follow", 0), nan=NAN_SAMPLE),
     Entry("mesh.MarchingCubes", _mc_module, (VOL, ISO, ORIGIN, SPACING), out=MC_OUT,
-          empty=EMPTY_MC, bad=BAD_VOL, mixed=("follow", 0), nan=NAN_SAMPLE),
+          empty=EMPTY_MC, bad=BAD_VOL, mixed="raise", nan=NAN_SAMPLE),
     # --- files: save with fixed faces, load back (exact in every format)
     Entry("mesh.save_mesh[obj]", _round_trip(".obj"), (VERTS,), out=("length", "index"),
           empty=FIXED_FACES, bad=BAD_VERTS, mixed=None),

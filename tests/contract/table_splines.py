@@ -44,7 +44,8 @@ ENTRIES: list[Entry] = [
     Entry("curves.bspline_basis", lambda t: C.bspline_basis(t, 3, order=1).values,
           (Arg("t", (3, 7), "t01", "unitless"),), out="unitless", empty=(0, -1), low="reject",
           bad=((),)),
-    Entry("curves.BSplineCurve", lambda cp, t: C.BSplineCurve(cp, 3)(t), (CP, T), **CURVE),
+    Entry("curves.BSplineCurve", lambda cp, t: C.BSplineCurve(cp, 3)(t), (CP, T),
+          **{**CURVE, "mixed": "raise"}),  # a module: its state and t share one dtype
     Entry("curves.nurbs", lambda cp, w, t: C.nurbs(cp, w, t, 3), (CP, W, T), empty=(2, -1),
           mixed="promote", low="reject", bad=((3,),)),
     Entry("curves.nurbs_derivative",

@@ -174,12 +174,14 @@ def _orbit_reference(theta, radius, speed, phase, spin):
 
 
 @pytest.mark.parametrize("spin", [False, True])
-def test_orbit_follows_theta_dtype(spin):
-    """float64 parameters with float32 theta (spin=True too) give a result in theta's
-    dtype, not a raw matmul error."""
+def test_orbit_state_and_theta_of_different_dtypes_raise(spin):
+    """float64 parameters with float32 theta raise a TypeError naming both dtypes (the
+    module rule); converting the module gives the result in theta's dtype."""
     theta = torch.tensor([0.0, 0.4, 2.5], dtype=torch.float32)
     orbit = Orbit(torch.tensor(1.5, dtype=F64), torch.tensor(2.0, dtype=F64), 0.3, spin=spin)
-    out = orbit(theta)
+    with pytest.raises(TypeError, match="float32.*float64"):
+        orbit(theta)
+    out = orbit.float()(theta)
     assert out.dtype == torch.float32
     torch.testing.assert_close(out.double(), _orbit_reference(theta, 1.5, 2.0, 0.3, spin),
                                rtol=1e-6, atol=1e-6)

@@ -9,7 +9,7 @@ from torchgeo_cg.core.check import (
     check_shape,
     check_tensor,
 )
-from torchgeo_cg.core.coerce import as_tensor_like, check_same_dtype
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype, check_same_dtype
 from torchgeo_cg.core.grid import Volume, check_spacing, index_to_world, world_to_index
 from torchgeo_cg.core.numerics import (
     cast_back,
@@ -30,6 +30,7 @@ __all__ = [
     "check_broadcastable",
     "check_choice",
     "check_float",
+    "check_module_dtype",
     "check_same_dtype",
     "check_shape",
     "check_spacing",

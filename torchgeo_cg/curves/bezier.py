@@ -34,7 +34,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
 from torchgeo_cg.core.numerics import safe_div, safe_norm, safe_sqrt
 from torchgeo_cg.curves.bernstein import bernstein_basis, check_degree
 
@@ -786,6 +786,7 @@ class BezierCurve(nn.Module):
 
     def forward(self, t: torch.Tensor) -> torch.Tensor:
         """``(T,)`` or ``(*, T)`` parameters -> ``(*, T, D)`` points."""
+        check_module_dtype(self, t, "t")
         return bezier(self.control_points, t)
 
     def derivative(self, order: int = 1) -> BezierCurve:

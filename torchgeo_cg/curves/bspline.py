@@ -35,6 +35,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.curves.bernstein import check_degree
 from torchgeo_cg.curves.knots import (
     check_bspline_knots,
@@ -295,6 +296,7 @@ class BSplineCurve(nn.Module):
 
     def forward(self, t: torch.Tensor) -> torch.Tensor:
         """``(T,)`` or ``(*, T)`` parameters -> ``(*, T, D)`` points."""
+        check_module_dtype(self, t, "t")
         return bspline(self.control_points, t, self.degree, self.knots, periodic=self.periodic)
 
     def derivative(self, t: torch.Tensor, order: int = 1) -> torch.Tensor:

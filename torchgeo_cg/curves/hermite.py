@@ -34,6 +34,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
 
 __all__ = [
     "hermite_basis",
@@ -234,6 +235,7 @@ class HermiteCurve(nn.Module):
 
     def forward(self, t: torch.Tensor) -> torch.Tensor:
         """``(T,)`` or ``(*, T)`` -> ``(*, T, D)``."""
+        check_module_dtype(self, t, "t")
         return hermite(self.p0, self.p1, self.m0, self.m1, t)
 
     def to_bezier(self) -> torch.Tensor:
@@ -429,6 +431,7 @@ class HermiteSpline(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(Q,)`` or ``(*, Q)`` queries -> ``(*, Q)``."""
+        check_module_dtype(self, x, "x")
         return hermite_spline(self.knots, self.values, self.tangents, x)
 
 
@@ -605,6 +608,7 @@ class PchipInterpolator(nn.Module):
 
     def forward(self, xq: torch.Tensor) -> torch.Tensor:
         """``(Q,)`` or ``(*, Q)`` queries -> ``(*, Q)``."""
+        check_module_dtype(self, xq, "xq")
         check_float(xq, "xq", low_precision=False)
         check_shape(xq, ["*", "Q"], "xq")
         check_broadcastable({"x": self.knots.shape[:-1], "y": self._batch, "xq": xq.shape[:-1]})

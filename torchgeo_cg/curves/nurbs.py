@@ -24,6 +24,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import safe_div
 from torchgeo_cg.curves.bernstein import check_degree
 from torchgeo_cg.curves.bspline import evaluate_local, prepare_bspline
@@ -205,6 +206,7 @@ class NURBSCurve(nn.Module):
 
     def forward(self, t: torch.Tensor) -> torch.Tensor:
         """``(T,)`` or ``(*, T)`` parameters -> ``(*, T, D)`` points."""
+        check_module_dtype(self, t, "t")
         return nurbs(self.control_points, self.weights, t, self.degree, self.knots,
                      periodic=self.periodic)
 

@@ -22,6 +22,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.points.nearest_neighbors import check_lengths, knn
 
@@ -144,4 +145,5 @@ class ChamferDistance(nn.Module):
         self.squared = bool(squared)
 
     def forward(self, a, b, a_lengths=None, b_lengths=None) -> ChamferResult:
+        check_module_dtype(self, a, "a")
         return chamfer_distance(a, b, a_lengths, b_lengths, self.reduction, self.squared)

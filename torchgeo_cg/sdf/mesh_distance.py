@@ -139,7 +139,8 @@ def winding_number(
         verts: ``(V, 3)`` or ``(*, V, 3)``.
         faces: ``(F, K)`` integer, ``K >= 3`` (padded with ``-1``).
         points: ``(*, N, 3)``.
-        chunk: maximal number of point-face pairs per step.
+        chunk: maximal number of point-face pairs per step, a positive int (``ValueError``
+            otherwise).
         backend: ``"auto"``, ``"torch"`` or an engine name; every backend computes the
             exact brute-force sum in torch today (validated like :func:`mesh_sdf`'s).
 
@@ -156,6 +157,8 @@ def winding_number(
     tris = check_mesh(verts, faces)
     check_float(points, "points")
     check_shape(points, ["*", "N", "3"], "points")
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise ValueError(f"chunk: expected a positive number of point-face pairs, got {chunk!r}")
     resolve_backend(backend)
     verts_bv3, points_bn3, lead = _batch_mesh_points(verts, points)
     work = working_dtype(points.dtype)  # float16/bfloat16: computed in float32

@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.coerce import as_tensor_like, check_same_dtype
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype, check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = [
@@ -338,6 +338,7 @@ class Union(nn.Module):
         self.shapes = nn.ModuleList(children)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return union(*(s(points) for s in self.shapes))
 
 
@@ -351,6 +352,7 @@ class Intersection(Union):
     """
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return intersection(*(s(points) for s in self.shapes))
 
 
@@ -368,6 +370,7 @@ class Difference(nn.Module):
         self.a, self.b = a, b
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return difference(self.a(points), self.b(points))
 
 
@@ -387,6 +390,7 @@ class SmoothUnion(nn.Module):
         self.k = nn.Parameter(torch.tensor(float(k), device=device, dtype=dtype))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return smooth_union(self.a(points), self.b(points), self.k)
 
 
@@ -401,6 +405,7 @@ class SmoothIntersection(SmoothUnion):
     """
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return smooth_intersection(self.a(points), self.b(points), self.k)
 
 
@@ -414,6 +419,7 @@ class Product(Union):
     """
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return product(*(s(points) for s in self.shapes))
 
 
@@ -433,6 +439,7 @@ class Translate(nn.Module):
                                    .to(dtype or torch.get_default_dtype()))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return translate(self.shape, self.offset)(points)
 
 
@@ -454,6 +461,7 @@ class Rotate(nn.Module):
         self.register_buffer("world_from_local", world_from_local.clone(), persistent=False)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return rotate(self.shape, self.world_from_local)(points)
 
 
@@ -472,4 +480,5 @@ class Scale(nn.Module):
         self.factor = nn.Parameter(torch.tensor(float(factor), device=device, dtype=dtype))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return scale(self.shape, self.factor)(points)

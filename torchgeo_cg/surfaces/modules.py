@@ -13,6 +13,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.surfaces.patches import (
     SurfaceDerivatives,
     bezier_surface,
@@ -69,6 +70,8 @@ class BezierSurface(nn.Module):
 
     def forward(self, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
         """``(*, N)`` paired parameters -> ``(*, N, D)`` points."""
+        check_module_dtype(self, u, "u")
+        check_module_dtype(self, v, "v")
         return bezier_surface(self.control_grid, u, v)
 
     def derivatives(self, u: torch.Tensor, v: torch.Tensor) -> SurfaceDerivatives:
@@ -115,6 +118,8 @@ class BSplineSurface(nn.Module):
 
     def forward(self, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
         """``(*, N)`` paired parameters -> ``(*, N, D)`` points."""
+        check_module_dtype(self, u, "u")
+        check_module_dtype(self, v, "v")
         return bspline_surface(self.control_grid, u, v, self.degree, self.knots_u, self.knots_v)
 
     def derivatives(self, u: torch.Tensor, v: torch.Tensor) -> SurfaceDerivatives:
@@ -158,6 +163,8 @@ class NURBSSurface(BSplineSurface):
 
     def forward(self, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
         """``(*, N)`` paired parameters -> ``(*, N, D)`` points."""
+        check_module_dtype(self, u, "u")
+        check_module_dtype(self, v, "v")
         return nurbs_surface(self.control_grid, self.weights, u, v, self.degree, self.knots_u,
                              self.knots_v)
 

@@ -73,6 +73,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_choice
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.grid import Volume, index_to_world
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.marching_cubes._args import parse_arguments
@@ -358,5 +359,7 @@ class MarchingCubes(nn.Module):
                 setattr(self, name, value)
 
     def forward(self, volume: torch.Tensor | Volume) -> MarchingCubesResult:
+        check_module_dtype(self, volume.values if isinstance(volume, Volume) else volume,
+                           "volume")
         return marching_cubes(volume, self.iso, self.origin, self.spacing, self.temperature,
                               self.mask, self.ambiguity)

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.subdivision._topology import check_boundary, check_crease_method, check_verts
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
@@ -98,6 +99,7 @@ class SubdivisionModule(nn.Module):
         return StencilMatrix(*(getattr(self, f"{f}_{level}") for f in StencilMatrix._fields))
 
     def forward(self, verts: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, verts, "verts", exclude=("tags_",))  # tags built the operators
         check_verts(verts, self.num_vertices_in)
         for level in range(self.levels):
             verts = apply_stencils(self._stencils(level), verts)

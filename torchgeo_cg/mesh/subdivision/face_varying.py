@@ -55,6 +55,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
 from torchgeo_cg.mesh.subdivision._creasing import subdivision_rules
@@ -465,6 +466,7 @@ class FaceVaryingSubdivision(nn.Module):
         return getattr(self, f"faces_{self.levels}")
 
     def forward(self, uvs: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, uvs, "uvs")
         check_float(uvs, "uvs")
         check_shape(uvs, ["*", self.num_uvs_in, "D"], "uvs")
         for level in range(self.levels):
