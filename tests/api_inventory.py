@@ -200,15 +200,20 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.transforms": [
         "AffineDecomposition", "FitResult", "FixedTransform", "HartleyNormalization",
-        "HomogeneousTransform", "TransformFit", "HomographyModel", "Orbit",
-        "RegistrationResult", "ReportShapes", "RobustFit", "SceneGraph", "ShapeFit",
-        "TRSTransform", "WarpedImage", "WorldTransforms", "compose", "compose_trs",
-        "decompose_affine", "find_affine", "find_euclidean", "find_homography_dlt",
-        "find_similarity", "find_transform_ransac", "find_translation", "fit_report_shapes",
-        "fit_transform", "hartley_normalize", "homography", "inverse", "matrix_to_parameters",
-        "parameters_to_matrix", "register_images", "report_shapes", "reprojection_error",
-        "robust_loss", "robust_weights", "rotation", "rotations", "scale_x", "scale_y", "scaling", "shear",
-        "solar_system",
+        "HomogeneousTransform", "HomographyModel", "Orbit", "RegistrationResult", "ReportShapes",
+        "RobustFit", "SceneGraph", "ShapeFit", "TRSTransform", "TransformFit", "WarpedImage",
+        "WorldTransforms", "axis_angle_to_matrix", "axis_angle_to_quaternion", "compose",
+        "compose_trs", "decompose_affine", "euler_to_matrix", "find_affine", "find_euclidean",
+        "find_homography_dlt", "find_similarity", "find_transform_ransac", "find_translation",
+        "fit_report_shapes", "fit_transform", "hartley_normalize", "homography", "inverse",
+        "matrix_to_axis_angle", "matrix_to_euler", "matrix_to_parameters", "matrix_to_quaternion",
+        "matrix_to_rotation_6d", "parameters_to_matrix", "quaternion_apply",
+        "quaternion_conjugate", "quaternion_multiply", "quaternion_slerp",
+        "quaternion_to_axis_angle", "quaternion_to_matrix", "random_rotations", "register_images",
+        "report_shapes", "reprojection_error", "robust_loss", "robust_weights", "rotation",
+        "rotation_6d_to_matrix", "rotation_angle", "rotation_mean", "rotations", "scale_x",
+        "scale_y", "scaling", "se3_exp", "se3_log", "shear", "so3_exp", "so3_hat",
+        "so3_left_jacobian", "so3_left_jacobian_inverse", "so3_log", "solar_system",
         "transform_points", "translation", "warp_image"
     ],
     "torchgeo_cg.transforms.averaging": ["rotation_mean"],
@@ -241,12 +246,13 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.transforms.robust": ["LOSSES", "robust_loss", "robust_weights"],
     "torchgeo_cg.transforms.rotations": [
-        "euler_to_matrix", "matrix_to_euler", "rotation_mean", "axis_angle_to_matrix", "axis_angle_to_quaternion", "matrix_to_axis_angle",
-        "matrix_to_quaternion", "matrix_to_rotation_6d", "quaternion_apply",
+        "axis_angle_to_matrix", "axis_angle_to_quaternion", "euler_to_matrix",
+        "matrix_to_axis_angle", "matrix_to_euler", "matrix_to_quaternion",
+        "matrix_to_rotation_6d", "quaternion_apply",
         "quaternion_conjugate", "quaternion_multiply", "quaternion_slerp",
         "quaternion_to_axis_angle", "quaternion_to_matrix", "random_rotations",
-        "rotation_6d_to_matrix", "rotation_angle", "se3_exp", "se3_log", "so3_exp", "so3_hat",
-        "so3_left_jacobian", "so3_left_jacobian_inverse", "so3_log"
+        "rotation_6d_to_matrix", "rotation_angle", "rotation_mean", "se3_exp", "se3_log",
+        "so3_exp", "so3_hat", "so3_left_jacobian", "so3_left_jacobian_inverse", "so3_log"
     ],
     "torchgeo_cg.transforms.scene_graph": [
         "FixedTransform", "Orbit", "SceneGraph", "WorldTransforms", "solar_system"
