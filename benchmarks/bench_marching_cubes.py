@@ -1,7 +1,7 @@
-"""Marching cubes against scikit-image and PyMCubes (issue 5 targets).
+"""Marching cubes against scikit-image and PyMCubes.
 
 Targets (ratio ours / peer, torch at 1 thread against single-threaded peers), all with
-``ambiguity="asymptotic"`` (the default; issue 13):
+``ambiguity="asymptotic"`` (the default):
 - torus SDF 128^3 and 256^3, float32: <= 0.6x ``skimage.measure.marching_cubes``;
   PyMCubes reported alongside;
 - an MRI-like uint16 volume (many ambiguous cells): reported against skimage and

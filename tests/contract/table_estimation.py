@@ -1,7 +1,7 @@
 """Contract entries of transforms: estimation, fitting, RANSAC and registration.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
-``EXEMPT`` names have no geometry (result types, exceptions, validators).
+``ENTRIES`` join ``table.TABLE``; ``EXEMPT`` names have no geometry (result types,
+exceptions, validators).
 
 Correspondences come from a known transform plus small noise: ``src`` is drawn from
 a generator seeded by the entry's seed (``g.initial_seed()``), and the ``dst``
@@ -18,7 +18,7 @@ import torch
 import torchgeo_cg.transforms as T
 from tests.contract.spec import GENERATORS, Arg, Entry
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 F64 = torch.float64
 
@@ -394,8 +394,6 @@ ENTRIES: list[Entry] = [
           out=("unitless", "unitless", "unitless", "index"), empty=((0, 0), (1, 0)),
           bad=((2, 16, 16), (2, 1, 16))),
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "transforms.FitResult": "NamedTuple result of fit_transform (no geometry of its own)",

@@ -1,7 +1,7 @@
 """Contract entries of scene graph, report shapes, Bezier fitting, marching squares.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
-``EXEMPT`` names have no geometry (result types, exceptions, validators).
+``ENTRIES`` join ``table.TABLE``; ``EXEMPT`` names have no geometry (result types,
+exceptions, validators).
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import torch
 import torchgeo_cg.curves as C
 import torchgeo_cg.transforms as T
 from tests.contract.spec import Arg, Entry
-from torchgeo_cg.sdf.grid import Volume
+from torchgeo_cg.core.grid import Volume
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -45,7 +45,7 @@ def _scene(theta, root, r1, r2):
 
 
 def _polylines(result):
-    return result.vertices, result.lengths, result.batch, result.closed
+    return result.verts, result.lengths, result.batch, result.closed
 
 
 def _fit(fit):
@@ -132,8 +132,6 @@ ENTRIES: list[Entry] = [
           (FIELD, *FRAME), out=POLY, empty=(0, 0), mixed=("follow", 0), nan="skip",
           bad=((5,), (1, 5))),
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "transforms.WorldTransforms": "NamedTuple result type (SceneGraph's entry checks "

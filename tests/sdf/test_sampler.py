@@ -122,7 +122,7 @@ def test_bad_input():
         SDFSampler(lambda p: sphere(p, 5.0), seed=0).sample(10)
 
 
-# --- polygon meshes, batches, DataLoader workers, progress (issues 10, 11, 15) ----------
+# --- polygon meshes, batches, DataLoader workers, progress ------------------------------
 
 def _control_mesh():
     from importlib.resources import files
@@ -239,7 +239,7 @@ def test_backend_is_passed_to_mesh_sdf(backend):
         SDFSampler(m, seed=3, backend="no-such-engine")
 
 
-# --- dtype policy and file validation (issue 10) --------------------------------------------
+# --- dtype policy and file validation -------------------------------------------------------
 
 
 def test_save_samples_dtypes(tmp_path):

@@ -430,7 +430,7 @@ def test_errors_name_the_argument():
         find_affine([[0.0, 0.0]], pts)
 
 
-# ------------------------------------------------------------------ exact DLT (issue 12)
+# ------------------------------------------------------------------ exact DLT ----------
 
 
 def svd_dlt(src, dst):
@@ -489,7 +489,7 @@ def test_dlt_algebraic_cost_is_minimal_on_near_degenerate_data():
 def test_dlt_flags_duplicated_and_nearly_collinear_points():
     gen = torch.Generator().manual_seed(14)
     src, dst, _ = random_problem(100, 4, gen, noise=0.5)
-    src[:, 3] = src[:, 2]  # issue 12: this was rank_ok with condition 7.4e4
+    src[:, 3] = src[:, 2]  # condition 7.4e4: must not pass as rank_ok
     fit = find_homography_dlt(src, dst)
     assert not fit.rank_ok.any() and torch.isfinite(fit.matrix).all()
     src, dst, _ = random_problem(100, 8, gen, noise=0.5)
@@ -517,7 +517,7 @@ def test_dlt_gradcheck_random_noisy_and_outlier_correspondences():
     assert torch.autograd.gradcheck(fn, (src, dst, w), eps=1e-6, atol=1e-6, rtol=1e-4)
 
 
-# ------------------------------------------------------------------ issue 10 regressions
+# ------------------------------------------------------------------ NaN and degenerate input
 
 
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
@@ -569,7 +569,7 @@ def test_empty_batch_gives_empty_output(fn):
     assert fn(empty, empty).shape == (0, 3, 3)
 
 
-# ------------------------------------------------------------------ contract (i10) regressions
+# ------------------------------------------------------------------ contract regressions -----
 
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16], ids=["float16", "bfloat16"])

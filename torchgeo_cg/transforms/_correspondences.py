@@ -16,12 +16,6 @@ from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
 
 
-def check_choice(value: str, choices, name: str) -> str:
-    if value not in choices:
-        raise ValueError(f"{name}: expected one of {sorted(choices)}, got {value!r}")
-    return value
-
-
 class HartleyNormalization(NamedTuple):
     """Result of :func:`hartley_normalize`.
 

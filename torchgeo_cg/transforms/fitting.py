@@ -29,10 +29,9 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms._correspondences import (
-    check_choice,
     check_pair,
     check_points_nonempty,
     effective_weights,

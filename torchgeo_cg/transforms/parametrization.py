@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
-from torchgeo_cg.transforms._correspondences import check_choice
 from torchgeo_cg.transforms.homogeneous import transform_points
 
 __all__ = [

@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms._correspondences import check_pair, hartley_weighted, similarity_matrix
 from torchgeo_cg.transforms._dlt import adjugate3, dlt_moments, dlt_smallest_eigenpair, matmul3
@@ -322,8 +323,7 @@ def _final_refit(frame: _Frame, model, best):
 
 def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
               lo_iterations, min_inliers):
-    if model not in SAMPLE_SIZES:
-        raise ValueError(f"model: expected one of {sorted(SAMPLE_SIZES)}, got {model!r}")
+    check_choice(model, SAMPLE_SIZES, "model")
     if not (isinstance(threshold, (int, float)) and math.isfinite(threshold) and threshold > 0):
         raise ValueError(f"threshold: expected a finite positive number, got {threshold!r}")
     if not (isinstance(confidence, (int, float)) and 0 < confidence < 1):

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.mesh.marching_cubes import marching_cubes
-from torchgeo_cg.sdf.grid import Volume, sample_grid
+from torchgeo_cg.sdf.grid import sample_grid
 from torchgeo_cg.sdf.primitives import torus
 from torchgeo_cg.viz.registry import figure
 from torchgeo_cg.viz.style import plt, save
@@ -145,7 +146,7 @@ def _area(mesh) -> float:
     "its Lewiner mesh; faces in cells whose case is ambiguous are drawn in blue.",
 )
 def _ambiguity(path: Path) -> None:
-    from torchgeo_cg.mesh._marching_cubes_tables import AMBIGUOUS
+    from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS
 
     phantom = mri_phantom()
     values = torch.from_numpy(phantom.astype(np.float64)).permute(2, 1, 0).contiguous()  # x y z

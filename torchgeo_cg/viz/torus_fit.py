@@ -20,8 +20,9 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.mesh.marching_cubes import MarchingCubesResult, marching_cubes
-from torchgeo_cg.sdf.grid import Volume, grid_spacing
+from torchgeo_cg.sdf.grid import grid_spacing
 from torchgeo_cg.viz.registry import figure
 
 __all__ = [
