@@ -398,7 +398,6 @@ ENTRIES: list[Entry] = [
 EXEMPT: dict[str, str] = {
     "transforms.FitResult": "NamedTuple result of fit_transform (no geometry of its own)",
     "transforms.HartleyNormalization": "NamedTuple result of hartley_normalize",
-    "transforms.TransformFit": "NamedTuple result of the closed-form estimators",
     "transforms.RobustFit": "NamedTuple result of find_transform_ransac",
     "transforms.RegistrationResult": "NamedTuple result of register_images",
     "transforms.WarpedImage": "NamedTuple result of warp_image",

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import torch
 
+from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.transforms._horn import horn_solve
 from torchgeo_cg.transforms.rotations import quaternion_to_matrix
 
@@ -31,7 +32,8 @@ def _big(like: torch.Tensor) -> torch.Tensor:
 
 
 def _tolerance(low: torch.dtype) -> float:
-    return 64 * float(torch.finfo(low).eps)
+    """64 eps of the dtype the fit is computed in (float16/bfloat16 inputs: float32)."""
+    return 64 * float(torch.finfo(working_dtype(low)).eps)
 
 
 def rigid_3d(cs, cd, ps, qs, w, with_scale: bool, allow_reflection: bool, low):

@@ -97,6 +97,7 @@ def so3_hat(omega: torch.Tensor) -> torch.Tensor:
                 [-2.,  1.,  0.]])
     """
     check_shape(omega, ["*", "3"], "omega")
+    check_float(omega, "omega")
     return hat(omega)
 
 
