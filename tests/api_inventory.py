@@ -137,15 +137,23 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.tags": ["INFINITELY_SHARP", "SubdivisionTags"],
     "torchgeo_cg.points": [
-        "ChamferDistance", "ChamferResult", "KNNResult", "chamfer_distance", "knn"
+        "ChamferDistance", "ChamferResult", "ICPResult", "KNNResult", "SampleResult",
+        "chamfer_distance", "estimate_normals", "farthest_point_sampling", "icp", "knn"
     ],
+    "torchgeo_cg.points.icp": ["ICPResult", "METHODS", "MODELS", "icp"],
+    "torchgeo_cg.points.icp_steps": [
+        "apply_transform", "point_to_plane_step", "rodrigues", "weighted_procrustes"
+    ],
+    "torchgeo_cg.points.normals": ["estimate_normals"],
+    "torchgeo_cg.points.sampling": ["SampleResult", "farthest_point_sampling"],
     "torchgeo_cg.points.chamfer": ["ChamferDistance", "ChamferResult", "chamfer_distance"],
     "torchgeo_cg.points.nearest_neighbors": [
         "BRUTE_FORCE_PAIRS", "KNNResult", "check_lengths", "knn"
     ],
     "torchgeo_cg.points.search_brute": ["brute_knn_indices"],
     "torchgeo_cg.points.search_grid": [
-        "GridIndex", "MAX_RING", "build_grid", "grid_knn_indices", "ring_offsets", "segment_ids"
+        "GridIndex", "MAX_RING", "build_grid", "grid_knn_indices", "grid_per_cell",
+        "ring_offsets", "segment_ids"
     ],
     "torchgeo_cg.sdf": [
         "Annulus", "Box", "Capsule", "Circle", "Difference", "Gyroid", "Intersection",
@@ -251,9 +259,11 @@ INVENTORY: dict[str, list[str]] = {
         "GlyphFit", "GlyphPieces", "fit_glyph", "glyph_pieces", "glyph_polygon",
         "plot_glyph_fit"
     ],
+    "torchgeo_cg.viz.icp": ["plot_icp"],
     "torchgeo_cg.viz.marching_cubes": ["mri_phantom"],
     "torchgeo_cg.viz.registration": ["plot_registration", "plot_robust_fit"],
     "torchgeo_cg.viz.registry": ["GalleryFigure", "figure", "registered_figures"],
+    "torchgeo_cg.viz.scans": ["ScanPairs", "rabbit_scan_pairs", "rabbit_surface"],
     "torchgeo_cg.viz.sdf": [],
     "torchgeo_cg.viz.style": ["closed", "plt", "save"],
     "torchgeo_cg.viz.subdivision": [],

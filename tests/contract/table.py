@@ -23,6 +23,7 @@ from tests.contract import (
     table_estimation,
     table_fitting,
     table_meshes,
+    table_points3d,
     table_queries,
     table_rotations,
     table_subdivision,
@@ -32,8 +33,8 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
-         table_rotations)
+AREAS = (table_estimation, table_fitting, table_meshes, table_points3d, table_queries,
+         table_subdivision, table_rotations)
 
 # ----------------------------------------------------------------------------- helpers
 
