@@ -24,6 +24,7 @@ from tests.contract import (
     table_fitting,
     table_limit,
     table_meshes,
+    table_points3d,
     table_queries,
     table_rotations,
     table_splines,
@@ -35,8 +36,8 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
-         table_rotations, table_limit, table_splines, table_surfaces)
+AREAS = (table_estimation, table_fitting, table_meshes, table_points3d, table_queries,
+         table_subdivision, table_rotations, table_limit, table_splines, table_surfaces)
 
 # ----------------------------------------------------------------------------- helpers
 

@@ -18,7 +18,8 @@ Convention:
       matches (those within ``max_distance``), ``inlier_fraction`` their share of
       the valid source points, as Open3D's ``inlier_rmse`` and ``fitness``.
     - Robust losses with ``scale=None`` estimate the scale of each pair at each
-      iteration as ``1.4826 * median |r|`` of its inlier residuals, times the loss's
+      iteration as ``1.4826 * median |r|`` of its inlier residuals (their mean where
+      the median is 0), times the loss's
       95%-efficiency constant (Huber 1.345, Cauchy 2.385, Tukey 4.685). Tukey gives
       zero weight beyond its scale, so it needs a rough initial alignment (a start
       whose residuals on the true matches are within a few scales); Cauchy and Huber
@@ -205,8 +206,11 @@ def _weights(match: _Match, loss: str, scale_b) -> torch.Tensor:
     if scale_b is None:  # robust sigma of each pair: 1.4826 median |r| over its inliers
         r = torch.where(match.inlier, match.r2, float("nan")).sqrt()
         sigma = 1.4826 * torch.nanmedian(r, dim=-1).values
-        scale_b = _EFFICIENCY[loss] * torch.where(torch.isfinite(sigma) & (sigma > 0),
-                                                  sigma, torch.ones_like(sigma))
+        count = match.inlier.sum(-1).clamp_min(1).to(r)
+        mean = torch.where(match.inlier, r, 0.0).sum(-1) / count  # when over half are exact
+        sigma = torch.where(torch.isfinite(sigma) & (sigma > 0), sigma, mean)
+        # all residuals zero: every weight is 1 at any positive scale
+        scale_b = _EFFICIENCY[loss] * torch.where(sigma > 0, sigma, torch.ones_like(sigma))
     return w * robust_weights(match.r2, loss, scale_b[:, None])
 
 
@@ -345,6 +349,11 @@ def icp(
     tl = check_lengths(target_lengths, batch, M, "target_lengths", source.device)
     dtype = source.dtype
     sdtype = working_dtype(dtype)
+    if math.prod(batch) == 0:  # no pair: empty results
+        z = source.new_zeros(batch)
+        return ICPResult(source.new_zeros(*batch, 4, 4), z, z.clone(),
+                         torch.zeros(batch, dtype=torch.long, device=source.device),
+                         torch.zeros(batch, dtype=torch.bool, device=source.device))
     with torch.no_grad():
         if method == "point_to_plane" and target_normals is None and M > 0:
             k = max(2, min(NORMAL_NEIGHBOURS, M))
