@@ -25,6 +25,7 @@ from tests.contract import (
     table_meshes,
     table_queries,
     table_rotations,
+    table_sparse_mc,
     table_subdivision,
 )
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
@@ -34,6 +35,7 @@ __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
 AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
          table_rotations)
+AREAS += (table_sparse_mc,)
 
 # ----------------------------------------------------------------------------- helpers
 
