@@ -27,6 +27,7 @@ from tests.contract import (
     table_points3d,
     table_queries,
     table_rotations,
+    table_sparse_mc,
     table_splines,
     table_subdivision,
     table_surfaces,
@@ -37,7 +38,8 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
 AREAS = (table_estimation, table_fitting, table_meshes, table_points3d, table_queries,
-         table_subdivision, table_rotations, table_limit, table_splines, table_surfaces)
+         table_subdivision, table_rotations, table_limit, table_splines, table_surfaces,
+         table_sparse_mc)
 
 # ----------------------------------------------------------------------------- helpers
 

@@ -473,3 +473,25 @@ def test_a_torchgeo_sdf_module_as_field():
     field = Torus(0.6, 0.25)
     sparse = sparse_marching_cubes(field, torch.tensor(BOUNDS, dtype=torch.float64), 30)
     _assert_equal(sparse, _dense(field, 30))
+
+
+def test_dense_centre_vertices_are_the_mean_in_float64():
+    """MC33 centre vertices (fans around a vertex at the mean of a nine-edge loop) are
+    weighted in the working dtype: in float64 the centre is the mean to rounding, in any
+    coordinate frame (float32 weights gave mean x (1 + 7e-9))."""
+    g = torch.Generator().manual_seed(3)
+    vol = torch.randn(12, 12, 12, generator=g, dtype=torch.float64)
+    for origin in ((0.0, 0.0, 0.0), (1e3, -2e3, 5e2)):
+        mesh = marching_cubes(vol, origin=origin)
+        v = vol.numpy()
+        crossing = sum(int(((np.take(v, range(n - 1), a) < 0) != (np.take(v, range(1, n), a) < 0))
+                           .sum()) for a, n in enumerate(v.shape))
+        centres = range(crossing, mesh.verts.shape[0])
+        assert len(centres) > 0
+        faces = mesh.faces.numpy()
+        for c in centres:  # loop over the few centre vertices of the test volume
+            ring = np.unique(faces[(faces == c).any(1)])
+            ring = ring[ring != c]
+            mean = mesh.verts[torch.from_numpy(ring)].mean(0)
+            err = (mesh.verts[c] - mean).abs().max() / mean.abs().max()
+            assert float(err) <= 8 * torch.finfo(torch.float64).eps

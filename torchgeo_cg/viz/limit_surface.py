@@ -16,8 +16,8 @@ from torchgeo_cg.mesh.subdivision import (
     limit_surface,
     sample_limit_surface,
 )
-from torchgeo_cg.viz.registry import figure
 from torchgeo_cg.viz._style import plt, save
+from torchgeo_cg.viz.registry import figure
 
 __all__: list[str] = []
 

@@ -74,6 +74,9 @@ def _bounds(bounds) -> torch.Tensor:
                             f"got {bounds!r}") from err
     if not b.is_floating_point():
         raise TypeError(f"bounds: expected a float tensor or numbers, got {b.dtype}")
+    if b.dtype in (torch.float16, torch.bfloat16):
+        raise TypeError(f"bounds: {b.dtype} is not supported (the grid's coordinates are made "
+                        f"in the dtype of bounds): use float32 or float64")
     if b.dim() == 1 and b.shape[0] == 2:
         b = b[:, None].expand(2, 3)
     if tuple(b.shape) != (2, 3):
