@@ -34,6 +34,7 @@ PEERS: dict[str, tuple[str, ...]] = {
     "estimation": ("cv2", "kornia"),
     "marching_cubes": ("skimage", "mcubes"),
     "sdf": ("trimesh", "rtree"),
+    "splines": ("scipy", "geomdl"),
     "subdivision": ("pymeshlab", "trimesh"),
     "transforms": ("kornia",),
 }

@@ -1,7 +1,7 @@
 """Every public ``nn.Module`` of torchgeo_cg survives the torch machinery.
 
-The public modules are enumerated from the ``__all__`` of every public (sub)module of
-the package, and each needs a factory in :data:`SPECS`: a new module without one fails
+The public modules are enumerated from ``tests/api_inventory.py`` (every public module's
+``__all__``), and each needs a factory in :data:`SPECS`: a new module without one fails
 :func:`test_every_public_module_has_a_factory`. For each module:
 
 - ``copy.deepcopy`` and ``torch.optim.swa_utils.AveragedModel`` (which deep-copies);
@@ -26,7 +26,6 @@ import io
 import json
 import math
 import os
-import pkgutil
 from collections.abc import Callable
 from datetime import timedelta
 from typing import NamedTuple
@@ -39,8 +38,15 @@ from torch import nn
 from torch.nn.parallel import DistributedDataParallel
 from torch.optim.swa_utils import AveragedModel
 
-import torchgeo_cg
-from torchgeo_cg.curves import BezierCurve, HermiteCurve, HermiteSpline, PchipInterpolator
+from tests.api_inventory import public_names
+from torchgeo_cg.curves import (
+    BezierCurve,
+    BSplineCurve,
+    HermiteCurve,
+    HermiteSpline,
+    NURBSCurve,
+    PchipInterpolator,
+)
 from torchgeo_cg.mesh import (
     CatmullClark,
     FaceVaryingSubdivision,
@@ -73,6 +79,7 @@ from torchgeo_cg.sdf import (
     Translate,
     Union,
 )
+from torchgeo_cg.surfaces import BezierSurface, BSplineSurface, NURBSSurface
 from torchgeo_cg.transforms import (
     FixedTransform,
     HomogeneousTransform,
@@ -84,19 +91,12 @@ from torchgeo_cg.transforms import (
 
 
 def public_modules() -> dict[str, type]:
-    """``qualified name -> class`` of every ``nn.Module`` subclass in a public ``__all__``."""
+    """``qualified name -> class`` of every ``nn.Module`` subclass in the API inventory."""
     found: dict[str, type] = {}
-    names = ["torchgeo_cg"] + [
-        info.name
-        for info in pkgutil.walk_packages(torchgeo_cg.__path__, "torchgeo_cg.")
-        if not any(part.startswith("_") for part in info.name.split("."))
-    ]
-    for name in names:
-        module = importlib.import_module(name)
-        for attr in getattr(module, "__all__", ()):
-            obj = getattr(module, attr)
-            if inspect.isclass(obj) and issubclass(obj, nn.Module):
-                found[f"{obj.__module__}.{obj.__qualname__}"] = obj
+    for name, attr in public_names():
+        obj = getattr(importlib.import_module(name), attr)
+        if inspect.isclass(obj) and issubclass(obj, nn.Module):
+            found[f"{obj.__module__}.{obj.__qualname__}"] = obj
     return found
 
 
@@ -168,7 +168,31 @@ _P3 = _rand(5, 3)
 _P2 = _rand(5, 2)
 _T = _rand(5, lo=0.0, hi=1.0)
 
+_GRID = torch.stack(torch.meshgrid(torch.linspace(0, 1, 4), torch.linspace(0, 1, 5),
+                                   indexing="ij") + (torch.zeros(4, 5),), -1) + 0.1
+_UV = _rand(5, 2, lo=0.0, hi=1.0)
+
+
+def _uv_call(module: nn.Module, x: torch.Tensor) -> torch.Tensor:
+    return module(x[..., 0], x[..., 1])
+
+
 SPECS: dict[str, Spec] = {
+    "torchgeo_cg.curves.bspline.BSplineCurve": Spec(
+        lambda: BSplineCurve(torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0],
+                                           [5.0, 1.0]]), 3), _T
+    ),
+    "torchgeo_cg.curves.nurbs.NURBSCurve": Spec(
+        lambda: NURBSCurve(torch.tensor([[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+                           torch.tensor([1.0, 0.7071, 1.0]), 2), _T
+    ),
+    "torchgeo_cg.surfaces.modules.BezierSurface": Spec(lambda: BezierSurface(_GRID), _UV,
+                                                       call=_uv_call),
+    "torchgeo_cg.surfaces.modules.BSplineSurface": Spec(lambda: BSplineSurface(_GRID, (2, 3)),
+                                                        _UV, call=_uv_call),
+    "torchgeo_cg.surfaces.modules.NURBSSurface": Spec(
+        lambda: NURBSSurface(_GRID, 1.0 + 0.1 * torch.rand(4, 5, generator=torch.Generator(
+        ).manual_seed(0)), (2, 3)), _UV, call=_uv_call),
     "torchgeo_cg.curves.bezier.BezierCurve": Spec(
         lambda: BezierCurve(torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0]])), _T
     ),

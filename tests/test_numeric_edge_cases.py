@@ -9,12 +9,12 @@ import pytest
 import torch
 
 from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.grid import index_to_world, world_to_index
 from torchgeo_cg.core.numerics import safe_norm
 from torchgeo_cg.curves.bezier import bezier_length, bezier_normal, bezier_tangent
 from torchgeo_cg.curves.parametric import circle, implicit_circle
 from torchgeo_cg.sdf import primitives as P
 from torchgeo_cg.sdf.gradients import eikonal_loss, sdf_gradient
-from torchgeo_cg.core.grid import index_to_world, world_to_index
 from torchgeo_cg.sdf.grid import grid_interpolate, sample_grid
 from torchgeo_cg.sdf.level_set import zero_level_set
 from torchgeo_cg.sdf.operators import Rotate, rotate, union

@@ -22,11 +22,14 @@ import torchgeo_cg.transforms as T
 from tests.contract import (
     table_estimation,
     table_fitting,
+    table_limit,
     table_meshes,
     table_queries,
     table_rotations,
     table_sparse_mc,
+    table_splines,
     table_subdivision,
+    table_surfaces,
 )
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
 from torchgeo_cg.curves.bernstein import bernstein_basis
@@ -34,7 +37,7 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
 AREAS = (table_estimation, table_fitting, table_meshes, table_queries, table_subdivision,
-         table_rotations)
+         table_rotations, table_limit, table_splines, table_surfaces)
 AREAS += (table_sparse_mc,)
 
 # ----------------------------------------------------------------------------- helpers
@@ -89,7 +92,7 @@ CORE_TABLE: list[Entry] = [
           empty=(0, -1)),
     # --- transforms: homogeneous
     Entry("transforms.translation", T.translation, (Arg("offset", (4, 2)),), out="matrix",
-          empty=(0, 0), bad=((4, 3), ())),
+          empty=(0, 0), bad=((4, 4), ())),
     Entry("transforms.rotation", T.rotation, (Arg("angle", (4,), "angle", "unitless"),),
           out="matrix", empty=(0, 0)),
     Entry("transforms.scaling", T.scaling, (Arg("factor", (4,), "positive", "unitless"),),
@@ -374,7 +377,7 @@ CORE_TABLE: list[Entry] = [
           (Arg("volume", (2, 4, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive"),
            Arg("tol", (), "positive")),
           out=("length", "index", "index", "index"), empty=(0, 0), mixed=("follow", 0),
-          bad=((5, 3),), nan="skip"),
+          bad=((5, 3),), nan="raise"),
     # --- sdf: gradients
     Entry("sdf.sdf_gradient", lambda p: S.sdf_gradient(S.sphere, p), (PTS3,), out="unitless",
           bad=((2, 6), ())),
@@ -398,6 +401,7 @@ EXEMPT: dict[str, str] = {
     "core.as_tensor_like": "coercion helper (tests/core/test_coerce.py)",
     "core.check_same_dtype": "validation helper (tests/core/test_coerce.py)",
     "core.check_broadcastable": "validation helper (tests/core/test_check.py)",
+    "core.check_choice": "validation helper (tests/core/test_check.py)",
     "core.check_float": "validation helper (tests/core/test_check.py)",
     "core.check_shape": "validation helper (tests/core/test_check.py)",
     "core.check_tensor": "validation helper (tests/core/test_check.py)",

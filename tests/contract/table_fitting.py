@@ -45,7 +45,7 @@ def _scene(theta, root, r1, r2):
 
 
 def _polylines(result):
-    return result.vertices, result.lengths, result.batch, result.closed
+    return result.verts, result.lengths, result.batch, result.closed
 
 
 def _fit(fit):

@@ -46,7 +46,7 @@ def _queries(shape, g, dtype):
     return p
 
 
-VERTS = Arg("vertices", (2, 6, 3), _octahedron)
+VERTS = Arg("verts", (2, 6, 3), _octahedron)
 QUERY = Arg("points", (2, 5, 3), _queries)
 BAD_VERTS = ((2, 6, 2), (3,))
 

@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 import torchgeo_cg.mesh as mesh_pkg
 from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.mesh import MarchingCubes, MarchingCubesResult, marching_cubes
 from torchgeo_cg.mesh.marching_cubes._tables import (
     AMBIGUOUS,
@@ -24,7 +25,6 @@ from torchgeo_cg.mesh.marching_cubes._tables import (
     TRIANGLES,
     face_segments,
 )
-from torchgeo_cg.core.grid import Volume
 
 skimage_measure = pytest.importorskip("skimage.measure")
 trimesh = pytest.importorskip("trimesh")

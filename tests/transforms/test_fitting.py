@@ -124,7 +124,7 @@ def test_models_reach_their_closed_form_optimum(model, closed_form, device, dtyp
     # translations are ~100 px: absolute tolerances follow
     tols = {"rtol": 1e-7, "atol": 1e-6} if dtype == torch.float64 else {"rtol": 1e-4,
                                                                           "atol": 1e-2}
-    assert_close(fit.matrix, closed_form(src, dst), **tols)
+    assert_close(fit.matrix, closed_form(src, dst).matrix, **tols)
 
 
 @pytest.mark.parametrize("optimizer", ["adam", "lbfgs", "lm"])

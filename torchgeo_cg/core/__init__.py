@@ -4,6 +4,7 @@
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
+    check_choice,
     check_float,
     check_shape,
     check_tensor,
@@ -27,6 +28,7 @@ __all__ = [
     "as_tensor_like",
     "cast_back",
     "check_broadcastable",
+    "check_choice",
     "check_float",
     "check_same_dtype",
     "check_shape",

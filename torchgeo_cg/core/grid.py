@@ -172,7 +172,7 @@ class _EdgeFraction(torch.autograd.Function):
 def edge_fraction(
     f1: torch.Tensor, f2: torch.Tensor, iso: torch.Tensor, delta: float
 ) -> torch.Tensor:
-    """Where the level ``iso`` crosses a grid edge: ``clamp((iso - f1) / (f2 - f1), delta, 1 - delta)``.
+    """Where ``iso`` crosses a grid edge: ``clamp((iso - f1) / (f2 - f1), delta, 1 - delta)``.
 
     The derivatives are written with one division each, ``dt/df1 = (t - 1) / den``,
     ``dt/df2 = -t / den``, ``dt/diso = 1 / den`` (``den = f2 - f1``), so they stay finite

@@ -29,7 +29,7 @@ import math
 
 import torch
 
-from torchgeo_cg.core.check import check_float
+from torchgeo_cg.core.check import check_broadcastable, check_float
 from torchgeo_cg.core.coerce import check_same_dtype
 
 __all__ = [
@@ -79,7 +79,7 @@ def cast_back(x: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
 
 
 def power_of_two_scale(magnitude: torch.Tensor) -> torch.Tensor:
-    """The power of two ``2**e`` just above each ``magnitude``: ``magnitude / 2**e`` is in ``[0.5, 1)``.
+    """The power of two ``2**e`` just above ``magnitude``: ``magnitude / 2**e`` in ``[0.5, 1)``.
 
     Dividing data by the scale of its largest magnitude is exact (no rounding), leaves
     every ratio, sign and direction unchanged, and brings the data into ``[-1, 1]``, where
@@ -159,6 +159,7 @@ def safe_div(
     """
     check_float(num, "num")
     check_float(den, "den")
+    check_broadcastable({"num": num.shape, "den": den.shape})
     if eps is not None:
         return num / clamp_away_from_zero(den, eps)
     zero = den == 0

@@ -303,6 +303,7 @@ def split_bezier(control_points: torch.Tensor, t0: torch.Tensor | float = 0.5) -
     if not isinstance(t0, torch.Tensor):  # numbers take the curves' dtype
         t0 = as_tensor_like(t0, control_points, "t0")
     check_float(t0, "t0", low_precision=False)
+    check_broadcastable({"control_points": control_points.shape[:-2], "t0": t0.shape})
     dtype = torch.promote_types(t0.dtype, control_points.dtype)
     points = control_points.to(dtype)
     t_col = t0.to(dtype)[..., None, None]  # (*, 1, 1)

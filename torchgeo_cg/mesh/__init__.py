@@ -2,6 +2,7 @@
 
 from torchgeo_cg.mesh.faces import (
     check_faces,
+    check_mesh,
     face_sizes,
     pad_faces,
     triangulate_faces,
@@ -29,9 +30,12 @@ from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
     FaceVaryingSubdivision,
     LimitFrames,
+    LimitStencils,
+    LimitSurfaceSample,
     LoopSubdivision,
     SubdivisionOperator,
     SubdivisionTags,
+    SurfaceSamples,
     apply_operator,
     bilinear_operator,
     catmull_clark,
@@ -40,14 +44,19 @@ from torchgeo_cg.mesh.subdivision import (
     face_varying_subdivide,
     limit_frames,
     limit_positions,
+    limit_stencils,
+    limit_surface,
     loop_operator,
     loop_subdivide,
+    sample_limit_surface,
 )
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
 __all__ += ["sparse_marching_cubes", "lipschitz_bound"]
 __all__ += ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
-__all__ += ["pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces"]
+__all__ += [
+    "pad_faces", "face_sizes", "check_faces", "check_mesh", "triangulate_faces", "unpad_faces"
+]
 __all__ += [
     "SubdivisionOperator",
     "catmull_clark_operator",
@@ -59,6 +68,8 @@ __all__ += [
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 __all__ += ["SubdivisionTags", "INFINITELY_SHARP", "bilinear_operator"]
 __all__ += ["limit_frames", "LimitFrames"]
+__all__ += ["limit_surface", "limit_stencils", "sample_limit_surface", "LimitSurfaceSample",
+            "LimitStencils", "SurfaceSamples"]
 __all__ += [
     "MeshEdges",
     "mesh_edges",

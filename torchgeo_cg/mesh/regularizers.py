@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.numerics import cast_back, power_of_two_scale, safe_norm, working_dtype
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
@@ -179,8 +179,7 @@ def mesh_laplacian(verts: torch.Tensor, faces, method: str = "uniform") -> torch
         >>> mesh_laplacian(verts, faces)[4]
         tensor([ 0.,  0., -1.])
     """
-    if method not in _METHODS:
-        raise ValueError(f"method: expected one of {_METHODS}, got {method!r}")
+    check_choice(method, _METHODS, "method")
     faces = _check(verts, faces)
     dtype = verts.dtype
     return cast_back(_laplacian(verts.to(working_dtype(dtype)), faces, method), dtype)
@@ -237,8 +236,7 @@ def laplacian_smoothing_loss(verts: torch.Tensor, faces, method: str = "uniform"
         >>> laplacian_smoothing_loss(verts, faces)
         tensor(0.8254)
     """
-    if method not in _METHODS:
-        raise ValueError(f"method: expected one of {_METHODS}, got {method!r}")
+    check_choice(method, _METHODS, "method")
     faces = _check(verts, faces)
     dtype = verts.dtype
     lap = _laplacian(verts.to(working_dtype(dtype)), faces, method)

@@ -35,7 +35,7 @@ from typing import NamedTuple
 
 import torch
 
-__all__ = ["GridIndex", "build_grid", "ring_offsets", "segment_ids", "grid_knn_indices", "MAX_RING"]
+__all__ = ["GridIndex", "build_grid", "grid_per_cell", "ring_offsets", "segment_ids", "grid_knn_indices", "MAX_RING"]
 
 #: Rings scanned on one grid before the remaining queries move to a coarser grid.
 MAX_RING = 3
@@ -75,6 +75,16 @@ class GridIndex(NamedTuple):
     count_c: torch.Tensor
     keys_c: torch.Tensor | None
     slack_b: torch.Tensor
+
+
+def grid_per_cell(k: int) -> float:
+    """Target references per occupied cell of the finest grid for ``k`` neighbours.
+
+    Example:
+        >>> grid_per_cell(1), grid_per_cell(3)
+        (2.0, 4.0)
+    """
+    return PER_CELL * (k + 1) / 2
 
 
 def ring_offsets(r: int, d: int, device=None) -> torch.Tensor:
@@ -194,15 +204,23 @@ def _cell_ranges(grid: GridIndex, key_q, b_q, offsets_sd):
 
 
 def _prune(grid: GridIndex, q_qd, b_q, cell_qd, offsets_sd, limit_q, count_p):
-    """Zero the counts of cells whose box is farther than ``sqrt(limit_q)`` from the query."""
-    h_q = grid.h_b.index_select(0, b_q)[:, None, None]
-    slack_q = grid.slack_b.index_select(0, b_q)[:, None, None]
-    lo_qsd = grid.lo_bd.index_select(0, b_q)[:, None, :] + (
-        cell_qd[:, None, :] + offsets_sd[None]) * h_q - slack_q
-    q_qsd = q_qd[:, None, :]
-    gap_qsd = (lo_qsd - q_qsd).clamp_min(0) + (q_qsd - lo_qsd - h_q - 2 * slack_q).clamp_min(0)
-    far_p = (gap_qsd.square().sum(-1) > limit_q[:, None]).reshape(-1)
-    return torch.where(far_p, 0, count_p)
+    """Zero the counts of cells whose box is farther than ``sqrt(limit_q)`` from the query.
+
+    Only the occupied (query, cell) pairs are tested: most cells of a ring are empty.
+    """
+    S = offsets_sd.shape[0]
+    pair = count_p.nonzero()[:, 0]
+    row, col = pair // S, pair % S
+    b = b_q.index_select(0, row)
+    h = grid.h_b.index_select(0, b)[:, None]
+    slack = grid.slack_b.index_select(0, b)[:, None]
+    lo = grid.lo_bd.index_select(0, b) + (cell_qd.index_select(0, row)
+                                          + offsets_sd.index_select(0, col)) * h - slack
+    q = q_qd.index_select(0, row)
+    gap = (lo - q).clamp_min(0) + (q - lo - h - 2 * slack).clamp_min(0)
+    far = gap.square().sum(-1) > limit_q.index_select(0, row)
+    return count_p.index_put((pair[far],), torch.zeros((), dtype=count_p.dtype,
+                                                       device=count_p.device))
 
 
 def segment_ids(count_p: torch.Tensor, total: int) -> torch.Tensor:
@@ -399,6 +417,7 @@ def grid_knn_indices(
     k: int,
     query_lengths_b: torch.Tensor,
     reference_lengths_b: torch.Tensor,
+    grids: list[GridIndex] | None = None,
 ) -> torch.Tensor:
     """Indices ``(B, N, k)`` of the ``k`` nearest references, ``-1`` where there are none.
 
@@ -410,6 +429,9 @@ def grid_knn_indices(
         reference_bmd: ``(B, M, D)`` finite references, same dtype.
         k: neighbours, ``>= 1``.
         query_lengths_b, reference_lengths_b: ``(B,)`` long valid counts.
+        grids: a cache of the references' grids, finest first, reused across calls
+            with the same references and ``k`` (an empty list to start; the levels a
+            call needs are built and appended). ``None``: built for this call only.
 
     Returns:
         ``(B, N, k)`` long.
@@ -431,12 +453,17 @@ def grid_knn_indices(
             return out_bnk
         q_qd = query_bnd.reshape(B * N, D).index_select(0, qb * N + qn)
         kk = min(k, reference_bmd.shape[1])
-        per_cell = PER_CELL * (kk + 1) / 2
+        per_cell = grid_per_cell(kk)
         pending = torch.arange(qb.numel(), device=query_bnd.device)
         ub_q = q_qd.new_full((qb.numel(),), float("inf"))
         out_flat = out_bnk.view(B * N, k)
-        for _ in range(200):  # loop over grid levels (each coarser)
-            grid = build_grid(reference_bmd, reference_lengths_b, per_cell)
+        for level in range(200):  # loop over grid levels (each coarser)
+            if grids is not None and level < len(grids):
+                grid = grids[level]
+            else:
+                grid = build_grid(reference_bmd, reference_lengths_b, per_cell)
+                if grids is not None:
+                    grids.append(grid)
             best_qk, idx_qk, done_q = _search_level(grid, q_qd[pending], qb[pending], kk,
                                                     ub_q[pending])
             idx_qk = torch.where(best_qk.isinf(), torch.full_like(idx_qk, -1), idx_qk)

@@ -14,6 +14,8 @@ Layout (one topic per file):
 - :mod:`~torchgeo_cg.sdf.mesh_distance`: ``mesh_sdf``, ``MeshSDF`` (pseudo-normal and
   winding-number signs), exact evaluation on the closest face.
 - :mod:`~torchgeo_cg.sdf.mesh_search`: the torch backend's closest-face search.
+- ``torchgeo_cg.sdf._triangle``: triangle geometry shared by the distance, the searches
+  and the engine (``closest_point_on_triangle``, pseudo-normals, solid angles).
 - :mod:`~torchgeo_cg.sdf.engines`: backends (``"auto"``, ``"torch"``, ``"warp"`` from the
   optional extra ``fast``), ``available_engines``; :mod:`~torchgeo_cg.sdf.engine_warp`.
 - :mod:`~torchgeo_cg.sdf.sampler`: ``SDFSampler`` (DeepSDF distribution), ``.npz`` I/O.
@@ -21,6 +23,7 @@ Layout (one topic per file):
 Convention: SDFs are negative inside; points are ``(*, N, 3)`` (or ``(*, N, 2)``).
 """
 
+from torchgeo_cg.sdf._triangle import TriangleClosestPoint, closest_point_on_triangle
 from torchgeo_cg.sdf.engines import available_engines
 from torchgeo_cg.sdf.gradients import eikonal_loss, sdf_gradient, sdf_normal
 from torchgeo_cg.sdf.grid import grid_interpolate, grid_points, grid_spacing, sample_grid
@@ -28,8 +31,6 @@ from torchgeo_cg.sdf.level_set import LevelSetPoints, zero_level_set
 from torchgeo_cg.sdf.mesh_distance import (
     MeshSDF,
     MeshSDFResult,
-    TriangleClosestPoint,
-    closest_point_on_triangle,
     is_watertight,
     mesh_sdf,
     winding_number,

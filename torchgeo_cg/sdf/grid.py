@@ -22,11 +22,12 @@ Convention:
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+
 import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.grid import Volume, check_spacing
 from torchgeo_cg.core.numerics import cast_back, working_dtype
@@ -126,8 +127,7 @@ def grid_points(
         >>> g.shape, g[1, 2, 0]
         (torch.Size([2, 3, 2, 3]), tensor([1., 2., 0.]))
     """
-    if indexing not in ("ij", "xy"):
-        raise ValueError(f"indexing: expected 'ij' or 'xy', got {indexing!r}")
+    check_choice(indexing, ("ij", "xy"), "indexing")
     res = _resolution(resolution)
     b = parse_bounds(bounds, device, dtype)
     axes = [torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device, dtype=b.dtype)

@@ -77,7 +77,8 @@ def zero_level_set(
             must be positive.
 
     Raises:
-        ValueError: ``spacing`` or ``tol`` not positive.
+        ValueError: ``spacing`` or ``tol`` not positive, or a NaN sample in the volume
+            (as :func:`~torchgeo_cg.mesh.marching_cubes` does).
 
     Returns:
         :class:`LevelSetPoints` ``(points (M, 3), indices (M, 3), batch (M,), counts (B,))``.
@@ -114,6 +115,10 @@ def zero_level_set(
     if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not tol > 0:
         raise ValueError(f"tol: expected a positive tolerance, got {tol}")
     batched = values if values.dim() == 4 else values[None]
+    nan = int(torch.isnan(values.detach()).sum())
+    if nan:  # a NaN sample is neither near the surface nor away from it
+        raise ValueError(f"volume: expected no NaN samples (NaN is neither within tol of 0 "
+                         f"nor away from it), got {nan} of {values.numel()}")
     hits = torch.nonzero(batched.abs() < tol)  # (M, 4): b, i, j, k
     batch, indices = hits[:, 0], hits[:, 1:]
     points = origin.to(values) + spacing.to(values) * indices.to(values.dtype)

@@ -70,7 +70,8 @@ def union(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tensor
         Negative inside. Exact outside the union, a lower bound of the distance inside.
 
     Args:
-        a, b, *more: ``(*, N)`` signed distances (broadcastable).
+        a, b: ``(*, N)`` signed distances (broadcastable).
+        *more: further ``(*, N)`` signed distances.
 
     Returns:
         ``(*, N)``.
@@ -93,7 +94,8 @@ def intersection(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch
         Negative inside. Exact inside the intersection, a lower bound outside.
 
     Args:
-        a, b, *more: ``(*, N)`` signed distances.
+        a, b: ``(*, N)`` signed distances.
+        *more: further ``(*, N)`` signed distances.
 
     Returns:
         ``(*, N)``.
@@ -199,7 +201,8 @@ def product(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tens
         Inputs negative inside; output is an implicit function, not an SDF.
 
     Args:
-        a, b, *more: ``(*, N)`` implicit values.
+        a, b: ``(*, N)`` implicit values.
+        *more: further ``(*, N)`` implicit values.
 
     Returns:
         ``(*, N)``.

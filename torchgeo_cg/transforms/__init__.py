@@ -1,6 +1,7 @@
-"""Homogeneous 2D transforms, articulated scene graphs and transform estimation."""
+"""Homogeneous 2D and 3D transforms, rotations, articulated scene graphs and estimation."""
 
-from torchgeo_cg.transforms._correspondences import HomographyFit
+from torchgeo_cg.transforms import rotations
+from torchgeo_cg.transforms._correspondences import TransformFit
 from torchgeo_cg.transforms.correspondences import (
     HartleyNormalization,
     hartley_normalize,
@@ -56,7 +57,7 @@ __all__ = [
     "AffineDecomposition",
     "FitResult",
     "HartleyNormalization",
-    "HomographyFit",
+    "TransformFit",
     "HomographyModel",
     "RegistrationResult",
     "ReportShapes",
@@ -79,6 +80,7 @@ __all__ = [
     "reprojection_error",
     "robust_loss",
     "robust_weights",
+    "rotations",
     "warp_image",
     "WarpedImage",
     "FixedTransform",

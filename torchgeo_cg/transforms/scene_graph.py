@@ -18,7 +18,7 @@ by their parents' world matrices in a single batched matmul.
 
 from __future__ import annotations
 
-import math  # noqa: F401 - used by the doctests
+import math
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -143,7 +143,9 @@ class FixedTransform(nn.Module):
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
         check_float(theta, "theta")  # an integer theta would truncate the matrix
-        return cast_back(self.matrix, theta.dtype).expand(*theta.shape, 3, 3)
+        matrix = cast_back(self.matrix, theta.dtype).expand(*theta.shape, 3, 3)
+        # the matrix does not depend on the time, but an undefined time stays undefined
+        return torch.where(theta.isnan()[..., None, None], math.nan, matrix)
 
 
 class _CallableTransform(nn.Module):

@@ -72,6 +72,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.grid import Volume, index_to_world
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.marching_cubes._args import parse_arguments
@@ -230,8 +231,7 @@ def marching_cubes(
         tensor([0.4723, 0.4723, 0.4723])
     """
     args = parse_arguments(volume, iso, origin, spacing, temperature, mask)
-    if ambiguity not in AMBIGUITY_RULES:
-        raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
+    check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
     vol = args.vol
     B, X, Y, Z = vol.shape
     if B == 0:
@@ -348,8 +348,7 @@ class MarchingCubes(nn.Module):
         ambiguity: str = DEFAULT_AMBIGUITY,
     ) -> None:
         super().__init__()
-        if ambiguity not in AMBIGUITY_RULES:
-            raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
+        check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
         self.ambiguity = ambiguity
         for name, value in (("iso", iso), ("origin", origin), ("spacing", spacing),
                             ("temperature", temperature), ("mask", mask)):

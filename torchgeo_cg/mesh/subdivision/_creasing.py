@@ -59,7 +59,7 @@ class SubdivisionRules(NamedTuple):
         smooth_v: ``(V,)`` weight of the smooth vertex mask.
         crease_v: ``(V,)`` weight of the crease vertex mask ``3/4 V + 1/8 (a + b)``.
         corner_v: ``(V,)`` weight of the corner mask (the vertex itself).
-        crease_end_lo_e: ``(E,)`` weight of ``hi`` in row ``lo``'s crease part (``1/8``s).
+        crease_end_lo_e: ``(E,)`` weight of ``hi`` in row ``lo``'s crease part (``1/8`` each).
         crease_end_hi_e: ``(E,)`` weight of ``lo`` in row ``hi``'s crease part.
         crease_e: ``(E,)`` weight of the crease edge mask ``(a + b) / 2``; the smooth edge
             mask gets ``1 - crease_e``.
@@ -184,6 +184,22 @@ def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
     sharp_v = torch.where(sharpen_v, torch.full_like(tag_v, INFINITELY_SHARP), tag_v)
     sharp_v = torch.where(valence_v == 0, torch.full_like(tag_v, INFINITELY_SHARP), sharp_v)
     return tag_e, tag_v, sharp_e, sharp_v, hole_f
+
+
+def effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
+    """``(sharp_e (E,), sharp_v (V,), hole_f (F,) bool)``: the effective sharpness of every
+    edge and vertex (boundary and non-manifold raised to infinity) and the holes.
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision._topology import mesh_topology
+        >>> quad = torch.tensor([[0, 1, 2, 3]])
+        >>> effective_sharpness(mesh_topology(quad, 4), None, 4, 1, "edge_only", torch.float64)[0]
+        tensor([10., 10., 10., 10.], dtype=torch.float64)
+    """
+    _, _, sharp_e, sharp_v, hole_f = _effective_sharpness(
+        topo, tags, num_vertices, num_faces, boundary, dtype
+    )
+    return sharp_e, sharp_v, hole_f
 
 
 def _faces_touching(topo, mask_v: torch.Tensor, num_faces: int) -> torch.Tensor:

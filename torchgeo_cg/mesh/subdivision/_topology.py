@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.check import check_choice, check_float, check_shape, check_tensor
 from torchgeo_cg.mesh.subdivision._creasing import CREASE_METHODS
 
 BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")
@@ -35,15 +35,11 @@ class Topology(NamedTuple):
 
 
 def check_crease_method(crease_method: str) -> str:
-    if crease_method not in CREASE_METHODS:
-        raise ValueError(f"crease_method: expected one of {CREASE_METHODS}, got {crease_method!r}")
-    return crease_method
+    return check_choice(crease_method, CREASE_METHODS, "crease_method")
 
 
 def check_boundary(boundary: str) -> str:
-    if boundary not in BOUNDARY_MODES:
-        raise ValueError(f"boundary: expected one of {BOUNDARY_MODES}, got {boundary!r}")
-    return boundary
+    return check_choice(boundary, BOUNDARY_MODES, "boundary")
 
 
 def check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:

@@ -49,7 +49,7 @@ from collections.abc import Sequence
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.subdivision._creasing import child_tags, subdivision_rules
@@ -69,9 +69,7 @@ TRIANGLE_RULES = ("catmark", "smooth")
 
 
 def _check_triangle_rule(triangle_rule: str) -> str:
-    if triangle_rule not in TRIANGLE_RULES:
-        raise ValueError(f"triangle_rule: expected one of {TRIANGLE_RULES}, got {triangle_rule!r}")
-    return triangle_rule
+    return check_choice(triangle_rule, TRIANGLE_RULES, "triangle_rule")
 
 
 def catmull_clark_operator(

@@ -54,7 +54,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
 from torchgeo_cg.mesh.subdivision._creasing import subdivision_rules
@@ -263,12 +263,6 @@ def _face_varying_tags(
     return uv_tags, ("edge_only" if interpolation == "none" else "edge_and_corner")
 
 
-def _check_choice(value: str, choices: tuple[str, ...], name: str) -> str:
-    if value not in choices:
-        raise ValueError(f"{name}: expected one of {choices}, got {value!r}")
-    return value
-
-
 def _check_uv_faces(faces_fk: torch.Tensor, uv_faces, num_uvs: int) -> torch.Tensor:
     """``uv_faces`` padded, in range, and shaped and padded like ``faces``."""
     uv_fk = check_faces(pad_faces(uv_faces, device=faces_fk.device), num_uvs, "uv_faces",
@@ -358,9 +352,9 @@ def face_varying_operator(
                 [1., 1.],
                 [0., 1.]])
     """
-    _check_choice(scheme, _SCHEMES, "scheme")
-    _check_choice(interpolation, FVAR_INTERPOLATIONS, "interpolation")
-    _check_choice(boundary, ("edge_only", "edge_and_corner", "none"), "boundary")
+    check_choice(scheme, _SCHEMES, "scheme")
+    check_choice(interpolation, FVAR_INTERPOLATIONS, "interpolation")
+    check_choice(boundary, ("edge_only", "edge_and_corner", "none"), "boundary")
     if isinstance(num_uvs, bool) or not isinstance(num_uvs, int) or num_uvs < 0:
         raise ValueError(f"num_uvs: expected an int >= 0, got {num_uvs!r}")
     wdtype = weights_dtype(dtype)

@@ -1,0 +1,193 @@
+"""icp: exact recovery, ragged batches, gradients, robust losses, and Open3D's
+registration_icp side by side on scans of the shipped rabbit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from torchgeo_cg.core import ShapeError
+from torchgeo_cg.points import estimate_normals, icp
+from torchgeo_cg.viz.scans import rabbit_scan_pairs
+
+
+def _rotation(angle, axis):
+    axis = torch.nn.functional.normalize(torch.tensor(axis, dtype=torch.float64), dim=0)
+    x, y, z = axis.tolist()
+    k = torch.tensor([[0, -z, y], [z, 0, -x], [-y, x, 0]], dtype=torch.float64)
+    return torch.eye(3, dtype=torch.float64) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+
+
+def _rigid(angle, axis, shift):
+    m = torch.eye(4, dtype=torch.float64)
+    m[:3, :3] = _rotation(angle, axis)
+    m[:3, 3] = torch.tensor(shift, dtype=torch.float64)
+    return m
+
+
+def _apply(m, p):
+    return p @ m[..., :3, :3].transpose(-1, -2) + m[..., None, :3, 3]
+
+
+def _angle_deg(a, b):
+    d = a[..., :3, :3] @ b[..., :3, :3].transpose(-1, -2)
+    c = ((d.diagonal(dim1=-2, dim2=-1).sum(-1) - 1) / 2).clamp(-1, 1)
+    return torch.rad2deg(torch.acos(c))
+
+
+def _cloud(n, seed):
+    g = torch.Generator().manual_seed(seed)
+    return torch.rand(n, 3, generator=g, dtype=torch.float64) * torch.tensor([1.0, 0.7, 0.5])
+
+
+@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane"])
+def test_recovers_a_known_rigid_motion_exactly(method):
+    target = _cloud(400, 0)
+    truth = _rigid(0.12, [1.0, 2.0, 0.5], [0.03, -0.02, 0.01])
+    source = _apply(torch.linalg.inv(truth), target)
+    res = icp(source, target, method=method, max_iterations=60)
+    assert bool(res.converged) and int(res.iterations) < 60
+    torch.testing.assert_close(res.transform, truth, atol=1e-9, rtol=0)
+    assert float(res.rmse) < 1e-9 and float(res.inlier_fraction) == 1.0
+
+
+def test_similarity_recovers_the_scale():
+    target = _cloud(400, 1)
+    truth = _rigid(0.08, [0.0, 1.0, 1.0], [0.02, 0.0, -0.03])
+    truth[:3, :3] *= 1.1
+    source = _apply(torch.linalg.inv(truth), target)
+    for method in ("point_to_point", "point_to_plane"):
+        res = icp(source, target, model="similarity", method=method, max_iterations=80,
+                  tol=1e-12)
+        torch.testing.assert_close(res.transform, truth, atol=1e-8, rtol=0)
+
+
+def test_ragged_batch_equals_each_pair():
+    clouds = [_cloud(300, s) for s in range(3)]
+    truths = [_rigid(0.05 * (i + 1), [1.0, -1.0, 2.0 * i], [0.01 * i, 0.02, 0.0])
+              for i in range(3)]
+    sl, tl = torch.tensor([300, 180, 250]), torch.tensor([300, 300, 220])
+    target = torch.stack(clouds)
+    source = torch.stack([_apply(torch.linalg.inv(m), c) for m, c in zip(truths, clouds)])
+    res = icp(source, target, source_lengths=sl, target_lengths=tl, method="point_to_plane")
+    for i in range(3):
+        one = icp(source[i, : sl[i]], target[i, : tl[i]], method="point_to_plane")
+        torch.testing.assert_close(res.transform[i], one.transform, atol=1e-12, rtol=0)
+        torch.testing.assert_close(res.rmse[i], one.rmse, atol=1e-12, rtol=0)
+        assert int(res.iterations[i]) == int(one.iterations)
+
+
+def test_init_and_max_distance():
+    target = _cloud(300, 4)
+    truth = _rigid(0.9, [0.0, 0.0, 1.0], [0.3, 0.0, 0.0])  # far: needs the initial guess
+    source = _apply(torch.linalg.inv(truth), target)
+    near = _rigid(0.85, [0.0, 0.0, 1.0], [0.28, 0.0, 0.0])
+    res = icp(source, target, init=near, max_distance=0.2, max_iterations=60)
+    torch.testing.assert_close(res.transform, truth, atol=1e-9, rtol=0)
+    tight = icp(source, target, max_distance=1e-3, max_iterations=5)
+    assert float(tight.inlier_fraction) < 0.1
+
+
+@pytest.mark.grad
+@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane"])
+def test_gradcheck_given_the_last_correspondences(method):
+    target = _cloud(40, 5)
+    truth = _rigid(0.05, [1.0, 0.0, 1.0], [0.01, 0.0, 0.0])
+    source = _apply(torch.linalg.inv(truth), target)
+    if method == "point_to_point":  # residuals: the gradient of the closed form
+        source = source + 1e-3 * torch.randn(source.shape, dtype=torch.float64,
+                                             generator=torch.Generator().manual_seed(0))
+    normals = estimate_normals(target, 8)  # constants
+
+    def f(src, tgt):
+        out = icp(src, tgt, method=method, target_normals=normals, max_iterations=100,
+                  tol=1e-12)
+        if method == "point_to_plane":  # zero residuals: the RMSE has a kink there
+            return out.transform[:3]
+        return out.transform[:3], out.rmse
+
+    assert torch.autograd.gradcheck(f, (source.requires_grad_(), target.requires_grad_()),
+                                    atol=1e-6)
+
+
+def test_nan_empty_and_bad_arguments():
+    target = _cloud(50, 6)
+    bad = target.clone()
+    bad[3, 1] = math.nan
+    batch = torch.stack([target, bad])
+    res = icp(batch, torch.stack([target, target]))
+    assert res.transform[1].isnan().all() and res.rmse[1].isnan()
+    assert not res.transform[0].isnan().any() and float(res.rmse[0]) < 1e-12
+    empty = icp(torch.zeros(0, 3), target.float())
+    assert torch.equal(empty.transform, torch.eye(4)) and float(empty.inlier_fraction) == 0
+    with pytest.raises(ShapeError, match="source"):
+        icp(torch.zeros(5, 2), target)
+    with pytest.raises(TypeError, match="target"):
+        icp(target.float(), target)
+    with pytest.raises(ShapeError, match="init"):
+        icp(target, target, init=torch.eye(3, dtype=torch.float64))
+    with pytest.raises(ShapeError, match="target_normals"):
+        icp(target, target, target_normals=torch.zeros(4, 3, dtype=torch.float64))
+    for kwargs, name in (({"method": "plane"}, "method"), ({"model": "affine"}, "model"),
+                         ({"loss": "l1"}, "loss"), ({"max_distance": 0.0}, "max_distance"),
+                         ({"scale": -1.0}, "scale"), ({"tol": 0}, "tol"),
+                         ({"max_iterations": -1}, "max_iterations")):
+        with pytest.raises(ValueError, match=name):
+            icp(target, target, **kwargs)
+
+
+# ----------------------------------------------------------------------------- Open3D
+
+
+def _open3d_icp(o3d, pairs, method, max_distance, normals, iterations):
+    reg = o3d.pipelines.registration
+    est = (reg.TransformationEstimationPointToPoint() if method == "point_to_point"
+           else reg.TransformationEstimationPointToPlane())
+    out = []
+    for b in range(pairs.source.shape[0]):  # the peer, one pair per call
+        src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pairs.source[b].numpy()))
+        tgt = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pairs.target[b].numpy()))
+        tgt.normals = o3d.utility.Vector3dVector(normals[b].numpy())
+        r = reg.registration_icp(src, tgt, max_distance, np.eye(4), est,
+                                 reg.ICPConvergenceCriteria(1e-6, 1e-6, iterations))
+        out.append((np.asarray(r.transformation), r.inlier_rmse))
+    return torch.tensor(np.stack([t for t, _ in out])), torch.tensor([e for _, e in out])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane"])
+def test_against_open3d_on_rabbit_scans(method):
+    o3d = pytest.importorskip("open3d", exc_type=ImportError)
+    pairs = rabbit_scan_pairs(6, 6000, seed=1)
+    max_distance = 0.2 * pairs.size
+    normals = estimate_normals(pairs.target, 10)
+    iterations = 40 if method == "point_to_point" else 30
+    ours = icp(pairs.source, pairs.target, method=method, max_distance=max_distance,
+               target_normals=normals, max_iterations=iterations)
+    peer, peer_rmse = _open3d_icp(o3d, pairs, method, max_distance, normals, iterations)
+    ok_ours = _angle_deg(ours.transform, pairs.truth) < 0.5
+    ok_peer = _angle_deg(peer, pairs.truth) < 0.5
+    assert int(ok_ours.sum()) >= int(ok_peer.sum()) and int(ok_ours.sum()) >= 5
+    # same max_distance: RMSE no worse than Open3D's (a hair for float rounding)
+    assert bool((ours.rmse[ok_peer] <= peer_rmse[ok_peer] * (1 + 1e-6)).all())
+
+
+@pytest.mark.slow
+def test_cauchy_with_outliers_beats_least_squares():
+    pairs = rabbit_scan_pairs(5, 6000, seed=2, outliers=0.3)
+    l2 = icp(pairs.source, pairs.target, max_iterations=40)
+    cauchy = icp(pairs.source, pairs.target, loss="cauchy", max_iterations=40)
+    ok_l2 = _angle_deg(l2.transform, pairs.truth) < 0.5
+    ok_cauchy = _angle_deg(cauchy.transform, pairs.truth) < 0.5
+    assert int(ok_cauchy.sum()) >= 4 and int(ok_cauchy.sum()) > int(ok_l2.sum())
+
+
+@pytest.mark.slow
+def test_tukey_from_a_rough_alignment():
+    pairs = rabbit_scan_pairs(3, 6000, seed=3, outliers=0.3, angles=(3.0, 5.0), shift=0.01)
+    res = icp(pairs.source, pairs.target, loss="tukey", method="point_to_plane",
+              max_iterations=30)
+    assert bool((_angle_deg(res.transform, pairs.truth) < 0.5).all())
