@@ -1,4 +1,4 @@
-"""Curves against scipy BPoly / PchipInterpolator and the `bezier` package (issue 3 targets).
+"""Curves against scipy BPoly / PchipInterpolator and the `bezier` package.
 
 Targets at 1 thread (ratio ours / peer):
 - evaluate 100k cubic 2D curves at 64 parameters: <= 0.6 x scipy BPoly (curves as
@@ -13,7 +13,7 @@ Note on the large outputs (100 MB for the evaluation, 80 MB for PCHIP): numpy
 madvises huge pages for big arrays, PyTorch's CPU allocator does not unless
 ``THP_MEM_ALLOC_ENABLE=1`` is set before the first allocation, so our side pays
 4 KiB page faults on every fresh output. That environment variable is process
-wide, so this file does not set it; the README/issue note reports both numbers.
+wide, so this file does not set it; BENCHMARKS.md reports both numbers.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Estimating transforms (issues 7, 12): DLT, LM fitting, RANSAC and image registration.
+"""Estimating transforms: DLT, LM fitting, RANSAC and image registration.
 
 Targets, 1 thread, float32 (kornia's dtype):
 - find_homography_dlt (4096 problems x 8 points): <= 1.0x kornia's find_homography_dlt

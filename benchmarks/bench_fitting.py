@@ -1,4 +1,4 @@
-"""Bezier fitting with parameter correction against Adam (issue 15 target, 1 thread).
+"""Bezier fitting with parameter correction against Adam (1 thread).
 
 Target: ``fit_bezier(..., correct_parameters=True)`` on 512 noisy strokes of 64 points
 (cubics): rms residual within 10% of an Adam run of 500 steps that optimises the control

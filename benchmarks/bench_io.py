@@ -1,6 +1,6 @@
 """Mesh I/O: ``load_mesh`` against ``trimesh.load(process=False)`` on 1M-face files.
 
-Target (issue 14), 1 thread: ``load_mesh`` of a 1M-face OBJ ≤ 1.0x trimesh's load
+Target, 1 thread: ``load_mesh`` of a 1M-face OBJ ≤ 1.0x trimesh's load
 time, with peak memory reported (``VmHWM`` of a fresh process, above its state
 before the call). The files are a triangulated height-field grid (708 x 708
 vertices, 999,698 triangles) written to a temporary folder, never committed.

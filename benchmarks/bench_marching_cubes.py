@@ -1,7 +1,7 @@
-"""Marching cubes against scikit-image and PyMCubes (issue 5 targets).
+"""Marching cubes against scikit-image and PyMCubes.
 
 Targets (ratio ours / peer, torch at 1 thread against single-threaded peers), all with
-``ambiguity="asymptotic"`` (the default; issue 13):
+``ambiguity="asymptotic"`` (the default):
 - torus SDF 128^3 and 256^3, float32: <= 0.6x ``skimage.measure.marching_cubes``;
   PyMCubes reported alongside;
 - an MRI-like uint16 volume (many ambiguous cells): reported against skimage and
@@ -21,6 +21,7 @@ import torch
 
 from benchmarks.harness import Case
 from torchgeo_cg.mesh import marching_cubes
+from torchgeo_cg.mesh.data import mri_phantom
 
 _PEAK_SCRIPT = r"""
 import json, sys, torch
@@ -43,6 +44,7 @@ if tool == "skimage":
     sk(fn[::16, ::16, ::16].copy(), 0.0)
 else:
     from torchgeo_cg.mesh import marching_cubes
+from torchgeo_cg.mesh.data import mri_phantom
     marching_cubes(f[::16, ::16, ::16].contiguous(), ambiguity="asymptotic")
 before = high_water_kb()
 if tool == "skimage":
@@ -66,9 +68,7 @@ def torus_volume(n: int, batch: int | None = None, dtype=torch.float32) -> torch
 
 
 def mri_volume(quick: bool) -> torch.Tensor:
-    """The gallery's MRI-like uint16 volume (ties everywhere), as float32 ``(X, Y, Z)``."""
-    from torchgeo_cg.viz.marching_cubes import mri_phantom
-
+    """The shipped MRI-like uint16 volume (ties everywhere), as float32 ``(X, Y, Z)``."""
     shape = (10, 96, 96) if quick else (10, 256, 256)
     return torch.from_numpy(mri_phantom(shape).astype("float32")).permute(2, 1, 0).contiguous()
 

@@ -1,4 +1,4 @@
-"""Nearest neighbours and Chamfer against scipy's cKDTree (issue 15 targets, 1 thread).
+"""Nearest neighbours and Chamfer against scipy's cKDTree (1 thread).
 
 Targets (ratio ours / peer):
 - ``chamfer_distance`` of 2 clouds of 16,384 points, forward: <= 3 x cKDTree (build

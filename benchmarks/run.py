@@ -33,7 +33,9 @@ PEERS: dict[str, tuple[str, ...]] = {
     "curves": ("scipy", "bezier"),
     "estimation": ("cv2", "kornia"),
     "marching_cubes": ("skimage", "mcubes"),
+    "rotations": ("roma", "scipy"),
     "sdf": ("trimesh", "rtree"),
+    "splines": ("scipy", "geomdl"),
     "subdivision": ("pymeshlab", "trimesh"),
     "transforms": ("kornia",),
 }

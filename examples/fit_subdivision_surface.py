@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import argparse
 import time
-from importlib.resources import files
 
 import torch
 
-from torchgeo_cg.mesh import CatmullClark, laplacian_smoothing_loss, load_mesh
+from torchgeo_cg.mesh import CatmullClark, laplacian_smoothing_loss
+from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.points import chamfer_distance
 from torchgeo_cg.sdf import sample_mesh_surface
 
@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--laplacian", type=float, default=0.01, help="weight of the regularizer")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    mesh = load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj")
+    mesh = sample_data.rabbit()
     cage, faces = mesh.verts, mesh.faces
     true_cage = bend(cage)
     fine = CatmullClark(faces, cage.shape[0], levels=3)

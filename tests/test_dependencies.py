@@ -1,4 +1,4 @@
-"""Every third-party import of the package is declared in ``pyproject.toml`` (issue 11).
+"""Every third-party import of the package is declared in ``pyproject.toml``.
 
 Runtime code outside ``viz``/``cli`` may import only the hard dependencies (or the
 ``fast`` extra's engine, imported lazily); figures and the command line may also use

@@ -4,16 +4,18 @@ Subpackages, one per area:
 
 - :mod:`torchgeo_cg.core`: the validation helper and NaN-free numerics;
 - :mod:`torchgeo_cg.transforms`: homogeneous 2D transforms, scene graphs, estimation;
-- :mod:`torchgeo_cg.curves`: Bezier, Hermite/PCHIP, parametric and implicit 2D curves;
+- :mod:`torchgeo_cg.curves`: Bezier, B-spline/NURBS, Hermite/PCHIP, parametric and 2D curves;
+- :mod:`torchgeo_cg.surfaces`: Bezier, B-spline and NURBS patches, surface fits and grid meshes;
 - :mod:`torchgeo_cg.sdf`: signed distance fields, grids and samplers;
 - :mod:`torchgeo_cg.mesh`: marching cubes, Catmull-Clark subdivision, mesh I/O;
 - :mod:`torchgeo_cg.points`: exact k nearest neighbours and the Chamfer distance;
 - :mod:`torchgeo_cg.viz` and :mod:`torchgeo_cg.cli`: the gallery and ``torchgeo-cg``.
 """
 
-from torchgeo_cg import core, curves, mesh, points, sdf, transforms
+from torchgeo_cg import core, curves, mesh, points, sdf, surfaces, transforms
 from torchgeo_cg.core import ShapeError
 
 __version__ = "0.1.0"
 
-__all__ = ["ShapeError", "core", "curves", "mesh", "points", "sdf", "transforms", "__version__"]
+__all__ = ["ShapeError", "core", "curves", "mesh", "points", "sdf", "surfaces", "transforms",
+           "__version__"]

@@ -16,9 +16,10 @@ import trimesh
 
 from torchgeo_cg.cli.main import main
 from torchgeo_cg.mesh import load_mesh, triangulate_faces
+from torchgeo_cg.mesh.data import rabbit_path
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
-RABBIT = Path(__file__).resolve().parents[2] / "torchgeo_cg" / "mesh" / "data" / "rabbit.obj"
+RABBIT = rabbit_path()
 MESHES = ["ball.obj", "cyl.obj", "sub/box.ply", "sub/rabbit.obj", "sub/torus.off"]
 
 

@@ -81,9 +81,10 @@ class Entry:
 
 
 def _conjugate(m: torch.Tensor, s: float) -> torch.Tensor:
+    d = m.shape[-1] - 1  # 3x3 (2D) or 4x4 (3D) homogeneous matrices
     out = m.clone()
-    out[..., :2, 2] = out[..., :2, 2] * s
-    out[..., 2, :2] = out[..., 2, :2] / s
+    out[..., :d, d] = out[..., :d, d] * s
+    out[..., d, :d] = out[..., d, :d] / s
     return out
 
 
@@ -125,7 +126,7 @@ def _rotation(shape, g, dtype):
     q = q * torch.sign(torch.diagonal(r, dim1=-2, dim2=-1))[..., None, :]
     flip = torch.linalg.det(q) < 0
     q[..., :, 0] = torch.where(flip[..., None], -q[..., :, 0], q[..., :, 0])
-    return q.to(dtype) if d else q
+    return (q.to(dtype) if d else q).contiguous()  # NaN injection writes through reshape
 
 
 def _homography(shape, g, dtype):

@@ -2,13 +2,13 @@
 
 This module holds the entries of the numeric core (core, homogeneous transforms,
 curves, SDF primitives, operators and grids) and gathers the areas' tables
-(``table_<area>.py``: ``ENTRIES``, ``PENDING``, ``EXEMPT`` each) into :data:`TABLE`,
-:data:`PENDING` and :data:`EXEMPT`. The vocabulary (``Arg``, ``Entry``, laws,
+(``table_<area>.py``: ``ENTRIES`` and ``EXEMPT`` each) into :data:`TABLE` and
+:data:`EXEMPT`. The vocabulary (``Arg``, ``Entry``, laws,
 generators) is in ``spec.py``.
 
-Names not in the table are in :data:`PENDING` (not yet under contract, with the
-reason) or :data:`EXEMPT` (result types, exceptions, validators and figures: no
-geometry). The completeness test fails for any public name in none of the three.
+Public callables not in the table are in :data:`EXEMPT` (result types, exceptions,
+validators and figures: no geometry). The completeness test fails for any public
+callable in neither.
 """
 
 from __future__ import annotations
@@ -22,19 +22,24 @@ import torchgeo_cg.transforms as T
 from tests.contract import (
     table_estimation,
     table_fitting,
+    table_limit,
     table_meshes,
     table_points3d,
     table_queries,
     table_rotations,
+    table_sparse_mc,
+    table_splines,
     table_subdivision,
+    table_surfaces,
 )
 from tests.contract.spec import LAWS, Arg, Entry, apply_law, generate
 from torchgeo_cg.curves.bernstein import bernstein_basis
 
-__all__ = ["Arg", "Entry", "TABLE", "PENDING", "EXEMPT", "LAWS", "apply_law", "generate"]
+__all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
 AREAS = (table_estimation, table_fitting, table_meshes, table_points3d, table_queries,
-         table_subdivision, table_rotations)
+         table_subdivision, table_rotations, table_limit, table_splines, table_surfaces,
+         table_sparse_mc)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -88,7 +93,7 @@ CORE_TABLE: list[Entry] = [
           empty=(0, -1)),
     # --- transforms: homogeneous
     Entry("transforms.translation", T.translation, (Arg("offset", (4, 2)),), out="matrix",
-          empty=(0, 0), bad=((4, 3), ())),
+          empty=(0, 0), bad=((4, 4), ())),
     Entry("transforms.rotation", T.rotation, (Arg("angle", (4,), "angle", "unitless"),),
           out="matrix", empty=(0, 0)),
     Entry("transforms.scaling", T.scaling, (Arg("factor", (4,), "positive", "unitless"),),
@@ -173,7 +178,7 @@ CORE_TABLE: list[Entry] = [
           (CTRL,), out="unitless", empty=(0, 0), mixed=None, low="reject", bad=BADCTRL,
           rtol=1e-7),
     Entry("curves.BezierCurve", lambda cp, t: C.BezierCurve(cp)(t), (CTRL, T_), empty=(1, -1),
-          mixed="promote", low="reject", bad=BADCTRL),
+          mixed="raise", low="reject", bad=BADCTRL),
     # --- curves: hermite
     Entry("curves.hermite_basis", C.hermite_basis, (Arg("t", (3, 7), "t01", "unitless"),),
           out="unitless", empty=(0, -1), low="reject", bad=((),)),
@@ -182,7 +187,7 @@ CORE_TABLE: list[Entry] = [
           empty=(0, -1), mixed="promote", low="reject", bad=((),)),
     Entry("curves.HermiteCurve", lambda t, p0, p1, m0, m1: C.HermiteCurve(p0, p1, m0, m1)(t),
           (T_, Arg("p0", (3, 2)), Arg("p1", (3, 2)), Arg("m0", (3, 2)), Arg("m1", (3, 2))),
-          empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+          empty=(0, -1), mixed="raise", low="reject", bad=((),)),
     Entry("curves.hermite_to_bezier", C.hermite_to_bezier,
           (Arg("p0", (3, 2)), Arg("p1", (3, 2)), Arg("m0", (3, 2)), Arg("m1", (3, 2))),
           empty=EMPTY4, mixed="promote", low="reject", bad=((),)),
@@ -196,7 +201,7 @@ CORE_TABLE: list[Entry] = [
     Entry("curves.HermiteSpline", lambda x, k, v, m: C.HermiteSpline(k, v, m)(x),
           (Arg("x", (3, 9), "inside", "length"), Arg("knots", (6,), "increasing"),
            Arg("values", (3, 6)), Arg("tangents", (3, 6), "normal", "unitless")),
-          empty=(0, -1), mixed="promote", low="reject", bad=((),)),
+          empty=(0, -1), mixed="raise", low="reject", bad=((),)),
     Entry("curves.pchip_tangents", C.pchip_tangents,
           (Arg("x", (6,), "increasing"), Arg("y", (3, 6))), out="unitless", empty=(1, 0),
           mixed="promote", low="reject", nan="raise", bad=((),)),
@@ -357,11 +362,11 @@ CORE_TABLE: list[Entry] = [
     Entry("sdf.sample_grid", _sample_grid, (Arg("bounds", (2, 3), "bounds"),),
           out=("length", "length", "length"), empty=None, mixed=None, nan="raise",
           bad=((3, 3),)),
-    Entry("sdf.index_to_world", S.index_to_world,
+    Entry("core.index_to_world", core.index_to_world,
           (Arg("indices", (2, 5, 3), "index", "unitless"), Arg("origin", (3,)),
            Arg("spacing", (3,), "positive")), int_ok=True, mixed=("follow", 1),
           bad=((2, 5, 2),), low="compute32"),
-    Entry("sdf.world_to_index", S.world_to_index,
+    Entry("core.world_to_index", core.world_to_index,
           (Arg("points", (2, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive")),
           out="unitless", mixed=("follow", 0), bad=((2, 5, 2), ())),
     Entry("sdf.grid_interpolate",
@@ -373,7 +378,7 @@ CORE_TABLE: list[Entry] = [
           (Arg("volume", (2, 4, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive"),
            Arg("tol", (), "positive")),
           out=("length", "index", "index", "index"), empty=(0, 0), mixed=("follow", 0),
-          bad=((5, 3),), nan="skip"),
+          bad=((5, 3),), nan="raise"),
     # --- sdf: gradients
     Entry("sdf.sdf_gradient", lambda p: S.sdf_gradient(S.sphere, p), (PTS3,), out="unitless",
           bad=((2, 6), ())),
@@ -386,9 +391,6 @@ CORE_TABLE: list[Entry] = [
 
 TABLE: list[Entry] = CORE_TABLE + [e for area in AREAS for e in area.ENTRIES]
 
-#: Public names not yet under contract (name -> (owner, reason)).
-PENDING: dict[str, tuple[str, str]] = {k: v for area in AREAS for k, v in area.PENDING.items()}
-
 #: Public names with no geometry to put under contract (name -> reason).
 EXEMPT: dict[str, str] = {
     **{k: v for area in AREAS for k, v in area.EXEMPT.items()},
@@ -399,17 +401,21 @@ EXEMPT: dict[str, str] = {
     "core.ShapeError": "exception type",
     "core.as_tensor_like": "coercion helper (tests/core/test_coerce.py)",
     "core.check_same_dtype": "validation helper (tests/core/test_coerce.py)",
+    "core.check_module_dtype": "validation helper (tests/test_module_machinery.py)",
     "core.check_broadcastable": "validation helper (tests/core/test_check.py)",
+    "core.check_choice": "validation helper (tests/core/test_check.py)",
     "core.check_float": "validation helper (tests/core/test_check.py)",
     "core.check_shape": "validation helper (tests/core/test_check.py)",
     "core.check_tensor": "validation helper (tests/core/test_check.py)",
+    "core.check_spacing": "validation helper (tests/sdf/test_grid.py)",
     "core.cast_back": "dtype helper (tests/core/test_numerics.py)",
     "core.working_dtype": "dtype helper (tests/core/test_numerics.py)",
-    "curves.check_knots": "validation helper (tests/curves/test_hermite.py)",
+    "core.power_of_two_scale": "a detached constant factor, exact by construction "
+                               "(tests/core/test_numerics.py)",
     "curves.SplitResult": "NamedTuple result type",
     "curves.HermiteControls": "NamedTuple result type",
     "curves.grid_2d": "factory of numbers (n, low, high), no tensor input; tests/curves",
-    "sdf.Volume": "NamedTuple result type",
+    "core.Volume": "NamedTuple result type",
     "sdf.LevelSetPoints": "NamedTuple result type",
     "transforms.AffineDecomposition": "NamedTuple result type",
 }

@@ -1,7 +1,7 @@
 """Contract entries of transforms: estimation, fitting, RANSAC and registration.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
-``EXEMPT`` names have no geometry (result types, exceptions, validators).
+``ENTRIES`` join ``table.TABLE``; ``EXEMPT`` names have no geometry (result types,
+exceptions, validators).
 
 Correspondences come from a known transform plus small noise: ``src`` is drawn from
 a generator seeded by the entry's seed (``g.initial_seed()``), and the ``dst``
@@ -18,7 +18,7 @@ import torch
 import torchgeo_cg.transforms as T
 from tests.contract.spec import GENERATORS, Arg, Entry
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 F64 = torch.float64
 
@@ -179,13 +179,15 @@ RANSAC_N = 24
 def _closed_form(name: str, kind: str) -> list[Entry]:
     fn = getattr(T, name)
     return [
-        Entry(f"transforms.{name}", fn, (SRC, Arg("dst", (2, N, 2), _dst(kind))), out="matrix",
-              empty=PAIR_EMPTY, bad=BADP),
+        Entry(f"transforms.{name}", lambda s, d: tuple(fn(s, d)),
+              (SRC, Arg("dst", (2, N, 2), _dst(kind))), out=("matrix", "index", "unitless"),
+              empty=PAIR_EMPTY, bad=((2, N, 4), (2,))),
         # weights first: NaN weights give NaN, integer weights are rejected
-        Entry(f"transforms.{name}[weights]", lambda w, s, d: fn(s, d, w),
+        Entry(f"transforms.{name}[weights]", lambda w, s, d: tuple(fn(s, d, w)),
               (Arg("weights", (2, N), _weights, "unitless"), SRC,
                Arg("dst", (2, N, 2), _dst(kind))),
-              out="matrix", empty=((0, 0), (1, 0), (2, 0)), bad=((2, N + 1), (2, N, 2))),
+              out=("matrix", "index", "unitless"), empty=((0, 0), (1, 0), (2, 0)),
+              bad=((2, N + 1), (2, N, 2))),
     ]
 
 
@@ -393,12 +395,9 @@ ENTRIES: list[Entry] = [
           bad=((2, 16, 16), (2, 1, 16))),
 ]
 
-PENDING: dict[str, tuple[str, str]] = {}
-
 EXEMPT: dict[str, str] = {
     "transforms.FitResult": "NamedTuple result of fit_transform (no geometry of its own)",
     "transforms.HartleyNormalization": "NamedTuple result of hartley_normalize",
-    "transforms.HomographyFit": "NamedTuple result of find_homography_dlt",
     "transforms.RobustFit": "NamedTuple result of find_transform_ransac",
     "transforms.RegistrationResult": "NamedTuple result of register_images",
     "transforms.WarpedImage": "NamedTuple result of warp_image",

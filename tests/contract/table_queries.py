@@ -1,7 +1,7 @@
 """Contract entries of mesh distance queries, SDF sampler, point clouds.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
-``EXEMPT`` names have no geometry (result types, exceptions, validators).
+``ENTRIES`` join ``table.TABLE``; ``EXEMPT`` names have no geometry (result types,
+exceptions, validators).
 
 The mesh is a fixed octahedron topology (``OCTA``, captured as a constant); its
 vertices are the float input (``args[0]``), jittered per seed so that no two faces
@@ -20,7 +20,7 @@ import torchgeo_cg.points as P
 import torchgeo_cg.sdf as S
 from tests.contract.spec import Arg, Entry
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 #: Octahedron on the axes (0 +x, 1 -x, 2 +y, 3 -y, 4 +z, 5 -z), faces counter-clockwise
 #: seen from outside (one per octant).
@@ -46,7 +46,7 @@ def _queries(shape, g, dtype):
     return p
 
 
-VERTS = Arg("vertices", (2, 6, 3), _octahedron)
+VERTS = Arg("verts", (2, 6, 3), _octahedron)
 QUERY = Arg("points", (2, 5, 3), _queries)
 BAD_VERTS = ((2, 6, 2), (3,))
 
@@ -183,8 +183,6 @@ ENTRIES: list[Entry] = [
     Entry("points.ChamferDistance", lambda a, b: P.ChamferDistance(squared=False)(a, b),
           (A, B), out=("length",) * 3, bad=((2, 7, 2), (3,)), bad_arg=1),
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "sdf.MeshSDFResult": "NamedTuple result type",

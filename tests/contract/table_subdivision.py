@@ -1,7 +1,7 @@
 """Contract entries of subdivision, faces, limit and face-varying.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
-``EXEMPT`` names have no geometry (result types, exceptions, validators).
+``ENTRIES`` join ``table.TABLE``; ``EXEMPT`` names have no geometry (result types,
+exceptions, validators).
 
 Subdivision is linear in the control data, so every entry gives the vertex positions
 (or UVs) as ``args[0]`` (law ``"length"``) with the topology (faces, tags' indices,
@@ -17,7 +17,7 @@ import torch
 import torchgeo_cg.mesh as M
 from tests.contract.spec import Arg, Entry
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 # ----------------------------------------------------------------------------- topologies
 
@@ -243,8 +243,6 @@ ENTRIES: list[Entry] = [
                                               **_wdtype(uv))(uv),
           (Arg("uvs", (2, 8, 2), SEAM_UV_V),), empty=(0, 0), bad=((2, 7, 2), (3,))),
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "mesh.check_faces": "pure validator of integer faces (ValueError naming the face; "

@@ -68,3 +68,14 @@ def test_library_has_no_assert_statements():
             f"{path.name}:{n.lineno}" for n in ast.walk(tree) if isinstance(n, ast.Assert)
         ]
     assert offenders == []
+
+
+def test_check_choice_names_the_argument_and_every_accepted_value():
+    from torchgeo_cg.core.check import check_choice
+
+    assert check_choice("sum", ("mean", "sum"), "reduction") == "sum"
+    with pytest.raises(ValueError, match=r"^reduction: expected one of 'mean', 'sum', got 'avg'$"):
+        check_choice("avg", ("mean", "sum"), "reduction")
+    with pytest.raises(ValueError, match=r"model: expected one of 'a', 'b', got \['a'\]"):
+        check_choice(["a"], {"b", "a"}, "model")  # unhashable value, sorted set
+    assert check_choice("x", {"x": 1}, "key") == "x"

@@ -9,6 +9,7 @@ from torchgeo_cg.core.numerics import (
     cast_back,
     clamp_away_from_zero,
     hypot,
+    power_of_two_scale,
     safe_div,
     safe_norm,
     safe_sqrt,
@@ -96,7 +97,7 @@ def test_safe_norm_matches_float64_reference_at_every_scale(dtype):
 
 
 def test_safe_norm_float32_intermediate_overflow_regression():
-    """Issue 10: |p| ~ 2e19 gave inf in float32 (the sum of squares overflows)."""
+    """|p| ~ 2e19 is finite in float32 although the sum of squares overflows."""
     p = torch.tensor([[2e19, 2e19, 2e19]], dtype=torch.float32, requires_grad=True)
     n = safe_norm(p)
     assert torch.isfinite(n).all()
@@ -164,3 +165,28 @@ def test_hypot_mixed_ranges_in_one_tensor(dtype):
     torch.testing.assert_close(got, want, rtol=2 * info.eps, atol=0, equal_nan=True)
     assert got[1] > big and torch.isfinite(got[1])
     assert got[2] > 0 and got[3] == 0 and got[6] == float("inf")
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16, torch.float32, torch.float64])
+def test_power_of_two_scale_brings_magnitudes_into_half_open_unit_range(dtype):
+    info = torch.finfo(dtype)
+    mags = torch.tensor([3.0, 4.0, 0.75, info.tiny, info.max / 8], dtype=dtype)
+    scale = power_of_two_scale(mags)
+    ratio = mags / scale
+    assert ((ratio >= 0.5) & (ratio < 1)).all(), ratio
+    # exactly a power of two: its mantissa from frexp is 0.5
+    assert (torch.frexp(scale).mantissa == 0.5).all()
+    # hand-derived values: 3 -> 4, 4 -> 8, 0.75 -> 1
+    assert scale[:3].tolist() == [4.0, 8.0, 1.0]
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_power_of_two_scale_at_the_top_of_the_range_and_undefined_magnitudes(dtype):
+    info = torch.finfo(dtype)
+    mags = torch.tensor([info.max, 0.0, float("nan"), float("inf")], dtype=dtype)
+    scale = power_of_two_scale(mags)
+    assert torch.isfinite(scale).all()
+    assert 1 <= float(mags[0] / scale[0]) < 2  # the largest finite power of two
+    assert scale[1:].tolist() == [1.0, 1.0, 1.0]
+    x = torch.tensor([2.5], dtype=dtype, requires_grad=True)
+    assert not power_of_two_scale(x).requires_grad

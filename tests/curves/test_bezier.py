@@ -401,3 +401,9 @@ def test_per_curve_t_must_broadcast_with_the_curves():
         bezier(cp, torch.rand(3, 5))
     with pytest.raises(ShapeError, match="control_points"):
         cubic_bezier(cp, torch.rand(3, 5))
+
+
+def test_bezier_curve_methods():
+    for method in ("forward", "derivative", "tangent", "normal", "curvature", "split",
+                   "elevate", "length", "reparametrize_by_arclength"):
+        assert callable(getattr(BezierCurve, method))

@@ -57,7 +57,7 @@ def test_bad_input():
         fit_parameters(torch.randn(1, 2))
 
 
-# --- parameter correction, weights, ragged batches (issue 15) ---------------------------
+# --- parameter correction, weights, ragged batches --------------------------------------
 
 def _noisy_stroke(seed: int, m: int = 40):
     gen = torch.Generator().manual_seed(seed)
@@ -156,7 +156,7 @@ def _fixed_t_fit(points, t):
 
 @pytest.mark.parametrize("parametrization", ["chord", "centripetal"])
 def test_fit_parameters_nan_point_gives_nan(parametrization):
-    # issue 10: a NaN sample used to fall back to clean uniform parameters
+    # a NaN sample must not fall back to clean uniform parameters
     points = torch.rand(6, 2, dtype=torch.float64)
     points[2, 0] = float("nan")
     t = fit_parameters(points, parametrization)
@@ -166,7 +166,7 @@ def test_fit_parameters_nan_point_gives_nan(parametrization):
     torch.testing.assert_close(flat, torch.linspace(0, 1, 4, dtype=torch.float64))
 
 
-# --- contract regressions (issue 10) -----------------------------------------------------
+# --- contract regressions ----------------------------------------------------------------
 
 
 def test_nan_point_gives_nan_stroke_and_leaves_the_others():

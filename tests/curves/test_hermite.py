@@ -22,7 +22,6 @@ from torchgeo_cg.curves import (
     bezier_to_hermite,
     cardinal_tangents,
     catmull_rom_tangents,
-    check_knots,
     hermite,
     hermite_basis,
     hermite_spline,
@@ -30,6 +29,7 @@ from torchgeo_cg.curves import (
     pchip_interpolate,
     pchip_tangents,
 )
+from torchgeo_cg.curves.hermite import check_knots
 
 
 def test_basis_matches_appendix_a(device, dtype):

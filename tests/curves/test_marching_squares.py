@@ -8,6 +8,7 @@ import torch
 from skimage.measure import find_contours
 
 from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.curves import (
     figure_eight_implicit,
     grid_2d,
@@ -15,7 +16,6 @@ from torchgeo_cg.curves import (
     marching_squares,
 )
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
-from torchgeo_cg.sdf.grid import Volume
 
 
 def _directed_edges(polylines) -> np.ndarray:
@@ -82,14 +82,14 @@ def test_origin_spacing_and_axis_convention(device, dtype):
     field = implicit_circle(xy, (0.4, -0.2), 1.13)
     spacing = (float(xs[1] - xs[0]), float(ys[1] - ys[0]))
     result = marching_squares(field, 0.0, origin=(-2.0, -1.5), spacing=spacing)
-    assert result.vertices.dtype == dtype and result.vertices.device.type == device.type
+    assert result.verts.dtype == dtype and result.verts.device.type == device.type
     assert result.closed.tolist() == [True]
-    radius = (result.vertices - torch.tensor([0.4, -0.2], device=device, dtype=dtype)).norm(dim=-1)
+    radius = (result.verts - torch.tensor([0.4, -0.2], device=device, dtype=dtype)).norm(dim=-1)
     assert (radius - 1.13).abs().max() < 5e-3  # linear interpolation error of a circle
     ref = find_contours(field.cpu().double().numpy(), 0.0)[0]
     ref_xy = np.array([-2.0, -1.5]) + ref * np.array(spacing)
     tol = 1e-6 if dtype == torch.float64 else 1e-4
-    assert _edge_distance([result.vertices.cpu().double().numpy()], [ref_xy]) < tol
+    assert _edge_distance([result.verts.cpu().double().numpy()], [ref_xy]) < tol
 
 
 def test_batch_and_empty():
@@ -101,8 +101,8 @@ def test_batch_and_empty():
         assert len(mine) == len(single)
         assert _edge_distance([p.numpy() for p in mine], [p.numpy() for p in single]) < 1e-12
     nothing = marching_squares(torch.ones(4, 5), 0.0)
-    assert nothing.vertices.shape == (0, 2) and nothing.lengths.shape == (0,)
-    assert marching_squares(torch.zeros(0, 4, 5)).vertices.shape == (0, 2)
+    assert nothing.verts.shape == (0, 2) and nothing.lengths.shape == (0,)
+    assert marching_squares(torch.zeros(0, 4, 5)).verts.shape == (0, 2)
 
 
 def test_nan_cells_are_skipped_like_skimage():
@@ -117,7 +117,7 @@ def test_gradient_with_respect_to_field_values():
     field = torch.tensor(_smooth_field(5, (12, 10)), requires_grad=True)
 
     def vertices(f):
-        return marching_squares(f, 0.1).vertices
+        return marching_squares(f, 0.1).verts
 
     assert torch.autograd.gradcheck(vertices, (field,))
     loss = vertices(field).sum()
@@ -129,11 +129,11 @@ def test_figure_eight_crossing_is_finite():
     xy = grid_2d(101, -10.0, 10.0, dtype=torch.float64)
     field = figure_eight_implicit(xy, 5.0).requires_grad_(True)
     result = marching_squares(field, 0.0, origin=(-10.0, -10.0), spacing=(0.2, 0.2))
-    assert result.vertices.isfinite().all()
-    result.vertices.sum().backward()
+    assert result.verts.isfinite().all()
+    result.verts.sum().backward()
     assert field.grad.isfinite().all()
-    radius_left = (result.vertices - torch.tensor([-5.0, 0.0], dtype=torch.float64)).norm(dim=-1)
-    radius_right = (result.vertices - torch.tensor([5.0, 0.0], dtype=torch.float64)).norm(dim=-1)
+    radius_left = (result.verts - torch.tensor([-5.0, 0.0], dtype=torch.float64)).norm(dim=-1)
+    radius_right = (result.verts - torch.tensor([5.0, 0.0], dtype=torch.float64)).norm(dim=-1)
     on_a_circle = torch.minimum((radius_left - 5).abs(), (radius_right - 5).abs())
     assert on_a_circle.max() < 0.1
 
@@ -165,7 +165,7 @@ def test_bad_input():
         marching_squares(Volume(torch.zeros(3, 3, 2), torch.zeros(3), torch.ones(3)))
 
 
-# ------------------------------------------------ tie rule and asymptotic decider (issue 13)
+# --------------------------------------------------------- tie rule and asymptotic decider
 def _is_degenerate(poly: np.ndarray) -> bool:
     return bool(np.all(poly == poly[0]) or (np.diff(poly, axis=0) == 0).all(1).any())
 
@@ -244,20 +244,20 @@ def test_volume_input_and_scale_invariance():
                                                                               dtype=torch.float64)
     want = marching_squares(field, 0.0, origin=origin, spacing=spacing)
     got = marching_squares(Volume(field, origin, spacing))
-    torch.testing.assert_close(got.vertices, want.vertices)
+    torch.testing.assert_close(got.verts, want.verts)
     one_slice = Volume(field[..., None], torch.tensor([-2.0, -2.0, 5.0], dtype=torch.float64),
                        torch.tensor([0.1, 0.1, 1.0], dtype=torch.float64))
-    torch.testing.assert_close(marching_squares(one_slice).vertices, want.vertices)
+    torch.testing.assert_close(marching_squares(one_slice).verts, want.verts)
     rng = np.random.default_rng(3)
     noisy = torch.tensor(rng.standard_normal((20, 20)))
     ref = marching_squares(noisy, 0.0)
     for s in (1e-12, 1e-6, 1e6, 1e12):
         scaled = marching_squares(noisy * s, 0.0)
         assert torch.equal(scaled.lengths, ref.lengths)
-        torch.testing.assert_close(scaled.vertices, ref.vertices, rtol=0, atol=1e-12)
+        torch.testing.assert_close(scaled.verts, ref.verts, rtol=0, atol=1e-12)
 
 
-# --- contract regressions (issue 10) -----------------------------------------------------
+# --- contract regressions ----------------------------------------------------------------
 
 
 def _ring_fields(dtype) -> torch.Tensor:
@@ -273,10 +273,10 @@ def test_low_precision_is_computed_in_float32_and_cast_back(low):
     fields = _ring_fields(low)
     out = marching_squares(fields, origin=(0.5, -1.0), spacing=(0.25, 0.5))
     ref = marching_squares(fields.float(), origin=(0.5, -1.0), spacing=(0.25, 0.5))
-    assert out.vertices.dtype == low
+    assert out.verts.dtype == low
     for got, want in zip(out[1:], ref[1:]):
         assert torch.equal(got, want)
-    torch.testing.assert_close(out.vertices, ref.vertices.to(low), rtol=0, atol=0)
+    torch.testing.assert_close(out.verts, ref.verts.to(low), rtol=0, atol=0)
 
 
 def test_vertices_keep_float32_under_a_float64_default_dtype():
@@ -288,9 +288,9 @@ def test_vertices_keep_float32_under_a_float64_default_dtype():
         out = marching_squares(_ring_fields(torch.float32))
     finally:
         torch.set_default_dtype(previous)
-    assert out.vertices.dtype == torch.float32
+    assert out.verts.dtype == torch.float32
     ref = marching_squares(_ring_fields(torch.float32))
-    torch.testing.assert_close(out.vertices, ref.vertices, rtol=0, atol=0)
+    torch.testing.assert_close(out.verts, ref.verts, rtol=0, atol=0)
 
 
 def test_nan_iso_is_rejected_and_tensor_origin_follows_the_field():
@@ -302,7 +302,7 @@ def test_nan_iso_is_rejected_and_tensor_origin_follows_the_field():
     origin, spacing = torch.tensor([0.5, -1.0]), torch.tensor([0.25, 0.5])  # float32
     out = marching_squares(fields, origin=origin, spacing=spacing)
     ref = marching_squares(fields, origin=(0.5, -1.0), spacing=(0.25, 0.5))
-    assert out.vertices.dtype == torch.float64
-    torch.testing.assert_close(out.vertices, ref.vertices, rtol=0, atol=0)
+    assert out.verts.dtype == torch.float64
+    torch.testing.assert_close(out.verts, ref.verts, rtol=0, atol=0)
     unit = marching_squares(fields)  # vertex = origin + index * spacing, by hand
-    torch.testing.assert_close(out.vertices, origin.double() + unit.vertices * spacing.double())
+    torch.testing.assert_close(out.verts, origin.double() + unit.verts * spacing.double())

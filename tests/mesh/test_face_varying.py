@@ -1,4 +1,4 @@
-"""Face-varying subdivision (UV seams, issue 14) against an independent dense reference.
+"""Face-varying subdivision (UV seams) against an independent dense reference.
 
 The reference is written here from OpenSubdiv's face-varying rules (``Vtr::FVarLevel``:
 a value is a vertex's value; seams are boundaries of the value mesh; a value is pinned
@@ -491,12 +491,12 @@ def test_errors_name_the_argument():
 
 
 def test_integer_uvs_raise_type_error():
-    """Issue 10: integer uvs reached the sparse matmul and raised a raw NotImplementedError;
-    they are rejected up front with a TypeError naming ``uvs``."""
+    """Integer uvs are rejected up front with a TypeError naming ``uvs`` (the sparse
+    matmul would raise a raw NotImplementedError)."""
     uvs = torch.zeros(4, 2, dtype=torch.long)
     with pytest.raises(TypeError, match="uvs: expected a floating-point tensor"):
         face_varying_subdivide(uvs, [[0, 1, 2, 3]], [[0, 1, 2, 3]], 4)
     module = FaceVaryingSubdivision([[0, 1, 2, 3]], [[0, 1, 2, 3]], 4, 4)
     with pytest.raises(TypeError, match="uvs: expected a floating-point tensor"):
         module(uvs)
-    assert module(uvs.double()).dtype == torch.float64
+    assert module.double()(uvs.double()).dtype == torch.float64  # state and input share one dtype

@@ -10,11 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from torchgeo_cg.core.check import ShapeError
-from torchgeo_cg.mesh import faces as faces_mod
-from torchgeo_cg.mesh import io as io_mod
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces, unpad_faces
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 MIXED = [[0, 1, 2, 3], [1, 4, 2], [2, 4, 5, 6, 3]]
 
@@ -24,13 +22,6 @@ def _verts(dtype=torch.float64):
         [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0.5], [1, 2, 0]],
         dtype=dtype,
     )
-
-
-def test_public_surface():
-    assert set(io_mod.__all__) == {"Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"}
-    assert set(faces_mod.__all__) == {
-        "pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces"
-    }
 
 
 @pytest.mark.parametrize("suffix", [".obj", ".ply", ".PLY", ".off"])
@@ -218,19 +209,6 @@ def test_io_bad_input(tmp_path):
     if torch.cuda.is_available():
         with pytest.raises(ValueError, match="same device"):
             to_trimesh(v.cuda(), torch.tensor([[0, 1, 2]]))
-
-
-def test_package_exports_io_and_subdivision():
-    import torchgeo_cg.mesh as mesh
-
-    names = {
-        "Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh", "pad_faces",
-        "face_sizes", "check_faces", "triangulate_faces", "unpad_faces", "SubdivisionOperator",
-        "catmull_clark_operator", "apply_operator", "catmull_clark", "CatmullClark",
-        "limit_positions",
-    }
-    assert names <= set(mesh.__all__)
-    assert all(hasattr(mesh, n) for n in names)
 
 
 def test_ply_error_paths(tmp_path):
@@ -678,7 +656,7 @@ def test_one_huge_face_does_not_pad_every_face_to_gigabytes(tmp_path):
         _load_bytes(tmp_path, "big.obj", text)
 
 
-# ----------------------------------------------------------------------------- contract (i10)
+# ----------------------------------------------------------------------------- contract ------
 @pytest.mark.parametrize("suffix, binary", [(".obj", True), (".ply", True), (".ply", False),
                                             (".off", True)])
 def test_bfloat16_verts_save_exactly(tmp_path, suffix, binary):

@@ -15,8 +15,9 @@ from scipy.spatial import cKDTree
 
 import torchgeo_cg.mesh as mesh_pkg
 from torchgeo_cg.core.check import ShapeError
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.mesh import MarchingCubes, MarchingCubesResult, marching_cubes
-from torchgeo_cg.mesh._marching_cubes_tables import (
+from torchgeo_cg.mesh.marching_cubes._tables import (
     AMBIGUOUS,
     CORNER_OFFSETS,
     CUBE_FACES,
@@ -24,7 +25,6 @@ from torchgeo_cg.mesh._marching_cubes_tables import (
     TRIANGLES,
     face_segments,
 )
-from torchgeo_cg.sdf.grid import Volume
 
 skimage_measure = pytest.importorskip("skimage.measure")
 trimesh = pytest.importorskip("trimesh")
@@ -589,7 +589,7 @@ def test_bad_input_raises(kwargs, error, match):
 
 def test_slab_seams_do_not_change_the_result(monkeypatch):
     # the volume is processed in slabs along x; one-layer slabs must give the same mesh
-    impl = importlib.import_module("torchgeo_cg.mesh._marching_cubes_steps")
+    impl = importlib.import_module("torchgeo_cg.mesh.marching_cubes._steps")
     X, Y, Z, h, lo = grid(14)
     vols = torch.stack([torus(X, Y, Z), sphere(X, Y, Z), X + 0.1 * Y])
     want = marching_cubes(vols, temperature=0.3)
@@ -614,7 +614,7 @@ def test_to_trimesh_gives_a_watertight_sphere_and_round_trips():
     torch.testing.assert_close(back.faces, result.faces)
 
 
-# ------------------------------------------- arguments, Volume, mask, scale, half (issue 13)
+# ---------------------------------------------------- arguments, Volume, mask, scale, half
 def test_volume_input_uses_its_origin_and_spacing():
     from torchgeo_cg.sdf.grid import sample_grid
 
@@ -723,7 +723,7 @@ def test_half_precision_classified_as_is_and_interpolated_in_float32(half):
 
 
 
-# ------------------------------------------------- ambiguity="asymptotic" (issue 13)
+# ---------------------------------------------------------- ambiguity="asymptotic"
 def cell_outlines(verts: np.ndarray, faces: np.ndarray) -> set:
     """The closed polygons each cell cuts from its faces, as a set of (cell, edge, edge).
 
@@ -764,7 +764,7 @@ def cell_outlines(verts: np.ndarray, faces: np.ndarray) -> set:
 
 
 def test_configuration_tables_boundary_is_the_face_segments_for_every_decision():
-    from torchgeo_cg.mesh._marching_cubes_tables import (
+    from torchgeo_cg.mesh.marching_cubes._tables import (
         CENTRE,
         ambiguous_faces,
         configuration_triangles,
@@ -942,8 +942,8 @@ def test_interior_test_agrees_with_a_brute_force_flood_fill_of_the_trilinear_int
     # lower; ours follow the interpolant.)
     from scipy.ndimage import label
 
-    from torchgeo_cg.mesh._marching_cubes_decider import face_decisions, interior_decisions
-    from torchgeo_cg.mesh._marching_cubes_tables import (
+    from torchgeo_cg.mesh.marching_cubes._decider import face_decisions, interior_decisions
+    from torchgeo_cg.mesh.marching_cubes._tables import (
         configuration_tensors,
         corner_patches,
         tube_candidates,
@@ -980,7 +980,7 @@ def test_interior_test_agrees_with_a_brute_force_flood_fill_of_the_trilinear_int
     assert disagree <= 5  # thin tunnels below the flood fill's resolution
 
 
-# ----------------------------------------------------------------------------- contract (i10)
+# ----------------------------------------------------------------------------- contract ------
 @pytest.mark.parametrize("where", [(0, 0, 0), (2, 3, 1)])
 @pytest.mark.parametrize("mask", [None, torch.zeros(4, 4, 4, dtype=torch.bool)])
 def test_nan_sample_raises_naming_volume(where, mask):

@@ -179,7 +179,7 @@ def test_flat_grid_gradient_is_finite_and_nan_propagates():
         edge_length_loss(bad, torch.tensor([[0, 1, 99]]))
 
 
-# ----------------------------------------------------------------------------- contract (i10)
+# ----------------------------------------------------------------------------- contract ------
 def test_nan_vertex_propagates_to_normal_consistency_and_cotangents():
     # was: a NaN normal failed the "> 0" guard and counted as a zero-area face (term 0)
     verts, faces = mixed_polygons()

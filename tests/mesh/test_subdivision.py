@@ -18,9 +18,9 @@ from hypothesis import strategies as st
 from tests.mesh._cc_reference import reference_levels
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
-from torchgeo_cg.mesh import subdivision as sd
+from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.mesh.faces import face_sizes, pad_faces, unpad_faces
-from torchgeo_cg.mesh.io import load_mesh, to_trimesh
+from torchgeo_cg.mesh.io import to_trimesh
 from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
     SubdivisionOperator,
@@ -98,13 +98,6 @@ CLOSED = ["cube", "tetrahedron", "pyramid", "pentagon_prism", "hexagon_prism"]
 
 # ----------------------------------------------------------------------------- exact values
 
-def test_public_surface():
-    assert set(sd.__all__) == {
-        "SubdivisionOperator", "catmull_clark_operator", "apply_operator", "catmull_clark",
-        "CatmullClark", "limit_positions", "catmark_limit_stencils", "mesh_topology",
-    }
-
-
 def test_unit_cube_one_level_exact(dtype, device):
     v = torch.tensor(CUBE_V, dtype=dtype, device=device)
     v1, f1 = catmull_clark(v, torch.tensor(CUBE_F, device=device))
@@ -172,7 +165,7 @@ def test_reference_with_features_and_batch():
 
 def test_pymeshlab_peer_agrees_on_face_and_edge_points():
     """Live peer: pymeshlab's filter gives the same face and edge points on the unit cube;
-    its vertex points differ (7/36 instead of the rules' 2/9), as the issue states."""
+    its vertex points differ (7/36 instead of the rules' 2/9), as pymeshlab documents."""
     pymeshlab = pytest.importorskip("pymeshlab")
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.array(CUBE_V),
@@ -230,9 +223,7 @@ def test_closed_stays_watertight(name):
 
 
 def test_rabbit_loads_and_subdivides():
-    from importlib.resources import files
-
-    rabbit = load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj", dtype=torch.float64)
+    rabbit = sample_data.rabbit(dtype=torch.float64)
     assert 200 <= rabbit.faces.shape[0] <= 600 and rabbit.faces.shape[1] == 4
     v, f = catmull_clark(rabbit.verts, rabbit.faces, levels=2)
     mesh = to_trimesh(v, f)
@@ -429,7 +420,7 @@ def test_icosphere_counts_match_euler():
 
 @pytest.mark.parametrize("levels", [1, 2])
 def test_empty_in_empty_out(levels):
-    """Issue 10: no vertices (and no faces) in gives no vertices and no faces out."""
+    """No vertices (and no faces) in gives no vertices and no faces out."""
     from torchgeo_cg.mesh import loop_subdivide
 
     for fn, k in ((catmull_clark, 4), (loop_subdivide, 3)):
@@ -449,8 +440,8 @@ def test_empty_in_empty_out(levels):
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
 def test_half_precision_is_refined_in_float32(low):
-    """Issue 10: float16/bfloat16 verts raised a raw NotImplementedError (no half sparse
-    kernel); they are refined in float32 and cast back: the cube corner moves to (2/9)^3
+    """float16/bfloat16 verts (torch has no half sparse kernel) are refined in float32 and
+    cast back: the cube corner moves to (2/9)^3
     (hand-derived), every value equals the float32 result rounded once, and the gradient
     (S^T applied to ones) comes back in the input dtype."""
     from torchgeo_cg.mesh import loop_subdivide
@@ -474,8 +465,8 @@ def test_half_precision_is_refined_in_float32(low):
 
 
 def test_integer_weight_dtype_raises_type_error():
-    """Issue 10: ``dtype=torch.long`` was silently replaced by float32 weights (promoted
-    away); every builder and module now rejects a non-float weight dtype naming it."""
+    """``dtype=torch.long`` is not a weight dtype: every builder and module rejects a
+    non-float weight dtype, naming it, rather than promoting it to float32."""
     from torchgeo_cg.mesh import (
         FaceVaryingSubdivision,
         LoopSubdivision,

@@ -1,4 +1,4 @@
-"""limit_frames (issue 14g): OpenSubdiv's limit tangent masks, checked against planes,
+"""limit_frames: OpenSubdiv's limit tangent masks, checked against planes,
 hand-derived magnitudes and normals fitted to densely refined limit points."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import trimesh
 
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.mesh import SubdivisionTags, bilinear_operator
-from torchgeo_cg.mesh.limit import limit_frames
-from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator
 from torchgeo_cg.mesh.subdivision import CatmullClark, catmull_clark_operator, limit_positions
+from torchgeo_cg.mesh.subdivision.limit import limit_frames
+from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator
 
 GRID_Q = [[r * 4 + c, r * 4 + c + 1, r * 4 + c + 5, r * 4 + c + 4]
           for r in range(3) for c in range(3)]
@@ -107,8 +107,8 @@ def test_refuses_schemes_without_masks():
 @pytest.mark.parametrize("dtype, scale", [(torch.float32, 1e20), (torch.float32, 1e-25),
                                           (torch.float64, 1e160), (torch.float64, 1e-170)])
 def test_normals_are_unit_at_every_scale(dtype, scale):
-    """Issue 10: the cross product of the tangents overflowed (NaN normals at 1e20 in float32)
-    or underflowed (zero normals at 1e-25); the normals of a tilted planar grid are its
+    """The cross product of the tangents can overflow (NaN normals at 1e20 in float32) or
+    underflow (zero normals at 1e-25) unless rescaled; the normals of a tilted planar grid are its
     plane normal, by hand, at every scale."""
     xy = torch.tensor([[c, r] for r in range(4) for c in range(4)], dtype=torch.float64)
     plane = torch.tensor([0.3, -0.2], dtype=torch.float64)  # z = 0.3 x - 0.2 y
@@ -125,7 +125,7 @@ def test_normals_are_unit_at_every_scale(dtype, scale):
 @pytest.mark.parametrize("dtype, size, offset", [(torch.float32, 1e37, 2e38),
                                                  (torch.float64, 1e306, 1e308)])
 def test_tangents_of_points_near_the_largest_float_are_finite(dtype, size, offset):
-    """Issue 10: tangent masks are differences (``4 e0 - 4 e2``), which overflowed to
+    """Tangent masks are differences (``4 e0 - 4 e2``), which would overflow to
     ``inf - inf = NaN`` for a mesh translated near the largest float although the tangents
     are finite. Tangent masks sum to 0, so translation must not change them (reference:
     the same cube at the origin)."""

@@ -14,10 +14,9 @@ from hypothesis import strategies as st
 
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
-from torchgeo_cg.mesh import loop as loop_mod
 from torchgeo_cg.mesh.io import to_trimesh
-from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.subdivision import apply_operator, limit_positions
+from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator, loop_subdivide
 
 
 def reference_loop(verts, faces, boundary="edge_only"):
@@ -85,12 +84,6 @@ def ico():
 
 
 MESHES = {"grid": tri_grid, "fin": tri_fin, "icosphere": ico}
-
-
-def test_public_surface():
-    assert set(loop_mod.__all__) == {
-        "loop_operator", "loop_subdivide", "LoopSubdivision", "loop_limit_stencils", "loop_beta"
-    }
 
 
 @pytest.mark.parametrize("name", list(MESHES))
@@ -179,7 +172,7 @@ def test_errors():
         loop_subdivide([[0.0, 0, 0]] * 3, [[0, 1, 2]])
 
 
-# ---------------------------------------------------------------- limit positions (issue 14a)
+# ---------------------------------------------------------------- limit positions ----------
 
 
 def _octahedron():
@@ -266,7 +259,8 @@ def test_loop_limit_on_the_boundary_is_the_cubic_bspline(boundary):
 
 
 def test_limit_positions_differ_by_scheme_and_refuse_others():
-    """Issue 14: a Loop operator got Catmull-Clark masks; it now records its scheme."""
+    """An operator records its scheme, so a Loop operator gets Loop masks, not
+    Catmull-Clark ones."""
     verts, faces = _octahedron()
     op = loop_operator(faces, 6, dtype=torch.float64)
     assert op.scheme == "loop"

@@ -1,4 +1,4 @@
-"""Creases, corners, holes, boundary modes and non-manifold rules (issue 14) against an
+"""Creases, corners, holes, boundary modes and non-manifold rules against an
 independent dense reference written here from OpenSubdiv's documented rules
 (``Sdc::Crease``, ``Sdc::Scheme::ComputeEdgeVertexMask`` / ``ComputeVertexVertexMask``,
 ``Far::TopologyRefinerFactoryBase::prepareComponentTagsAndSharpness``): plain Python,
@@ -388,7 +388,7 @@ def test_boundary_none_keeps_interior_faces():
 
 
 def test_cube_with_hanging_triangle_keeps_the_non_manifold_vertex():
-    """Issue 14: OpenSubdiv keeps a non-manifold vertex fixed ((1, 1, 1) for vertex 7)."""
+    """OpenSubdiv keeps a non-manifold vertex fixed ((1, 1, 1) for vertex 7)."""
     verts = torch.cat([CUBE_V, torch.tensor([[2.0, 1.5, 1.0], [2.0, 2.0, 2.0]],
                                             dtype=torch.float64)])
     faces = [f + [-1] if len(f) == 3 else f for f in CUBE_F] + [[7, 8, 9, -1]]
@@ -400,7 +400,7 @@ def test_cube_with_hanging_triangle_keeps_the_non_manifold_vertex():
 
 
 def test_octahedron_with_hanging_triangle_loop():
-    """Issue 14: Loop on an octahedron with a triangle hanging from (0, 0, 1) keeps it."""
+    """Loop on an octahedron with a triangle hanging from (0, 0, 1) keeps it."""
     verts = torch.cat([OCTA_V, torch.tensor([[0.5, 0.5, 2.0], [-0.5, 0.5, 2.0]],
                                             dtype=torch.float64)])
     faces = OCTA_F + [[4, 6, 7]]
@@ -614,8 +614,8 @@ def test_random_tags_match_reference_and_rows_sum_to_one(sharp, corners, method,
     ("holes", torch.tensor([True]), TypeError),
 ])
 def test_tag_fields_of_the_wrong_dtype_or_shape_are_named(field, value, error):
-    """Issue 10: float indices were truncated and odd shapes reshaped silently or with a raw
-    torch error; every builder now names the field."""
+    """Float indices and odd shapes in a tag field are neither truncated nor reshaped:
+    every builder raises an error naming the field."""
     sharp = {"creases": "crease_sharpness", "corners": "corner_sharpness"}.get(field)
     tags = SubdivisionTags.empty(torch.float64)._replace(**{field: value})
     if sharp:
@@ -632,7 +632,7 @@ def test_tag_fields_of_the_wrong_dtype_or_shape_are_named(field, value, error):
 
 @pytest.mark.parametrize("field", ["crease_sharpness", "corner_sharpness"])
 def test_nan_sharpness_raises_value_error_naming_it(field):
-    """Issue 10 (NaN in parameters is never swallowed): a NaN sharpness is not a sharpness;
+    """NaN in parameters is never swallowed: a NaN sharpness is not a sharpness;
     every builder names the field instead of treating it as smooth (NaN > 0 is False)."""
     one = torch.tensor([float("nan")], dtype=torch.float64)
     tags = SubdivisionTags.empty(torch.float64)._replace(

@@ -9,6 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.interpolate import RegularGridInterpolator
 
+from torchgeo_cg.core import grid as CG
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.sdf import grid as G
@@ -23,8 +24,8 @@ def test_index_world_round_trip(i, j, k):
     pts = G.grid_points(res, BOUNDS, dtype=torch.float64)
     origin, spacing = G.grid_spacing(res, BOUNDS, dtype=torch.float64)
     ijk = torch.tensor([i, j, k])
-    assert_close(pts[i, j, k], G.index_to_world(ijk, origin, spacing))
-    assert_close(G.world_to_index(pts[i, j, k], origin, spacing), ijk.double())
+    assert_close(pts[i, j, k], CG.index_to_world(ijk, origin, spacing))
+    assert_close(CG.world_to_index(pts[i, j, k], origin, spacing), ijk.double())
     # axis 0 is x, 1 is y, 2 is z; both bounds are samples
     assert_close(pts[-1, -1, -1], torch.tensor(BOUNDS[1]))
     assert_close(pts[0, 0, 0], torch.tensor(BOUNDS[0]))
@@ -79,7 +80,7 @@ def test_grid_interpolate_matches_scipy(dtype):
     ref = RegularGridInterpolator(axes, vol.values.numpy(), method="linear")
     rng = np.random.default_rng(0)
     q = rng.uniform(BOUNDS[0], BOUNDS[1], size=(2, 50, 3))
-    out = G.grid_interpolate(G.Volume(vol.values.to(dtype), vol.origin.to(dtype),
+    out = G.grid_interpolate(CG.Volume(vol.values.to(dtype), vol.origin.to(dtype),
                                       vol.spacing.to(dtype)), torch.tensor(q, dtype=dtype))
     assert out.shape == (2, 50) and out.dtype == dtype
     assert_close(out, ref(q.reshape(-1, 3)).reshape(2, 50), scale=10)

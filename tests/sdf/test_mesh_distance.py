@@ -10,6 +10,7 @@ import pytest
 import torch
 import trimesh
 
+import torchgeo_cg.sdf as S
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.sdf import mesh_distance as M
@@ -76,7 +77,7 @@ def test_against_brute_force_and_winding_signs(name):
     # closest points lie on the returned faces at the returned distance
     assert_close((p - r.closest_points).norm(dim=-1), r.sdf.abs())
     tri = V[F[r.face_ids]]
-    q = M.closest_point_on_triangle(p, tri[:, 0], tri[:, 1], tri[:, 2]).points
+    q = S.closest_point_on_triangle(p, tri[:, 0], tri[:, 1], tri[:, 2]).points
     assert_close(q, r.closest_points)
     # both sign methods agree on a watertight mesh
     assert torch.equal(M.mesh_sdf(V, F, p, sign="winding").sdf, r.sdf)
@@ -114,7 +115,7 @@ def test_closest_point_on_triangle_features():
     c = torch.tensor([0.0, 1.0, 0.0])
     p = torch.tensor([[0.2, 0.2, 1.0], [0.5, -1.0, 0.0], [1.0, 1.0, 0.0], [-0.5, 0.5, 2.0],
                       [-1.0, -1.0, 0.0], [2.0, -0.1, 0.0], [-0.1, 3.0, 0.0]])
-    r = M.closest_point_on_triangle(p, a, b, c)
+    r = S.closest_point_on_triangle(p, a, b, c)
     assert r.feature.tolist() == [0, 1, 2, 3, 4, 5, 6]
     assert_close(r.points, torch.tensor([[0.2, 0.2, 0.0], [0.5, 0.0, 0.0], [0.5, 0.5, 0.0],
                                          [0.0, 0.5, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0],
@@ -208,7 +209,7 @@ def test_bad_input():
         M.mesh_sdf(V, F, p, sign="rays")
 
 
-# --- batched meshes and polygon faces (issue 15) --------------------------------------------
+# --- batched meshes and polygon faces -------------------------------------------------------
 
 
 def test_batched_vertices_match_a_loop():
@@ -256,7 +257,7 @@ def test_polygon_faces_are_triangulated():
         M.mesh_sdf(V, torch.tensor([[0, 1, 2, 9]]), p)
 
 
-# --- numerics at every scale, empty inputs (issue 10) ---------------------------------------
+# --- numerics at every scale, empty inputs --------------------------------------------------
 
 TET_V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
 TET_F = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
@@ -310,7 +311,7 @@ def test_nan_points_give_nan():
     assert_close(r[[0, 2]], M.mesh_sdf(V, F, p[[0, 2]]).sdf)
 
 
-# --- progress, vmap, jacrev (issue 11) ------------------------------------------------------
+# --- progress, vmap, jacrev -----------------------------------------------------------------
 
 
 def test_progress_bar(capsys):
@@ -345,7 +346,7 @@ def test_vmap_and_jacrev():
     assert_close(jv[3], vv.grad)
 
 
-# --- backends (issue 16) --------------------------------------------------------------------
+# --- backends -------------------------------------------------------------------------------
 
 from torchgeo_cg.sdf import engines as E  # noqa: E402
 
@@ -493,7 +494,7 @@ def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
     assert len(builds) == 1  # the second query reused the structure
     assert torch.equal(first.sdf, ref.sdf)
     assert_close(second.sdf, ref.sdf.flip(0), atol=1e-14, rtol=0)  # an engine's own float64
-    module.vertices.mul_(2.0)  # an in-place edit rebuilds
+    module.verts.mul_(2.0)  # an in-place edit rebuilds
     assert_close(module(p).sdf, ref2.sdf, atol=1e-12, rtol=0)
     assert len(builds) == 2
     twin = copy.deepcopy(module)
@@ -582,7 +583,7 @@ def test_repeated_calls_reuse_only_an_identical_mesh(backend, monkeypatch):
     assert reused == (1 if backend != "torch" else 2) and len(builds) == reused + 1
 
 
-# --- scale, dtype policy (issue 10) ----------------------------------------------------------
+# --- scale, dtype policy ---------------------------------------------------------------------
 
 UNIT_TRI = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=torch.float64)
 
@@ -596,7 +597,7 @@ def test_closest_point_on_triangle_at_any_scale(dtype, s):
     # fix the 4th powers of the lengths under/overflowed: an edge point at 1e-100 and 1e100,
     # a vertex at 1e-170, NaN at 1e160 (float32: an edge at 1e+-12, NaN at 1e20)
     p = torch.tensor([[0.2, 0.3, 0.5], [2.0, -0.5, 0.0]], dtype=torch.float64)
-    r = M.closest_point_on_triangle((p * s).to(dtype), *(UNIT_TRI * s).to(dtype))
+    r = S.closest_point_on_triangle((p * s).to(dtype), *(UNIT_TRI * s).to(dtype))
     assert r.feature.tolist() == [0, 5]
     want = torch.tensor([[0.2, 0.3, 0.0], [1.0, 0.0, 0.0]], dtype=torch.float64)
     assert_close((r.points.double() / s), want, atol=1e-6 if dtype == torch.float32 else 1e-14,
@@ -612,7 +613,7 @@ def test_mixed_dtypes_follow_the_points_or_raise_naming_both():
     w = M.winding_number(V, F, p32)
     assert w.dtype == torch.float32 and torch.equal(w, M.winding_number(V.float(), F, p32))
     with pytest.raises(TypeError, match="v1 is torch.float32 on cpu but points"):
-        M.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])  # was promoted
+        S.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])  # was promoted
 
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
@@ -627,8 +628,8 @@ def test_low_precision_is_computed_in_float32(low):
     assert torch.equal(M.MeshSDF(V, F, backend="torch")(P).sdf, ref.sdf.to(low))
     w = M.winding_number(V, F, P)
     assert w.dtype == low and torch.equal(w, M.winding_number(V.float(), F, P.float()).to(low))
-    c = M.closest_point_on_triangle(P, V[0], V[1], V[2])
-    c32 = M.closest_point_on_triangle(P.float(), V[0].float(), V[1].float(), V[2].float())
+    c = S.closest_point_on_triangle(P, V[0], V[1], V[2])
+    c32 = S.closest_point_on_triangle(P.float(), V[0].float(), V[1].float(), V[2].float())
     assert c.points.dtype == low and torch.equal(c.points, c32.points.to(low))
     assert torch.equal(c.feature, c32.feature)
 

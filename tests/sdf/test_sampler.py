@@ -12,6 +12,7 @@ from scipy import stats
 
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 from torchgeo_cg.sdf.primitives import Torus, sphere, torus
 from torchgeo_cg.sdf.sampler import (
@@ -122,14 +123,11 @@ def test_bad_input():
         SDFSampler(lambda p: sphere(p, 5.0), seed=0).sample(10)
 
 
-# --- polygon meshes, batches, DataLoader workers, progress (issues 10, 11, 15) ----------
+# --- polygon meshes, batches, DataLoader workers, progress ------------------------------
 
 def _control_mesh():
-    from importlib.resources import files
 
-    from torchgeo_cg.mesh import load_mesh
-
-    return load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj", dtype=torch.float64)
+    return sample_data.rabbit(dtype=torch.float64)
 
 
 def test_quad_control_mesh_is_triangulated():
@@ -239,7 +237,7 @@ def test_backend_is_passed_to_mesh_sdf(backend):
         SDFSampler(m, seed=3, backend="no-such-engine")
 
 
-# --- dtype policy and file validation (issue 10) --------------------------------------------
+# --- dtype policy and file validation -------------------------------------------------------
 
 
 def test_save_samples_dtypes(tmp_path):

@@ -28,6 +28,18 @@ from torchgeo_cg.transforms import (
 pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
+def _matrix_of(fn):
+    def call(*args, **kwargs):
+        return fn(*args, **kwargs).matrix
+
+    call.__name__ = fn.__name__
+    return call
+
+
+CLOSED_FORMS = [_matrix_of(f) for f in (find_translation, find_affine, find_similarity,
+                                       find_euclidean)]
+
+
 def random_homographies(batch, gen, dtype=torch.float64, scale=200.0):
     """Well-conditioned random homographies for points in [0, scale]^2."""
     h = torch.eye(3, dtype=dtype) + 0.1 * torch.randn(batch, 3, 3, generator=gen, dtype=dtype)
@@ -254,9 +266,9 @@ def test_find_affine_exact_and_vs_lstsq_and_skimage():
     src = torch.rand(16, 9, 2, generator=gen, dtype=torch.float64) * 100
     m = random_affine(16, gen)
     exact = transform_points(m, src)
-    assert_close(find_affine(src, exact), m)
+    assert_close(find_affine(src, exact).matrix, m)
     dst = exact + torch.randn(16, 9, 2, generator=gen, dtype=torch.float64)
-    ours = find_affine(src, dst)
+    ours = find_affine(src, dst).matrix
     design = torch.cat([src, torch.ones(16, 9, 1, dtype=torch.float64)], -1)  # (16, 9, 3)
     for i in range(16):
         # least squares written out: [x, y, 1] @ Mᵀ[:, :2] = dst
@@ -265,7 +277,7 @@ def test_find_affine_exact_and_vs_lstsq_and_skimage():
         # skimage solves the same problem exactly on noise-free data
         peer = transform.AffineTransform()
         peer.estimate(src[i].numpy(), exact[i].numpy())
-        assert_close(find_affine(src[i], exact[i]), peer.params, rtol=1e-8, atol=1e-8)
+        assert_close(find_affine(src[i], exact[i]).matrix, peer.params, rtol=1e-8, atol=1e-8)
 
 
 def umeyama_reference(src: np.ndarray, dst: np.ndarray, with_scale: bool) -> np.ndarray:
@@ -290,7 +302,7 @@ def test_similarity_and_euclidean_vs_umeyama_and_skimage(with_scale):
     gen = torch.Generator().manual_seed(11)
     src = torch.rand(32, 7, 2, generator=gen, dtype=torch.float64) * 100
     dst = torch.rand(32, 7, 2, generator=gen, dtype=torch.float64) * 100  # arbitrary pairs
-    ours = (find_similarity if with_scale else find_euclidean)(src, dst)
+    ours = (find_similarity if with_scale else find_euclidean)(src, dst).matrix
     cls = transform.SimilarityTransform if with_scale else transform.EuclideanTransform
     for i in range(32):
         ref = umeyama_reference(src[i].numpy(), dst[i].numpy(), with_scale)
@@ -310,11 +322,11 @@ def test_closed_forms_recover_their_class(device, dtype, tol):
     eu = est._affine_from(rot, t).to(device, dtype)
     sim = est._affine_from(rot * 2.5, t).to(device, dtype)
     tr = est._affine_from(torch.eye(2, dtype=torch.float64).expand(4, 2, 2), t).to(device, dtype)
-    assert_close(find_euclidean(src, transform_points(eu, src)), eu, scale=100)
-    assert_close(find_similarity(src, transform_points(sim, src)), sim, scale=100)
-    assert_close(find_translation(src, transform_points(tr, src)), tr, scale=100)
-    assert_close(find_affine(src, transform_points(sim, src)), sim, scale=1000)
-    assert find_affine(src, src).dtype == dtype
+    assert_close(find_euclidean(src, transform_points(eu, src)).matrix, eu, scale=100)
+    assert_close(find_similarity(src, transform_points(sim, src)).matrix, sim, scale=100)
+    assert_close(find_translation(src, transform_points(tr, src)).matrix, tr, scale=100)
+    assert_close(find_affine(src, transform_points(sim, src)).matrix, sim, scale=1000)
+    assert find_affine(src, src).matrix.dtype == dtype
 
 
 def test_translation_weighted_mean():
@@ -322,14 +334,14 @@ def test_translation_weighted_mean():
     dst = src + torch.tensor([[1.0, 0.0], [3.0, 0.0], [5.0, 3.0]])
     w = torch.tensor([1.0, 1.0, 2.0])
     # hand-derived: (1 + 3 + 2*5) / 4 = 3.5, (0 + 0 + 2*3) / 4 = 1.5
-    assert_close(find_translation(src, dst, weights=w)[:2, 2], torch.tensor([3.5, 1.5]))
+    assert_close(find_translation(src, dst, weights=w).matrix[:2, 2], torch.tensor([3.5, 1.5]))
 
 
 def test_affine_degenerate_is_minimum_norm_and_finite():
     src = torch.tensor([[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]], dtype=torch.float64,
                        requires_grad=True)
     dst = torch.tensor([[[0.0, 1.0], [2.0, 1.0], [4.0, 1.0], [6.0, 1.0]]], dtype=torch.float64)
-    m = find_affine(src, dst)
+    m = find_affine(src, dst).matrix
     assert torch.isfinite(m).all()
     # residual-free on the line, and the minimum-norm linear part: A = [[1, 1], [0, 0]]
     assert_close(transform_points(m, src), dst)
@@ -337,7 +349,7 @@ def test_affine_degenerate_is_minimum_norm_and_finite():
     m.sum().backward()
     assert torch.isfinite(src.grad).all()
     same = torch.ones(1, 3, 2, dtype=torch.float64, requires_grad=True)
-    for fn in (find_affine, find_similarity, find_euclidean, find_translation):
+    for fn in CLOSED_FORMS:
         out = fn(same, same + 1)
         assert torch.isfinite(out).all()
         out.sum().backward()
@@ -349,7 +361,7 @@ def test_closed_forms_gradcheck():
     src = torch.rand(2, 5, 2, generator=gen, dtype=torch.float64).requires_grad_(True)
     dst = torch.rand(2, 5, 2, generator=gen, dtype=torch.float64).requires_grad_(True)
     w = (torch.rand(2, 5, generator=gen, dtype=torch.float64) + 0.5).requires_grad_(True)
-    for fn in (find_affine, find_similarity, find_euclidean, find_translation):
+    for fn in CLOSED_FORMS:
         assert torch.autograd.gradcheck(lambda s, d, w_, f=fn: f(s, d, weights=w_),
                                         (src, dst, w))
 
@@ -418,7 +430,7 @@ def test_errors_name_the_argument():
         find_affine([[0.0, 0.0]], pts)
 
 
-# ------------------------------------------------------------------ exact DLT (issue 12)
+# ------------------------------------------------------------------ exact DLT ----------
 
 
 def svd_dlt(src, dst):
@@ -477,7 +489,7 @@ def test_dlt_algebraic_cost_is_minimal_on_near_degenerate_data():
 def test_dlt_flags_duplicated_and_nearly_collinear_points():
     gen = torch.Generator().manual_seed(14)
     src, dst, _ = random_problem(100, 4, gen, noise=0.5)
-    src[:, 3] = src[:, 2]  # issue 12: this was rank_ok with condition 7.4e4
+    src[:, 3] = src[:, 2]  # condition 7.4e4: must not pass as rank_ok
     fit = find_homography_dlt(src, dst)
     assert not fit.rank_ok.any() and torch.isfinite(fit.matrix).all()
     src, dst, _ = random_problem(100, 8, gen, noise=0.5)
@@ -505,7 +517,7 @@ def test_dlt_gradcheck_random_noisy_and_outlier_correspondences():
     assert torch.autograd.gradcheck(fn, (src, dst, w), eps=1e-6, atol=1e-6, rtol=1e-4)
 
 
-# ------------------------------------------------------------------ issue 10 regressions
+# ------------------------------------------------------------------ NaN and degenerate input
 
 
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
@@ -516,16 +528,16 @@ def test_euclidean_on_tiny_spread_returns_the_rotation(dtype):
     rot = torch.stack([torch.cos(angle), -torch.sin(angle), torch.sin(angle),
                        torch.cos(angle)]).reshape(2, 2)
     dst = src @ rot.T
-    m = find_euclidean(src, dst)
+    m = find_euclidean(src, dst).matrix
     assert_close(m[:2, :2], rot, rtol=1e-5, atol=1e-5)
     # the same answer at every scale
     for s in (1e-6, 1e6):
-        assert_close(find_euclidean(src * s, dst * s)[:2, :2], rot, rtol=1e-5, atol=1e-5)
+        assert_close(find_euclidean(src * s, dst * s).matrix[:2, :2], rot, rtol=1e-5, atol=1e-5)
     assert_close(hartley_normalize(src).scale * 1e-7, hartley_normalize(src * 1e7).scale,
                  rtol=1e-5)
 
 
-@pytest.mark.parametrize("fn", [find_translation, find_affine, find_similarity, find_euclidean,
+@pytest.mark.parametrize("fn", [*CLOSED_FORMS,
                                 lambda s, d, weights: find_homography_dlt(s, d, weights).matrix,
                                 lambda s, d, weights: reprojection_error(
                                     torch.eye(3, dtype=s.dtype), s, d, weights)])
@@ -539,7 +551,7 @@ def test_nan_weight_propagates(fn):
     assert torch.isfinite(out[1]).all()
 
 
-@pytest.mark.parametrize("fn", [find_translation, find_affine, find_similarity, find_euclidean,
+@pytest.mark.parametrize("fn", [*CLOSED_FORMS,
                                 find_homography_dlt,
                                 lambda s, d: reprojection_error(torch.eye(3), s, d)])
 def test_zero_points_raise_shape_error_naming_src(fn):
@@ -550,18 +562,18 @@ def test_zero_points_raise_shape_error_naming_src(fn):
         hartley_normalize(empty)
 
 
-@pytest.mark.parametrize("fn", [find_translation, find_affine, find_similarity, find_euclidean,
+@pytest.mark.parametrize("fn", [*CLOSED_FORMS,
                                 lambda s, d: find_homography_dlt(s, d).matrix])
 def test_empty_batch_gives_empty_output(fn):
     empty = torch.zeros(0, 5, 2)
     assert fn(empty, empty).shape == (0, 3, 3)
 
 
-# ------------------------------------------------------------------ contract (i10) regressions
+# ------------------------------------------------------------------ contract regressions -----
 
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16], ids=["float16", "bfloat16"])
-@pytest.mark.parametrize("fn", [find_translation, find_affine, find_similarity, find_euclidean,
+@pytest.mark.parametrize("fn", [*CLOSED_FORMS,
                                 lambda s, d: reprojection_error(torch.eye(3, dtype=s.dtype), s, d),
                                 lambda s, d: hartley_normalize(s).transform])
 def test_low_precision_is_computed_in_float32(fn, low):

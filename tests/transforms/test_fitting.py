@@ -89,7 +89,7 @@ def test_report_shapes_trs_model_recovers_a_to_f():
 
 
 def test_raw_entries_in_pixels_do_not_converge_but_normalized_do():
-    # the issue's anchor: plain gradient descent on raw entries in pixel units stalls
+    # why parametrisations matter: plain gradient descent on raw entries in pixel units stalls
     gen = torch.Generator().manual_seed(1)
     src, dst, h = random_problem(16, 8, gen, noise=0.5)
     theta = torch.zeros(16, 8, dtype=torch.float64, requires_grad=True)
@@ -124,7 +124,7 @@ def test_models_reach_their_closed_form_optimum(model, closed_form, device, dtyp
     # translations are ~100 px: absolute tolerances follow
     tols = {"rtol": 1e-7, "atol": 1e-6} if dtype == torch.float64 else {"rtol": 1e-4,
                                                                           "atol": 1e-2}
-    assert_close(fit.matrix, closed_form(src, dst), **tols)
+    assert_close(fit.matrix, closed_form(src, dst).matrix, **tols)
 
 
 @pytest.mark.parametrize("optimizer", ["adam", "lbfgs", "lm"])
@@ -369,7 +369,7 @@ def test_errors():
         HomographyModel()(torch.rand(5, 3))
 
 
-# ------------------------------------------------------------------ issue 10 regressions
+# ------------------------------------------------------------------ NaN and degenerate input
 
 
 def test_nan_weight_propagates_through_fit_transform():
@@ -399,14 +399,14 @@ def test_homography_model_mixed_dtypes_name_both_arguments():
 @pytest.mark.parametrize("model", sorted(parametrization.MODELS))
 def test_matrix_to_parameters_of_nan_is_nan(model):
     m = torch.eye(3, dtype=torch.float64)
-    m[2, 2] = float("nan")  # issue 10: a NaN h33 was replaced by 1
+    m[2, 2] = float("nan")  # a NaN h33 must not be replaced by 1
     assert torch.isnan(matrix_to_parameters(m, model)).any()
     assert torch.isnan(matrix_to_parameters(torch.full((3, 3), float("nan")), "homography",
                                             "sl3")).all()
     assert (matrix_to_parameters(torch.eye(3), "homography", "sl3") == 0).all()
 
 
-# ------------------------------------------------------------------ contract (i10) regressions
+# ------------------------------------------------------------------ contract regressions -----
 
 
 @pytest.mark.parametrize("model", ["affine", "similarity", "euclidean", "translation", "trs"])

@@ -283,9 +283,9 @@ def test_pre_and_post_multiplied_forms_agree(offset, angle, scale, pts):
     "call, exc, match",
     [
         (
-            lambda: translation(torch.zeros(3)),
+            lambda: translation(torch.zeros(4)),
             ShapeError,
-            r"offset: expected shape \(\*, 2\), got \(3\)",
+            r"offset: expected shape \(\*, 2\) or \(\*, 3\), got \(4\)",
         ),
         (
             lambda: translation(torch.zeros(2, dtype=torch.long)),
@@ -346,7 +346,7 @@ def test_pre_and_post_multiplied_forms_agree(offset, angle, scale, pts):
         (
             lambda: inverse(torch.zeros(3, 4)),
             ShapeError,
-            r"matrix: expected shape \(\*, 3, 3\), got \(3, 4\)",
+            r"matrix: expected shape \(\*, 3, 3\) or \(\*, 4, 4\), got \(3, 4\)",
         ),
         (
             lambda: compose_trs(torch.zeros(2), torch.tensor(1), 1.0),

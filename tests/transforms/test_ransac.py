@@ -228,7 +228,7 @@ def test_empty_batch_gives_empty_results():
     assert fit.num_inliers.shape == (0,) and fit.rank_ok.shape == (0,)
 
 
-# ------------------------------------------------------------------ contract (i10) regressions
+# ------------------------------------------------------------------ contract regressions -----
 
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16], ids=["float16", "bfloat16"])

@@ -204,7 +204,7 @@ def test_empty_batch_gives_empty_results():
     assert warp_image(torch.zeros(0, 2, 8, 8), torch.zeros(0, 3, 3)).image.shape == (0, 2, 8, 8)
 
 
-# ------------------------------------------------------------------ contract (i10) regressions
+# ------------------------------------------------------------------ contract regressions -----
 
 
 def blobs(b, size, gen, dtype=torch.float64):

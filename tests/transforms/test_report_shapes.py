@@ -107,7 +107,7 @@ def test_table_example_and_cli(capsys, tmp_path):
     assert (tmp_path / "fit.png").stat().st_size > 1000
 
 
-# --- contract regressions (issue 10) -----------------------------------------------------
+# --- contract regressions ----------------------------------------------------------------
 
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])

@@ -174,12 +174,14 @@ def _orbit_reference(theta, radius, speed, phase, spin):
 
 
 @pytest.mark.parametrize("spin", [False, True])
-def test_orbit_follows_theta_dtype(spin):
-    """Regression (i10): float64 parameters with float32 theta raised a raw matmul error
-    (spin=True); the result now follows theta's dtype."""
+def test_orbit_state_and_theta_of_different_dtypes_raise(spin):
+    """float64 parameters with float32 theta raise a TypeError naming both dtypes (the
+    module rule); converting the module gives the result in theta's dtype."""
     theta = torch.tensor([0.0, 0.4, 2.5], dtype=torch.float32)
     orbit = Orbit(torch.tensor(1.5, dtype=F64), torch.tensor(2.0, dtype=F64), 0.3, spin=spin)
-    out = orbit(theta)
+    with pytest.raises(TypeError, match="float32.*float64"):
+        orbit(theta)
+    out = orbit.float()(theta)
     assert out.dtype == torch.float32
     torch.testing.assert_close(out.double(), _orbit_reference(theta, 1.5, 2.0, 0.3, spin),
                                rtol=1e-6, atol=1e-6)
@@ -188,8 +190,8 @@ def test_orbit_follows_theta_dtype(spin):
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
 @pytest.mark.parametrize("spin", [False, True])
 def test_low_precision_is_computed_in_float32(low, spin):
-    """Regression (i10): solar_system(spin=True) raised 'expected scalar type Half but found
-    Float'; float16/bfloat16 theta is now computed in float32 and cast back."""
+    """float16/bfloat16 theta is computed in float32 and cast back (solar_system(spin=True)
+    included), not a raw 'expected scalar type Half' error."""
     theta = torch.tensor([0.0, 0.7, 5.9]).to(low)
     out = solar_system(spin=spin).world_transforms(theta).matrices
     assert out.dtype == low
@@ -199,8 +201,8 @@ def test_low_precision_is_computed_in_float32(low, spin):
 
 
 def test_integer_theta_is_rejected():
-    """Regression (i10): Orbit and FixedTransform accepted an integer theta (FixedTransform
-    truncated its matrix to integers)."""
+    """Orbit and FixedTransform reject an integer theta (FixedTransform would truncate its
+    matrix to integers)."""
     matrix = translation(torch.tensor([0.5, 1.5]))
     with pytest.raises(TypeError, match="theta: expected a floating"):
         FixedTransform(matrix)(torch.zeros(2, dtype=torch.long))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["MAX_STEPS", "add_parser", "steps_argument"]
+__all__: list[str] = []  # a command: `torchgeo-cg` calls its add_parser
 
 #: The largest ``--steps`` accepted: far beyond convergence (lm needs 10), and small
 #: enough that a typo cannot start a run that never ends.

@@ -17,9 +17,10 @@ import importlib
 import pkgutil
 import sys
 
+import torchgeo_cg.cli as cli
 from torchgeo_cg.cli import CommandError
 
-__all__ = ["OneLineParser", "build_parser", "main"]
+__all__ = ["main"]
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -49,8 +50,6 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``torchgeo-cg`` parser, with one subparser per module of :mod:`torchgeo_cg.cli`."""
-    import torchgeo_cg.cli as cli
-
     parser = OneLineParser(
         prog="torchgeo-cg",
         description="torchgeo_cg: batched, differentiable geometry in PyTorch.",

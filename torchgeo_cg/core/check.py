@@ -15,7 +15,7 @@ Shape patterns are sequences of tokens:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 
 import torch
 
@@ -25,7 +25,7 @@ __all__ = [
     "check_float",
     "check_tensor",
     "check_broadcastable",
-    "format_shape",
+    "check_choice",
 ]
 
 
@@ -179,3 +179,34 @@ def check_broadcastable(batches: Mapping[str, Sequence[int]]) -> tuple[int, ...]
     except RuntimeError:
         listed = ", ".join(f"{name} {format_shape(tuple(b))}" for name, b in batches.items())
         raise ShapeError(f"batch dims do not broadcast: {listed}") from None
+
+
+def check_choice(value: object, choices: Collection, name: str) -> object:
+    """Raise ``ValueError`` naming ``name`` and the accepted values unless ``value`` is one of them.
+
+    Args:
+        value: the argument received.
+        choices: the accepted values (a tuple, list, dict's keys or set; sets are listed
+            sorted).
+        name: the argument name used in the error message.
+
+    Returns:
+        ``value``, unchanged.
+
+    Example:
+        >>> check_choice("mean", ("mean", "sum", "none"), "reduction")
+        'mean'
+        >>> check_choice("avg", ("mean", "sum", "none"), "reduction")
+        Traceback (most recent call last):
+        ...
+        ValueError: reduction: expected one of 'mean', 'sum', 'none', got 'avg'
+    """
+    try:
+        found = value in choices
+    except TypeError:  # an unhashable value tested against a set or dict
+        found = False
+    if not found:
+        ordered = sorted(choices) if isinstance(choices, (set, frozenset)) else list(choices)
+        listed = ", ".join(repr(c) for c in ordered)
+        raise ValueError(f"{name}: expected one of {listed}, got {value!r}")
+    return value

@@ -25,7 +25,7 @@ from collections.abc import Mapping
 import numpy as np
 import torch
 
-__all__ = ["as_tensor_like", "check_same_dtype"]
+__all__ = ["as_tensor_like", "check_module_dtype", "check_same_dtype"]
 
 
 def _describe(x: torch.Tensor) -> str:
@@ -138,3 +138,43 @@ def check_same_dtype(tensors: Mapping[str, torch.Tensor]) -> torch.Tensor:
                 "convert one with .to()"
             )
     return first
+
+
+def check_module_dtype(module: torch.nn.Module, x: torch.Tensor, name: str,
+                       exclude: tuple[str, ...] = ()) -> None:
+    """Raise ``TypeError`` unless the module's own floating state has the dtype of ``x``.
+
+    The rule of every public module: its parameters and buffers (``recurse=False``:
+    submodules check their own inputs) and a floating input must share one dtype, as
+    :class:`torch.nn.Linear` requires; nothing is cast silently in either direction.
+    Convert the module (``.to(dtype)``, ``.double()``) or the input. Non-floating
+    inputs are left to the function's own checks. float16, bfloat16 and float32 meet each
+    other, as the low-precision dtypes are computed in float32.
+
+    Args:
+        module: the module whose parameters and buffers are checked.
+        x: its input.
+        name: the input's name in the message.
+        exclude: prefixes of state names not mixed with the input (e.g. topology
+            parameters that only built the module's operators).
+
+    Example:
+        >>> lin = torch.nn.Module()
+        >>> lin.register_buffer("scale", torch.ones(2, dtype=torch.float64))
+        >>> check_module_dtype(lin, torch.ones(2, dtype=torch.float64), "points")
+        >>> check_module_dtype(lin, torch.ones(2), "points")
+        Traceback (most recent call last):
+        ...
+        TypeError: points is torch.float32 but Module.scale is torch.float64; convert the module ...
+    """
+    if not isinstance(x, torch.Tensor) or not x.is_floating_point():
+        return
+    for state, tensor in (*module.named_parameters(recurse=False),
+                          *module.named_buffers(recurse=False)):
+        low = {x.dtype, tensor.dtype} <= {torch.float16, torch.bfloat16, torch.float32}
+        if (not tensor.is_floating_point() or tensor.dtype == x.dtype or low
+                or state.startswith(exclude)):
+            continue
+        raise TypeError(f"{name} is {x.dtype} but {type(module).__name__}.{state} is "
+                        f"{tensor.dtype}; convert the module (.to({x.dtype})) or the "
+                        f"input (.to({tensor.dtype}))")

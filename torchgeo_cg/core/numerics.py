@@ -25,9 +25,11 @@ from absolute constants (1e-8, 1e-12) to "exact zero only".
 
 from __future__ import annotations
 
+import math
+
 import torch
 
-from torchgeo_cg.core.check import check_float
+from torchgeo_cg.core.check import check_broadcastable, check_float
 from torchgeo_cg.core.coerce import check_same_dtype
 
 __all__ = [
@@ -38,6 +40,7 @@ __all__ = [
     "hypot",
     "working_dtype",
     "cast_back",
+    "power_of_two_scale",
 ]
 
 #: vectors up to this length are normed by chained ``torch.hypot`` (fast, few temporaries)
@@ -73,6 +76,38 @@ def cast_back(x: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
         big = torch.finfo(dtype).max
         x = x.clamp(-big, big)
     return x.to(dtype)
+
+
+def power_of_two_scale(magnitude: torch.Tensor) -> torch.Tensor:
+    """The power of two ``2**e`` just above ``magnitude``: ``magnitude / 2**e`` in ``[0.5, 1)``.
+
+    Dividing data by the scale of its largest magnitude is exact (no rounding), leaves
+    every ratio, sign and direction unchanged, and brings the data into ``[-1, 1]``, where
+    products of a few coordinates neither overflow nor underflow at any input scale.
+    Above the dtype's largest power of two (where ``2**e`` would be ``inf``) the scale is
+    that power, and the data lands in ``[-2, 2]``. Where ``magnitude`` is zero, NaN or
+    infinite the scale is 1 (nothing to scale; NaN and inf pass through the division).
+    The result is detached (a constant factor).
+
+    Args:
+        magnitude: ``(*)`` non-negative magnitudes, typically ``x.abs().amax(dims)`` of
+            the data to scale (any float dtype).
+
+    Returns:
+        ``(*)`` powers of two, dtype and device of ``magnitude``.
+
+    Example:
+        >>> x = torch.tensor([[3.0, -0.1], [0.0, 0.0], [1e-30, 5e-31]])
+        >>> scale = power_of_two_scale(x.abs().amax(-1, keepdim=True))
+        >>> scale.flatten(), (x / scale).abs().amax(-1)
+        (tensor([4.0000e+00, 1.0000e+00, 1.5777e-30]), tensor([0.7500, 0.0000, 0.6338]))
+    """
+    big = magnitude.detach()
+    _, exponent = torch.frexp(big)  # big = m * 2**e with m in [0.5, 1)
+    top = math.frexp(torch.finfo(big.dtype).max)[1] - 1  # 2**top is the largest finite
+    one = torch.ones_like(big)
+    return torch.where(torch.isfinite(big) & (big > 0), torch.ldexp(one, exponent.clamp_max(top)),
+                       one)
 
 
 def clamp_away_from_zero(x: torch.Tensor, eps: float | torch.Tensor | None = None) -> torch.Tensor:
@@ -124,6 +159,7 @@ def safe_div(
     """
     check_float(num, "num")
     check_float(den, "den")
+    check_broadcastable({"num": num.shape, "den": den.shape})
     if eps is not None:
         return num / clamp_away_from_zero(den, eps)
     zero = den == 0

@@ -1,4 +1,4 @@
-"""Curves: Bernstein/Bezier, Hermite/PCHIP, parametric and implicit 2D curves, marching squares.
+"""Curves: Bezier, B-splines/NURBS, Hermite/PCHIP, parametric and implicit 2D curves, contours.
 
 Report sections 1.1-1.3. Every function is batched over leading dimensions,
 differentiable, and takes dtype and device from its inputs.
@@ -21,6 +21,14 @@ from torchgeo_cg.curves.bezier import (
     quartic_bezier,
     split_bezier,
 )
+from torchgeo_cg.curves.bspline import BSplineControls, BSplineCurve, bspline, bspline_derivative
+from torchgeo_cg.curves.bspline_fitting import (
+    BSplineFit,
+    averaged_knots,
+    collocation_matrix,
+    fit_bspline,
+    interpolate_bspline,
+)
 from torchgeo_cg.curves.fitting import BezierFit, fit_bezier, fit_parameters
 from torchgeo_cg.curves.hermite import (
     HermiteControls,
@@ -30,7 +38,6 @@ from torchgeo_cg.curves.hermite import (
     bezier_to_hermite,
     cardinal_tangents,
     catmull_rom_tangents,
-    check_knots,
     hermite,
     hermite_basis,
     hermite_spline,
@@ -38,7 +45,15 @@ from torchgeo_cg.curves.hermite import (
     pchip_interpolate,
     pchip_tangents,
 )
+from torchgeo_cg.curves.knot_ops import (
+    BezierSegments,
+    bezier_to_bspline,
+    bspline_to_bezier,
+    insert_knot,
+)
+from torchgeo_cg.curves.knots import BSplineBasis, bspline_basis, uniform_knots
 from torchgeo_cg.curves.marching_squares import MarchingSquaresResult, marching_squares
+from torchgeo_cg.curves.nurbs import NURBSCurve, nurbs, nurbs_derivative
 from torchgeo_cg.curves.parametric import (
     circle,
     cycloid,
@@ -71,7 +86,6 @@ __all__ = [
     "bezier_to_hermite",
     "cardinal_tangents",
     "catmull_rom_tangents",
-    "check_knots",
     "hermite",
     "hermite_basis",
     "hermite_spline",
@@ -89,4 +103,23 @@ __all__ = [
     "figure_eight_parametric",
     "grid_2d",
     "implicit_circle",
+    "BSplineBasis",
+    "averaged_knots",
+    "collocation_matrix",
+    "BSplineControls",
+    "BSplineCurve",
+    "BSplineFit",
+    "BezierSegments",
+    "NURBSCurve",
+    "bezier_to_bspline",
+    "bspline",
+    "bspline_basis",
+    "bspline_derivative",
+    "bspline_to_bezier",
+    "fit_bspline",
+    "insert_knot",
+    "interpolate_bspline",
+    "nurbs",
+    "nurbs_derivative",
+    "uniform_knots",
 ]

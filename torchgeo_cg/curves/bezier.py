@@ -34,7 +34,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
 from torchgeo_cg.core.numerics import safe_div, safe_norm, safe_sqrt
 from torchgeo_cg.curves.bernstein import bernstein_basis, check_degree
 
@@ -303,6 +303,7 @@ def split_bezier(control_points: torch.Tensor, t0: torch.Tensor | float = 0.5) -
     if not isinstance(t0, torch.Tensor):  # numbers take the curves' dtype
         t0 = as_tensor_like(t0, control_points, "t0")
     check_float(t0, "t0", low_precision=False)
+    check_broadcastable({"control_points": control_points.shape[:-2], "t0": t0.shape})
     dtype = torch.promote_types(t0.dtype, control_points.dtype)
     points = control_points.to(dtype)
     t_col = t0.to(dtype)[..., None, None]  # (*, 1, 1)
@@ -785,6 +786,7 @@ class BezierCurve(nn.Module):
 
     def forward(self, t: torch.Tensor) -> torch.Tensor:
         """``(T,)`` or ``(*, T)`` parameters -> ``(*, T, D)`` points."""
+        check_module_dtype(self, t, "t")
         return bezier(self.control_points, t)
 
     def derivative(self, order: int = 1) -> BezierCurve:

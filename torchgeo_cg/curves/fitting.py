@@ -34,10 +34,10 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_norm, safe_sqrt
 
-__all__ = ["BezierFit", "fit_parameters", "fit_bezier", "as_padded_strokes"]
+__all__ = ["BezierFit", "fit_parameters", "fit_bezier"]
 
 _METHODS = ("uniform", "chord", "centripetal")
 
@@ -84,8 +84,7 @@ def fit_parameters(points: torch.Tensor, parametrization: str = "chord") -> torc
     sizes = check_shape(points, ["*", "M", "D"], "points")
     if sizes["M"] < 2:
         raise ShapeError(f"points: expected at least 2 points, got shape {tuple(points.shape)}")
-    if parametrization not in _METHODS:
-        raise ValueError(f"parametrization: expected one of {_METHODS}, got {parametrization!r}")
+    check_choice(parametrization, _METHODS, "parametrization")
     m = sizes["M"]
     with torch.no_grad():
         uniform = torch.linspace(0, 1, m, dtype=points.dtype, device=points.device)
@@ -163,8 +162,22 @@ def as_padded_strokes(points, lengths=None, weights=None):
     return points, valid, weights
 
 
-def _parameters(points, valid, parametrization: str) -> torch.Tensor:
-    """Chord/centripetal/uniform parameters over the valid rows of each stroke."""
+def stroke_parameters(points, valid, parametrization: str) -> torch.Tensor:
+    """Chord/centripetal/uniform parameters ``(*, M)`` over the valid rows of padded strokes.
+
+    Args:
+        points: ``(*, M, D)`` padded strokes.
+        valid: ``(*, M)`` bool, the valid rows (a prefix of each stroke).
+        parametrization: ``"uniform"``, ``"chord"`` or ``"centripetal"``.
+
+    Returns:
+        ``(*, M)`` parameters in ``[0, 1]``; padded rows get ``0``.
+
+    Example:
+        >>> points = torch.tensor([[0.0, 0.0], [1.0, 0.0], [3.0, 0.0], [9.0, 9.0]])
+        >>> stroke_parameters(points, torch.tensor([True, True, True, False]), "chord")
+        tensor([0.0000, 0.3333, 1.0000, 0.0000])
+    """
     if bool(valid.all()):
         return fit_parameters(points, parametrization)
     with torch.no_grad():
@@ -380,8 +393,7 @@ def fit_bezier(
         True
     """
     degree = _degree(degree)
-    if parametrization not in _METHODS:
-        raise ValueError(f"parametrization: expected one of {_METHODS}, got {parametrization!r}")
+    check_choice(parametrization, _METHODS, "parametrization")
     if not (isinstance(max_iterations, int) and max_iterations >= 1):
         raise ValueError(f"max_iterations: expected a positive int, got {max_iterations!r}")
     if not tol >= 0:
@@ -394,7 +406,7 @@ def fit_bezier(
             f"got {least} (shape {tuple(points.shape)})"
         )
     points = torch.where(valid[..., None], points, 0.0)  # padded rows are ignored, NaN too
-    t = _parameters(points, valid, parametrization)
+    t = stroke_parameters(points, valid, parametrization)
     w = valid.to(points.dtype) if weights is None else torch.where(valid, weights, 0.0)
     if correct_parameters:
         with torch.no_grad():

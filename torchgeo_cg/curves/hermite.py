@@ -33,7 +33,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
 
 __all__ = [
     "hermite_basis",
@@ -42,7 +43,6 @@ __all__ = [
     "hermite_to_bezier",
     "bezier_to_hermite",
     "HermiteCurve",
-    "check_knots",
     "hermite_spline",
     "HermiteSpline",
     "pchip_tangents",
@@ -100,6 +100,8 @@ def _check_controls(p0, p1, m0, m1) -> tuple[torch.Tensor, ...]:
     for value, name in ((p0, "p0"), (p1, "p1"), (m0, "m0"), (m1, "m1")):
         check_float(value, name, low_precision=False)
         sizes = check_shape(value, ["*", "D"], name, sizes={"D": sizes["D"]} if sizes else None)
+    check_broadcastable({"p0": p0.shape[:-1], "p1": p1.shape[:-1], "m0": m0.shape[:-1],
+                         "m1": m1.shape[:-1]})
     return torch.broadcast_tensors(p0, p1, m0, m1)
 
 
@@ -130,6 +132,7 @@ def hermite(p0: torch.Tensor, p1: torch.Tensor, m0: torch.Tensor, m1: torch.Tens
     """
     p0, p1, m0, m1 = _check_controls(p0, p1, m0, m1)
     basis = hermite_basis(t)  # (*, T, 4)
+    check_broadcastable({"p0, p1, m0, m1": p0.shape[:-1], "t": t.shape[:-1]})
     controls = torch.stack([p0, m0, p1, m1], dim=-2)  # (*, 4, D)
     dtype = torch.promote_types(basis.dtype, controls.dtype)
     return torch.matmul(basis.to(dtype), controls.to(dtype))
@@ -232,6 +235,7 @@ class HermiteCurve(nn.Module):
 
     def forward(self, t: torch.Tensor) -> torch.Tensor:
         """``(T,)`` or ``(*, T)`` -> ``(*, T, D)``."""
+        check_module_dtype(self, t, "t")
         return hermite(self.p0, self.p1, self.m0, self.m1, t)
 
     def to_bezier(self) -> torch.Tensor:
@@ -279,10 +283,12 @@ def check_knots(knots: torch.Tensor, name: str = "knots") -> dict:
     return sizes
 
 
-def _check_series(knots, values, name, knots_name: str = "knots") -> None:
+def _check_series(knots, values, name, knots_name: str = "knots") -> tuple[int, ...]:
+    """Check knots and one series against them; return their broadcast batch shape."""
     sizes = check_knots(knots, knots_name)
     check_float(values, name, low_precision=False)
     check_shape(values, ["*", "K"], name, sizes={"K": sizes["K"]})
+    return check_broadcastable({knots_name: knots.shape[:-1], name: values.shape[:-1]})
 
 
 def _interval(knots: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
@@ -342,8 +348,10 @@ def hermite_spline(knots: torch.Tensor, values: torch.Tensor, tangents: torch.Te
     check_shape(tangents, ["*", "K"], "tangents", sizes={"K": knots.shape[-1]})
     check_float(x, "x", low_precision=False)
     check_shape(x, ["*", "Q"], "x")
+    batch = check_broadcastable({"knots": knots.shape[:-1], "values": values.shape[:-1],
+                                 "tangents": tangents.shape[:-1], "x": x.shape[:-1]})
     if knots.dim() == 1 and x.dim() == 1:
-        return _shared_spline(knots, _stack_series(values, tangents), x, values.shape[:-1])
+        return _shared_spline(knots, _stack_series(values, tangents), x, batch)
     idx = _interval(knots, x)
     w0, w1, w2, w3 = _spline_weights(knots, x, idx)
     batch = torch.broadcast_shapes(values.shape[:-1], tangents.shape[:-1], idx.shape[:-1])
@@ -411,6 +419,8 @@ class HermiteSpline(nn.Module):
         _check_series(knots, values, "values")
         check_float(tangents, "tangents", low_precision=False)
         check_shape(tangents, ["*", "K"], "tangents", sizes={"K": knots.shape[-1]})
+        check_broadcastable({"knots": knots.shape[:-1], "values": values.shape[:-1],
+                             "tangents": tangents.shape[:-1]})
         self.learnable = learnable
         self.register_buffer("knots", knots, persistent=False)
         for name, value in (("values", values), ("tangents", tangents)):
@@ -421,6 +431,7 @@ class HermiteSpline(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(Q,)`` or ``(*, Q)`` queries -> ``(*, Q)``."""
+        check_module_dtype(self, x, "x")
         return hermite_spline(self.knots, self.values, self.tangents, x)
 
 
@@ -505,9 +516,8 @@ def pchip_tangents(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
         >>> pchip_tangents(torch.tensor([0.0, 1.0, 2.0, 3.0]), torch.tensor([0.0, 1.0, 1.0, 3.0]))
         tensor([1.5000, 0.0000, 0.0000, 3.0000])
     """
-    _check_series(x, y, "y", "x")
+    batch = _check_series(x, y, "y", "x")
     k = x.shape[-1]
-    batch = torch.broadcast_shapes(x.shape[:-1], y.shape[:-1])
     dtype = torch.promote_types(x.dtype, y.dtype)
     y_kf = y.to(dtype).expand(*batch, k).reshape(-1, k).t()  # (K, B)
     if x.dim() == 1:
@@ -568,9 +578,8 @@ class PchipInterpolator(nn.Module):
 
     def __init__(self, x: torch.Tensor, y: torch.Tensor) -> None:
         super().__init__()
-        _check_series(x, y, "y", "x")
+        batch = _check_series(x, y, "y", "x")
         k = x.shape[-1]
-        batch = torch.broadcast_shapes(x.shape[:-1], y.shape[:-1])
         dtype = torch.promote_types(x.dtype, y.dtype)
         x, y = x.to(dtype), y.to(dtype)
         self._batch = batch
@@ -599,8 +608,10 @@ class PchipInterpolator(nn.Module):
 
     def forward(self, xq: torch.Tensor) -> torch.Tensor:
         """``(Q,)`` or ``(*, Q)`` queries -> ``(*, Q)``."""
+        check_module_dtype(self, xq, "xq")
         check_float(xq, "xq", low_precision=False)
         check_shape(xq, ["*", "Q"], "xq")
+        check_broadcastable({"x": self.knots.shape[:-1], "y": self._batch, "xq": xq.shape[:-1]})
         if self._table is not None and xq.dim() == 1:
             return _shared_spline(self.knots, self._table, xq, self._batch)
         return hermite_spline(self.knots, self.values, self.tangents, xq)

@@ -48,11 +48,10 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
+from torchgeo_cg.core.grid import Volume, edge_fraction
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.curves._marching_squares_tables import SEGMENTS
-from torchgeo_cg.mesh._marching_cubes_steps import EdgeFraction
-from torchgeo_cg.sdf.grid import Volume
 
 __all__ = ["MarchingSquaresResult", "marching_squares", "SADDLE_RULES"]
 
@@ -61,7 +60,7 @@ class MarchingSquaresResult(NamedTuple):
     """Polylines of all fields, packed.
 
     Attributes:
-        vertices: ``(V, 2)`` polyline vertices ``(x, y)``, polyline after polyline.
+        verts: ``(V, 2)`` polyline vertices ``(x, y)``, polyline after polyline.
         lengths: ``(P,)`` long, vertices per polyline (closed ones include the repeat).
         batch: ``(P,)`` long, the flat index of the field each polyline comes from.
         closed: ``(P,)`` bool, whether the polyline is a closed loop.
@@ -74,14 +73,14 @@ class MarchingSquaresResult(NamedTuple):
                 [1.0000, 0.5000]])], tensor([0]))
     """
 
-    vertices: torch.Tensor
+    verts: torch.Tensor
     lengths: torch.Tensor
     batch: torch.Tensor
     closed: torch.Tensor
 
     def polylines(self) -> list[torch.Tensor]:
         """The polylines as a list of ``(L_p, 2)`` tensors (views of ``vertices``)."""
-        return list(self.vertices.split(self.lengths.tolist()))
+        return list(self.verts.split(self.lengths.tolist()))
 
 
 def _pair(value, like: torch.Tensor, name: str) -> torch.Tensor:
@@ -190,9 +189,7 @@ def _parse_arguments(field, iso, origin, spacing, fully_connected):
     if height < 2 or width < 2:
         raise ShapeError(
             f"field: expected H, W >= 2, got shape {tuple(field.shape)}")
-    if fully_connected not in SADDLE_RULES:
-        raise ValueError(f"fully_connected: expected one of {SADDLE_RULES}, "
-                         f"got {fully_connected!r}")
+    check_choice(fully_connected, SADDLE_RULES, "fully_connected")
     if isinstance(iso, torch.Tensor):
         iso = float(iso)
     if isinstance(iso, bool) or not isinstance(iso, (numbers.Real, np.generic)):
@@ -225,7 +222,7 @@ def marching_squares(
 
     Args:
         field: ``(*, H, W)`` float values, ``H, W >= 2``, or a
-            :class:`~torchgeo_cg.sdf.grid.Volume` with ``(2,)`` origin and spacing (or
+            :class:`~torchgeo_cg.core.grid.Volume` with ``(2,)`` origin and spacing (or
             a one-slice 3D Volume, values ``(*, H, W, 1)``): origin and spacing then
             come from it and must not be given.
         iso: the level (a number, not NaN).
@@ -250,7 +247,7 @@ def marching_squares(
     Example:
         >>> f = torch.tensor([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0]])
         >>> result = marching_squares(f)
-        >>> result.vertices
+        >>> result.verts
         tensor([[1.0000, 0.5000],
                 [1.5000, 1.0000],
                 [1.0000, 1.5000],
@@ -312,7 +309,7 @@ def marching_squares(
     fa = values[batch_of, i0, j0]  # differentiable gathers
     fb = values[batch_of, i1, j1]
     delta = math.sqrt(torch.finfo(values.dtype).eps)
-    fraction = EdgeFraction.apply(fa, fb, fa.new_tensor(iso).expand_as(fa), delta)
+    fraction = edge_fraction(fa, fb, fa.new_tensor(iso).expand_as(fa), delta)
     along_i = (~is_h).to(values.dtype)  # 1 on axis-0 edges: the fraction moves i
     index_xy = torch.stack([i0.to(values.dtype) + along_i * fraction,
                             j0.to(values.dtype) + (1 - along_i) * fraction], dim=-1)

@@ -21,7 +21,7 @@ import math
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
 from torchgeo_cg.core.numerics import hypot
 
@@ -98,6 +98,8 @@ def implicit_circle(xy: torch.Tensor, center=(0.0, 0.0), radius=1.0) -> torch.Te
     center = _param(center, xy, "center")
     check_shape(center, ["*", "2"], "center")
     radius = _param(radius, xy, "radius")
+    check_broadcastable({"xy": xy.shape[:-1], "center": center.shape[:-1],
+                         "radius": radius.shape})
     d = xy - center
     # |d|^2 - r^2 = (|d| - r)(|d| + r): no intermediate overflow (finite wherever the
     # value is) and no cancellation next to the circle; gradient 2 d everywhere.

@@ -1,23 +1,21 @@
 """torchgeo_cg.mesh: marching cubes, Catmull-Clark, Loop and bilinear subdivision, mesh I/O."""
 
-from torchgeo_cg.mesh.bilinear import bilinear_operator
-from torchgeo_cg.mesh.face_varying import (
-    FVAR_INTERPOLATIONS,
-    FaceVaryingSubdivision,
-    face_varying_operator,
-    face_varying_subdivide,
-)
 from torchgeo_cg.mesh.faces import (
     check_faces,
+    check_mesh,
     face_sizes,
     pad_faces,
     triangulate_faces,
     unpad_faces,
 )
 from torchgeo_cg.mesh.io import Mesh, from_trimesh, load_mesh, save_mesh, to_trimesh
-from torchgeo_cg.mesh.limit import LimitFrames, limit_frames
-from torchgeo_cg.mesh.loop import LoopSubdivision, loop_operator, loop_subdivide
-from torchgeo_cg.mesh.marching_cubes import MarchingCubes, MarchingCubesResult, marching_cubes
+from torchgeo_cg.mesh.marching_cubes import (
+    MarchingCubes,
+    MarchingCubesResult,
+    lipschitz_bound,
+    marching_cubes,
+    sparse_marching_cubes,
+)
 from torchgeo_cg.mesh.regularizers import (
     MeshEdges,
     edge_length_loss,
@@ -27,18 +25,38 @@ from torchgeo_cg.mesh.regularizers import (
     normal_consistency_loss,
 )
 from torchgeo_cg.mesh.subdivision import (
+    FVAR_INTERPOLATIONS,
+    INFINITELY_SHARP,
     CatmullClark,
+    FaceVaryingSubdivision,
+    LimitFrames,
+    LimitStencils,
+    LimitSurfaceSample,
+    LoopSubdivision,
     SubdivisionOperator,
+    SubdivisionTags,
+    SurfaceSamples,
     apply_operator,
+    bilinear_operator,
     catmull_clark,
     catmull_clark_operator,
+    face_varying_operator,
+    face_varying_subdivide,
+    limit_frames,
     limit_positions,
+    limit_stencils,
+    limit_surface,
+    loop_operator,
+    loop_subdivide,
+    sample_limit_surface,
 )
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__: list[str] = ["marching_cubes", "MarchingCubes", "MarchingCubesResult"]
+__all__ += ["sparse_marching_cubes", "lipschitz_bound"]
 __all__ += ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
-__all__ += ["pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces"]
+__all__ += [
+    "pad_faces", "face_sizes", "check_faces", "check_mesh", "triangulate_faces", "unpad_faces"
+]
 __all__ += [
     "SubdivisionOperator",
     "catmull_clark_operator",
@@ -50,6 +68,8 @@ __all__ += [
 __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 __all__ += ["SubdivisionTags", "INFINITELY_SHARP", "bilinear_operator"]
 __all__ += ["limit_frames", "LimitFrames"]
+__all__ += ["limit_surface", "limit_stencils", "sample_limit_surface", "LimitSurfaceSample",
+            "LimitStencils", "SurfaceSamples"]
 __all__ += [
     "MeshEdges",
     "mesh_edges",

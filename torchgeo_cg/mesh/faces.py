@@ -18,9 +18,11 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_shape, check_tensor
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape, check_tensor
 
-__all__ = ["pad_faces", "face_sizes", "check_faces", "triangulate_faces", "unpad_faces"]
+__all__ = [
+    "pad_faces", "face_sizes", "check_faces", "check_mesh", "triangulate_faces", "unpad_faces"
+]
 
 
 def pad_faces(
@@ -217,6 +219,68 @@ def triangulate_faces(faces: torch.Tensor | Sequence[Sequence[int]]) -> torch.Te
     tris_fk3 = torch.stack([apex_fk, faces_fk[:, 1:-1], faces_fk[:, 2:]], dim=-1)
     keep_fk = tris_fk3[..., 2] >= 0
     return tris_fk3[keep_fk]
+
+
+def check_mesh(
+    verts: torch.Tensor,
+    faces: torch.Tensor | Sequence[Sequence[int]],
+    finite: bool = False,
+) -> torch.Tensor:
+    """Validate a mesh for queries on its triangles; return the triangles ``(T, 3)`` long.
+
+    The one mesh validator of the distance queries, samplers and the command line: the
+    vertices are checked here, the faces by :func:`check_faces` (repeated and collapsed
+    faces allowed: they are harmless to distances), and polygons are fan-triangulated
+    with :func:`triangulate_faces`, so face ids of the queries index those triangles.
+
+    Convention:
+        Faces as in the module docstring; the triangles keep the polygons' winding.
+
+    Args:
+        verts: ``(*, V, 3)`` float vertex positions.
+        faces: ``(F, K)`` integer (tensor, array or list of index lists), ``K >= 3``,
+            padded with ``-1``.
+        finite: also require finite vertex coordinates.
+
+    Returns:
+        ``(T, 3)`` long triangles on the device of ``verts``.
+
+    Raises:
+        TypeError: float vertices expected, integer faces expected.
+        ShapeError: ``verts`` not ``(*, V, 3)``, or fewer than 3 face columns.
+        ValueError: an empty mesh, indices out of range, misplaced padding, or (with
+            ``finite``) NaN or inf coordinates.
+
+    Example:
+        >>> check_mesh(torch.zeros(4, 3), torch.tensor([[0, 1, 2, 3]]))
+        tensor([[0, 1, 2],
+                [0, 2, 3]])
+        >>> check_mesh(torch.zeros(3, 3), [[0, 1, 3]])
+        Traceback (most recent call last):
+        ...
+        ValueError: faces: expected indices in [0, 2], got range [0, 3]
+    """
+    check_float(verts, "verts")
+    check_shape(verts, ["*", "V", "3"], "verts")
+    faces_fk = pad_faces(faces)
+    num_vertices, (F, K) = verts.shape[-2], faces_fk.shape
+    if F and K < 3:
+        raise ShapeError(f"faces: expected shape (F, K) with K >= 3 vertices per face, got "
+                         f"{(F, K)}")
+    if num_vertices == 0 or F == 0:
+        raise ValueError(f"mesh: expected a non-empty mesh, got {num_vertices} vertices "
+                         f"and {F} faces")
+    used = faces_fk[faces_fk >= 0] if K > 3 else faces_fk
+    lo, hi = int(faces_fk[:, :3].min()), int(used.max())
+    if lo < 0 or hi >= num_vertices:
+        raise ValueError(f"faces: expected indices in [0, {num_vertices - 1}], got range "
+                         f"[{lo}, {hi}]")
+    faces_fk = check_faces(faces_fk, num_vertices, "faces", allow_duplicates=True,
+                           allow_degenerate=True)
+    if finite and not bool(torch.isfinite(verts).all()):
+        raise ValueError("verts: expected finite coordinates, got NaN or inf")
+    tris = triangulate_faces(faces_fk) if K > 3 else faces_fk
+    return tris.to(verts.device)
 
 
 def unpad_faces(faces: torch.Tensor) -> list[list[int]]:

@@ -33,7 +33,7 @@ from torchgeo_cg.mesh.io_obj import ObjContent, format_obj, read_obj
 from torchgeo_cg.mesh.io_obj_tags import ObjTags, check_tags
 from torchgeo_cg.mesh.io_off import format_off, read_off
 from torchgeo_cg.mesh.io_ply import format_ply, read_ply
-from torchgeo_cg.mesh.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 __all__ = ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
 

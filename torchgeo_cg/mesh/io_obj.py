@@ -37,7 +37,7 @@ from torchgeo_cg.mesh.io_text import (
     read_text,
 )
 
-__all__ = ["ObjContent", "read_obj", "format_obj", "OBJ_STATEMENTS"]
+__all__: list[str] = []
 
 OBJ_STATEMENTS = frozenset(
     b"v vt vn vp f l p t o g s mg usemtl mtllib cstype deg bmat step curv curv2 surf parm "

@@ -9,7 +9,7 @@ Convention:
       (or ``2k/k/0`` with one sharpness per edge). Each edge must be an edge of
       the mesh. ``t corner n/1/0 v.. s`` (or ``n/n/0``): corner vertices.
       ``t hole n/0/0 f..``: hole faces. Sharpness is finite and ``>= 0``
-      (OpenSubdiv's meaning, see :mod:`torchgeo_cg.mesh.tags`).
+      (OpenSubdiv's meaning, see :mod:`torchgeo_cg.mesh.subdivision.tags`).
     - Scheme options become keyword arguments named like the subdivision builders':
       ``interpolateboundary 1/0/0 n`` -> ``boundary`` (0 ``"none"``,
       1 ``"edge_and_corner"``, 2 ``"edge_only"``); ``creasemethod 0/0/1 normal|chaikin``
@@ -36,7 +36,7 @@ from torchgeo_cg.mesh.io_text import (  # read_text: doctests
     read_text,  # noqa: F401
 )
 
-__all__ = ["ObjTags", "parse_tags", "check_tags", "format_tags", "OPTION_TAGS"]
+__all__: list[str] = []
 
 OPTION_TAGS = {
     "interpolateboundary": ("boundary", ("none", "edge_and_corner", "edge_only")),

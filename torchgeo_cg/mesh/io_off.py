@@ -29,7 +29,7 @@ from torchgeo_cg.mesh.io_text import (
     read_text,
 )
 
-__all__ = ["read_off", "format_off"]
+__all__: list[str] = []
 
 
 def _line_numbers(text: TextLines, line: int) -> np.ndarray:

@@ -34,7 +34,7 @@ from torchgeo_cg.mesh.io_text import (
     read_text,
 )
 
-__all__ = ["PlyProperty", "PlyElement", "PlyHeader", "read_ply_header", "read_ply", "format_ply"]
+__all__: list[str] = []
 
 PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",

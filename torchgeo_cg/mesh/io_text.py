@@ -22,21 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = [
-    "TextLines",
-    "file_error",
-    "read_text",
-    "blank_comments",
-    "first_chars",
-    "chars_at",
-    "gather_lines",
-    "LineTokens",
-    "line_tokens",
-    "parse_numbers",
-    "format_rows",
-    "format_faces",
-    "check_padding",
-]
+__all__: list[str] = []
 
 _BOM = b"\xef\xbb\xbf"
 _INT64 = np.iinfo(np.int64)

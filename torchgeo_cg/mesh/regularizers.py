@@ -32,9 +32,9 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
-from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
+from torchgeo_cg.core.numerics import cast_back, power_of_two_scale, safe_norm, working_dtype
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
 
 __all__ = [
@@ -75,9 +75,7 @@ def _unit_scaled(verts: torch.Tensor) -> torch.Tensor:
     if verts.shape[-2] == 0:
         return verts
     big = verts.detach().abs().flatten(-2).amax(-1)[..., None, None]  # (*, 1, 1)
-    _, exponent = torch.frexp(torch.where(torch.isfinite(big) & (big > 0), big, 1.0))
-    # a power-of-two factor, then a product (exact; torch.ldexp has no gradient for verts)
-    return verts * torch.ldexp(torch.ones_like(big), -exponent)
+    return verts / power_of_two_scale(big)
 
 
 def mesh_edges(faces: torch.Tensor) -> MeshEdges:
@@ -181,8 +179,7 @@ def mesh_laplacian(verts: torch.Tensor, faces, method: str = "uniform") -> torch
         >>> mesh_laplacian(verts, faces)[4]
         tensor([ 0.,  0., -1.])
     """
-    if method not in _METHODS:
-        raise ValueError(f"method: expected one of {_METHODS}, got {method!r}")
+    check_choice(method, _METHODS, "method")
     faces = _check(verts, faces)
     dtype = verts.dtype
     return cast_back(_laplacian(verts.to(working_dtype(dtype)), faces, method), dtype)
@@ -239,8 +236,7 @@ def laplacian_smoothing_loss(verts: torch.Tensor, faces, method: str = "uniform"
         >>> laplacian_smoothing_loss(verts, faces)
         tensor(0.8254)
     """
-    if method not in _METHODS:
-        raise ValueError(f"method: expected one of {_METHODS}, got {method!r}")
+    check_choice(method, _METHODS, "method")
     faces = _check(verts, faces)
     dtype = verts.dtype
     lap = _laplacian(verts.to(working_dtype(dtype)), faces, method)

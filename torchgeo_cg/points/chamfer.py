@@ -21,7 +21,8 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.points.nearest_neighbors import check_lengths, knn
 
@@ -105,8 +106,7 @@ def chamfer_distance(
         >>> res.loss
         tensor(1.5417)
     """
-    if reduction not in _REDUCTIONS:
-        raise ValueError(f"reduction: expected one of {_REDUCTIONS}, got {reduction!r}")
+    check_choice(reduction, _REDUCTIONS, "reduction")
     check_float(a, "a")
     check_float(b, "b")
     sa = check_shape(a, ["*", "N", "D"], "a")
@@ -140,10 +140,10 @@ class ChamferDistance(nn.Module):
 
     def __init__(self, reduction: str = "mean", squared: bool = True):
         super().__init__()
-        if reduction not in _REDUCTIONS:
-            raise ValueError(f"reduction: expected one of {_REDUCTIONS}, got {reduction!r}")
+        check_choice(reduction, _REDUCTIONS, "reduction")
         self.reduction = reduction
         self.squared = bool(squared)
 
     def forward(self, a, b, a_lengths=None, b_lengths=None) -> ChamferResult:
+        check_module_dtype(self, a, "a")
         return chamfer_distance(a, b, a_lengths, b_lengths, self.reduction, self.squared)

@@ -44,7 +44,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
 from torchgeo_cg.points.icp_steps import apply_transform, point_to_plane_step, weighted_procrustes
 from torchgeo_cg.points.nearest_neighbors import check_lengths, search_scale

@@ -31,11 +31,11 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.core.numerics import cast_back, power_of_two_scale, working_dtype
 from torchgeo_cg.points.search_brute import brute_knn_indices
 from torchgeo_cg.points.search_grid import grid_knn_indices
 
-__all__ = ["KNNResult", "knn", "check_lengths", "BRUTE_FORCE_PAIRS"]
+__all__ = ["KNNResult", "knn"]
 
 #: Below this many (query, reference) pairs the brute-force search is used on the CPU.
 BRUTE_FORCE_PAIRS = 1 << 18
@@ -100,16 +100,16 @@ def _prepare(query, reference, k, query_lengths, reference_lengths):
 
 def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: torch.Tensor,
                  rl_b: torch.Tensor) -> torch.Tensor:
-    """Per batch item, the largest power of two at or below the largest valid coordinate:
-    ``(B, 1, 1)``, 1 where there is none.
+    """Per batch item, :func:`~torchgeo_cg.core.numerics.power_of_two_scale` of the largest
+    valid coordinate: ``(B, 1, 1)``, 1 where there is none.
 
-    Dividing by it is exact and brings the coordinates into ``[-2, 2]``, so the squared
+    Dividing by it is exact and brings the coordinates into ``[-1, 1]``, so the squared
     distances of the search neither overflow nor underflow at any scale.
 
     Example:
         >>> search_scale(torch.tensor([[[3.0, 0.0]]]), torch.tensor([[[0.0, -1e-3]]]),
         ...              torch.tensor([1]), torch.tensor([1])).flatten()
-        tensor([2.])
+        tensor([4.])
     """
     B, N, _ = query_bnd.shape
     M = reference_bmd.shape[1]
@@ -118,8 +118,7 @@ def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: tor
     big = torch.cat([query_bnd.abs().masked_fill(~q_valid, 0).reshape(B, -1),
                      reference_bmd.abs().masked_fill(~r_valid, 0).reshape(B, -1),
                      query_bnd.new_zeros(B, 1)], dim=1).amax(1)
-    one = torch.ones_like(big)  # 2^(e-1) <= big < 2^e: never overflows, even near max
-    return torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1] - 1), one)[:, None, None]
+    return power_of_two_scale(big)[:, None, None]
 
 
 def find_neighbours(query_bnd, reference_bmd, k, ql_b, rl_b) -> torch.Tensor:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["brute_knn_indices"]
+__all__: list[str] = []
 
 #: Largest number of (query, reference, coordinate) products held at once.
 CHUNK_ELEMENTS = 1 << 22

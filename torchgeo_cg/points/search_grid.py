@@ -35,8 +35,7 @@ from typing import NamedTuple
 
 import torch
 
-__all__ = ["GridIndex", "build_grid", "grid_per_cell", "ring_offsets", "segment_ids",
-           "grid_knn_indices", "MAX_RING"]
+__all__: list[str] = []
 
 #: Rings scanned on one grid before the remaining queries move to a coarser grid.
 MAX_RING = 3

@@ -1,4 +1,4 @@
-"""Signed distance fields: primitives, CSG operators, THE grid convention, mesh distances.
+"""Signed distance fields: primitives, CSG operators, grid sampling, mesh distances.
 
 Layout (one topic per file):
 
@@ -6,14 +6,16 @@ Layout (one topic per file):
   ``gyroid`` and 2D ``circle``, ``rectangle``, ``annulus``, each with an ``nn.Module``.
 - :mod:`~torchgeo_cg.sdf.operators`: ``union``, ``intersection``, ``difference``,
   ``smooth_union``, ``smooth_intersection``, ``product``, ``translate``, ``rotate``, ``scale``.
-- :mod:`~torchgeo_cg.sdf.grid`: the grid convention (``indexing="ij"``, index ``(i, j, k)``
-  at ``origin + spacing * (i, j, k)``), ``grid_points``, ``sample_grid``, ``Volume``,
-  ``grid_interpolate``.
+- :mod:`~torchgeo_cg.sdf.grid`: ``grid_points``, ``sample_grid``, ``grid_interpolate`` on the
+  grid convention of :mod:`torchgeo_cg.core.grid` (``indexing="ij"``, index ``(i, j, k)``
+  at ``origin + spacing * (i, j, k)``, ``Volume``).
 - :mod:`~torchgeo_cg.sdf.level_set`: the report's ``zero_level_set``.
 - :mod:`~torchgeo_cg.sdf.gradients`: ``sdf_gradient``, ``sdf_normal``, ``eikonal_loss``.
 - :mod:`~torchgeo_cg.sdf.mesh_distance`: ``mesh_sdf``, ``MeshSDF`` (pseudo-normal and
   winding-number signs), exact evaluation on the closest face.
 - :mod:`~torchgeo_cg.sdf.mesh_search`: the torch backend's closest-face search.
+- ``torchgeo_cg.sdf._triangle``: triangle geometry shared by the distance, the searches
+  and the engine (``closest_point_on_triangle``, pseudo-normals, solid angles).
 - :mod:`~torchgeo_cg.sdf.engines`: backends (``"auto"``, ``"torch"``, ``"warp"`` from the
   optional extra ``fast``), ``available_engines``; :mod:`~torchgeo_cg.sdf.engine_warp`.
 - :mod:`~torchgeo_cg.sdf.sampler`: ``SDFSampler`` (DeepSDF distribution), ``.npz`` I/O.
@@ -21,23 +23,14 @@ Layout (one topic per file):
 Convention: SDFs are negative inside; points are ``(*, N, 3)`` (or ``(*, N, 2)``).
 """
 
+from torchgeo_cg.sdf._triangle import TriangleClosestPoint, closest_point_on_triangle
 from torchgeo_cg.sdf.engines import available_engines
 from torchgeo_cg.sdf.gradients import eikonal_loss, sdf_gradient, sdf_normal
-from torchgeo_cg.sdf.grid import (
-    Volume,
-    grid_interpolate,
-    grid_points,
-    grid_spacing,
-    index_to_world,
-    sample_grid,
-    world_to_index,
-)
+from torchgeo_cg.sdf.grid import grid_interpolate, grid_points, grid_spacing, sample_grid
 from torchgeo_cg.sdf.level_set import LevelSetPoints, zero_level_set
 from torchgeo_cg.sdf.mesh_distance import (
     MeshSDF,
     MeshSDFResult,
-    TriangleClosestPoint,
-    closest_point_on_triangle,
     is_watertight,
     mesh_sdf,
     winding_number,
@@ -100,8 +93,7 @@ __all__ = [
     "Union", "Intersection", "Difference", "SmoothUnion", "SmoothIntersection", "Product",
     "Translate", "Rotate", "Scale",
     # grid
-    "Volume", "grid_spacing", "grid_points", "sample_grid", "index_to_world", "world_to_index",
-    "grid_interpolate",
+    "grid_spacing", "grid_points", "sample_grid", "grid_interpolate",
     # level set, gradients
     "LevelSetPoints", "zero_level_set", "sdf_gradient", "sdf_normal", "eikonal_loss",
     # mesh distance

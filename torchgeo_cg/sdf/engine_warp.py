@@ -8,13 +8,13 @@ rounding), and every one of them is a neighbour of the returned face. So the sam
 then checks, in float64, every face that shares a vertex with the returned one and keeps
 the closest. When asked (``mode``), it also evaluates the distance on that face in
 float64 with the operations of the torch evaluation
-(:func:`~torchgeo_cg.sdf.mesh_distance.closest_point_on_triangle`) and signs it with the
+(:func:`~torchgeo_cg.sdf._triangle.closest_point_on_triangle`) and signs it with the
 pseudo-normal of the closest feature, so queries that need no gradient never leave the
 kernel; otherwise only the face index leaves it.
 
 Convention:
     Inputs are scaled by a power of two into ``[-1, 1]`` (see
-    :func:`~torchgeo_cg.sdf.mesh_search.power_of_two_scale`), vertices ``(B, V, 3)``,
+    :func:`~torchgeo_cg.core.numerics.power_of_two_scale`), vertices ``(B, V, 3)``,
     triangles ``(T, 3)`` shared by the ``B`` meshes, points ``(B, N, 3)`` finite. Points
     and meshes stay on their device (CPU or CUDA). One BVH is built per mesh of the batch
     (Warp has no batched constructor); the query is one launch for all meshes.
@@ -28,13 +28,14 @@ from typing import NamedTuple
 import torch
 from tqdm.auto import tqdm
 
+from torchgeo_cg.sdf._triangle import pseudo_normals, unit_normals
+
 try:
     import warp as wp
 except ImportError:  # the optional extra "fast" is not installed
     wp = None
 
-__all__ = ["WarpSearch", "WarpAnswer", "morton_order", "face_rings", "build_warp_search",
-           "warp_closest_faces"]
+__all__: list[str] = []
 
 if wp is not None:  # kernels exist only with the optional extra
     # Warp's info banner and kernel-load lines would print on every import; warnings stay
@@ -78,7 +79,7 @@ if wp is not None:  # kernels exist only with the optional extra
     def _closest_on_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
         """Squared distance, closest point and feature code (0 face, 1-3 edges ab, bc,
         ca, 4-6 vertices a, b, c) of triangle ``abc`` to ``p``, with the operations of
-        :func:`~torchgeo_cg.sdf.mesh_distance.closest_point_on_triangle`: the plane
+        :func:`~torchgeo_cg.sdf._triangle.closest_point_on_triangle`: the plane
         projection when it falls inside the (non-degenerate) triangle, else the nearest
         edge point, the face first and then the edges in order on ties."""
         e0 = b - a
@@ -224,10 +225,8 @@ class WarpSearch:
 
     def normals(self) -> torch.Tensor:
         """``(B T 7, 3)`` float64 feature pseudo-normals (face, 3 edges, 3 vertices) of
-        :func:`~torchgeo_cg.sdf.mesh_distance.pseudo_normals`, computed on first use."""
+        :func:`~torchgeo_cg.sdf._triangle.pseudo_normals`, computed on first use."""
         if self._normals is None:
-            from torchgeo_cg.sdf.mesh_distance import pseudo_normals
-
             tri = self.corners.reshape(-1, self.tris.shape[0], 3, 3)
             self._normals = pseudo_normals(tri, self.tris, self.num_vertices).reshape(
                 -1, 3).contiguous()
@@ -329,9 +328,7 @@ def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSea
     tris = tris_t3.to(verts_bv3.device)
     tri = verts_bv3.detach().double()[:, tris]  # (B, T, 3, 3)
     corners = tri.reshape(-1, 3).contiguous()
-    normal = torch.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :], dim=-1)
-    length = torch.linalg.vector_norm(normal, dim=-1, keepdim=True)
-    planes = torch.where(length > 0, normal / torch.where(length > 0, length, 1.0), 0.0)
+    planes = unit_normals(tri)
     ring_start, ring_faces = face_rings(tris, V)
     indices = wp.from_torch(tris.to(torch.int32).reshape(-1).contiguous(), dtype=wp.int32)
     meshes = [wp.Mesh(points=wp.from_torch(verts32[b * V:(b + 1) * V], dtype=wp.vec3),

@@ -28,22 +28,15 @@ import weakref
 
 import torch
 
+from torchgeo_cg.core.check import check_choice
+from torchgeo_cg.core.numerics import power_of_two_scale
 from torchgeo_cg.sdf.mesh_search import (
     build_torch_search,
-    power_of_two_scale,
     pull_in_far_points,
     torch_closest_faces,
 )
 
-__all__ = [
-    "ENGINES",
-    "available_engines",
-    "resolve_backend",
-    "build_search",
-    "search_faces",
-    "engine_sdf",
-    "new_cache_key",
-]
+__all__ = ["ENGINES", "available_engines"]
 
 #: Engine name -> the module that must be importable, fastest first.
 ENGINES = {"warp": "warp"}
@@ -88,9 +81,7 @@ def resolve_backend(backend: str) -> str:
         return found[0] if found else "torch"
     if backend == "torch":
         return backend
-    if backend not in ENGINES:
-        raise ValueError(f"backend: expected 'auto', 'torch' or one of {sorted(ENGINES)}, "
-                         f"got {backend!r}")
+    check_choice(backend, ("auto", "torch", *sorted(ENGINES)), "backend")
     if importlib.util.find_spec(ENGINES[backend]) is None:
         raise ImportError(f"backend={backend!r} needs the optional extra 'fast': "
                           f"pip install 'torchgeo_cg[fast]' (installs {ENGINES[backend]})")
@@ -111,8 +102,8 @@ def _scaled(verts_bv3: torch.Tensor, points_bn3: torch.Tensor):
     (:func:`~torchgeo_cg.sdf.mesh_search.pull_in_far_points`); non-finite points are
     searched at the origin (their distance comes out NaN anyway)."""
     if not bool(torch.isfinite(verts_bv3).all()):
-        raise ValueError("vertices: expected finite coordinates, got NaN or inf")
-    scale = power_of_two_scale(verts_bv3)
+        raise ValueError("verts: expected finite coordinates, got NaN or inf")
+    scale = power_of_two_scale(verts_bv3.abs().amax((1, 2), keepdim=True))
     points = points_bn3.to(torch.float64) / scale.to(torch.float64)
     points = torch.where(torch.isfinite(points).all(-1, keepdim=True), points, 0.0)
     return verts_bv3 / scale, pull_in_far_points(points)
@@ -277,6 +268,8 @@ def engine_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: torch
     verts, points = verts_bv3.detach(), points_bn3.detach()
     faces, sdf = _closest_faces_op(verts, tris_t3, points, backend, key, 2 if signed else 1,
                                    progress)
-    scale = power_of_two_scale(verts).to(torch.float64)[..., 0] if verts.numel() else 1.0
+    scale = 1.0
+    if verts.numel():
+        scale = power_of_two_scale(verts.abs().amax((1, 2), keepdim=True)).to(torch.float64)[..., 0]
     sdf = torch.where(torch.isfinite(points).all(-1), sdf * scale, math.nan)
     return faces, sdf.to(points.dtype)

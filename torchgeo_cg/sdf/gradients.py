@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_div, safe_norm, working_dtype
 
 __all__ = ["sdf_gradient", "sdf_normal", "eikonal_loss"]
@@ -108,8 +108,7 @@ def eikonal_loss(gradients: torch.Tensor, reduction: str = "mean") -> torch.Tens
     """
     check_float(gradients, "gradients")
     check_shape(gradients, ["*", "N", "D"], "gradients")
-    if reduction not in ("mean", "sum", "none"):
-        raise ValueError(f"reduction: expected 'mean', 'sum' or 'none', got {reduction!r}")
+    check_choice(reduction, ("mean", "sum", "none"), "reduction")
     work = gradients.to(working_dtype(gradients.dtype))
     per_point = (safe_norm(work) - 1.0) ** 2
     if reduction == "mean":

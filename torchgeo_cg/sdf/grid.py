@@ -1,27 +1,14 @@
-"""THE grid convention of torchgeo_cg: sampling SDFs on regular grids and reading them back.
+"""Sampling SDFs on THE grid of :mod:`torchgeo_cg.core.grid` and reading them back.
 
-Every module that puts values on a 3D grid (SDF sampling, zero-level sets, marching
-cubes) uses this one convention::
-
-                z (axis 2, index k)
-                ^
-                |   y (axis 1, index j)
-                |  /
-                | /
-     origin --> o-------> x (axis 0, index i)
-
-     volume[i, j, k]  is the value at  origin + spacing * (i, j, k)
-                                      = (x0 + sx*i, y0 + sy*j, z0 + sz*k)
-
-     bounds = ((x0, y0, z0), (x1, y1, z1)),  resolution = (X, Y, Z)
-     spacing = (bounds[1] - bounds[0]) / (resolution - 1)      # both ends are samples
-     volume.shape == (X, Y, Z)  or (B, X, Y, Z) for a batch of B shapes
+The convention (``indexing="ij"``, sample ``(i, j, k)`` at ``origin + spacing * (i, j, k)``,
+``spacing = (bounds[1] - bounds[0]) / (resolution - 1)``) and :class:`Volume` are in
+:mod:`torchgeo_cg.core.grid`, shared with marching squares and marching cubes; this module
+puts functions onto that grid (:func:`sample_grid`, :func:`grid_points`) and reads values
+back (:func:`grid_interpolate`).
 
 Convention:
-    - ``indexing="ij"``: array axis 0 is x, axis 1 is y, axis 2 is z (as
-      ``torch.meshgrid(xs, ys, zs, indexing="ij")``). Index ``(i, j, k)`` maps to the
-      world point ``origin + spacing * (i, j, k)``; ``origin`` is the first corner of
-      ``bounds`` and the last sample sits exactly on the second corner (``linspace``).
+    - ``indexing="ij"``: array axis 0 is x, axis 1 is y, axis 2 is z; ``origin`` is the
+      first corner of ``bounds`` and the last sample sits exactly on the second corner.
     - SDF values are negative inside.
     - :func:`grid_interpolate` is trilinear and uses ``grid_sample(...,
       align_corners=True)`` so grid sample ``i`` sits exactly at ``origin + spacing*i``;
@@ -35,41 +22,17 @@ Convention:
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
 
 import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.grid import Volume, check_spacing
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
-__all__ = [
-    "Volume",
-    "grid_spacing",
-    "grid_points",
-    "sample_grid",
-    "index_to_world",
-    "world_to_index",
-    "grid_interpolate",
-    "check_spacing",
-    "parse_bounds",
-]
-
-
-class Volume(NamedTuple):
-    """A sampled grid: ``values[..., i, j, k]`` lives at ``origin + spacing * (i, j, k)``.
-
-    Attributes:
-        values: ``(X, Y, Z)`` or ``(B, X, Y, Z)`` samples.
-        origin: ``(3,)`` world position of index ``(0, 0, 0)``.
-        spacing: ``(3,)`` distance between neighbouring samples along x, y, z.
-    """
-
-    values: torch.Tensor
-    origin: torch.Tensor
-    spacing: torch.Tensor
+__all__ = ["grid_spacing", "grid_points", "sample_grid", "grid_interpolate"]
 
 
 def _resolution(resolution: int | Sequence[int]) -> tuple[int, int, int]:
@@ -108,26 +71,6 @@ def parse_bounds(bounds, device=None, dtype=None) -> torch.Tensor:
     if bool(~torch.isfinite(b).all()) or bool((b[1] <= b[0]).any()):
         raise ValueError(f"bounds: expected finite bounds with lo < hi per axis, got {b.tolist()}")
     return b
-
-
-def check_spacing(spacing, like: torch.Tensor | None, name: str = "spacing") -> torch.Tensor:
-    """``spacing`` as a ``(3,)`` tensor like ``like`` (cast), checked positive.
-
-    Raises:
-        ShapeError: not 3 values.
-        ValueError: a value is zero or negative (NaN passes: NaN in, NaN out).
-
-    Example:
-        >>> check_spacing([0.5, 1.0, 0.0], torch.zeros(3))
-        Traceback (most recent call last):
-        ...
-        ValueError: spacing: expected positive grid spacings, got [0.5, 1.0, 0.0]
-    """
-    spacing = as_tensor_like(spacing, like, name, cast=True)
-    check_shape(spacing, ["3"], name)
-    if bool((spacing <= 0).any()):
-        raise ValueError(f"{name}: expected positive grid spacings, got {spacing.tolist()}")
-    return spacing
 
 
 def grid_spacing(
@@ -184,69 +127,12 @@ def grid_points(
         >>> g.shape, g[1, 2, 0]
         (torch.Size([2, 3, 2, 3]), tensor([1., 2., 0.]))
     """
-    if indexing not in ("ij", "xy"):
-        raise ValueError(f"indexing: expected 'ij' or 'xy', got {indexing!r}")
+    check_choice(indexing, ("ij", "xy"), "indexing")
     res = _resolution(resolution)
     b = parse_bounds(bounds, device, dtype)
     axes = [torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device, dtype=b.dtype)
             for a in range(3)]
     return torch.stack(torch.meshgrid(*axes, indexing=indexing), dim=-1)
-
-
-def index_to_world(
-    indices: torch.Tensor, origin: torch.Tensor, spacing: torch.Tensor
-) -> torch.Tensor:
-    """Grid index ``(i, j, k)`` (integer or fractional) to world ``origin + spacing * ijk``.
-
-    Convention:
-        ``"ij"`` grid convention of this module.
-
-    Args:
-        indices: ``(*, 3)`` integer or float indices.
-        origin: ``(3,)``.
-        spacing: ``(3,)``.
-
-    Returns:
-        ``(*, 3)`` world points, dtype of ``origin``.
-
-    Example:
-        >>> index_to_world(torch.tensor([[1, 2, 3]]), torch.zeros(3), torch.tensor([0.5, 1.0, 2.0]))
-        tensor([[0.5000, 2.0000, 6.0000]])
-    """
-    check_shape(indices, ["*", "3"], "indices")
-    origin = as_tensor_like(origin, None, "origin")
-    check_shape(origin, ["3"], "origin")
-    spacing = check_spacing(spacing, origin)
-    return origin + spacing * indices.to(dtype=origin.dtype, device=origin.device)
-
-
-def world_to_index(
-    points: torch.Tensor, origin: torch.Tensor, spacing: torch.Tensor
-) -> torch.Tensor:
-    """World points to fractional grid indices ``(p - origin) / spacing`` (inverse of above).
-
-    Convention:
-        ``"ij"`` grid convention; round the result to get the nearest sample.
-
-    Args:
-        points: ``(*, 3)`` float.
-        origin: ``(3,)``, cast to the points' dtype.
-        spacing: ``(3,)``, positive (else ``ValueError``), cast to the points' dtype.
-
-    Returns:
-        ``(*, 3)`` fractional indices.
-
-    Example:
-        >>> spacing = torch.tensor([0.5, 1.0, 2.0])
-        >>> world_to_index(torch.tensor([[0.5, 2.0, 6.0]]), torch.zeros(3), spacing)
-        tensor([[1., 2., 3.]])
-    """
-    check_float(points, "points")
-    check_shape(points, ["*", "3"], "points")
-    origin = as_tensor_like(origin, points, "origin", cast=True)
-    check_shape(origin, ["3"], "origin")
-    spacing = check_spacing(spacing, points)
-    return (points - origin) / spacing
 
 
 def sample_grid(
@@ -267,7 +153,7 @@ def sample_grid(
 
     Convention:
         ``values[..., i, j, k] = sdf_fn(origin + spacing * (i, j, k))``, ``indexing="ij"``
-        (module docstring). ``sdf_fn`` gets points ``(M, 3)`` and returns ``(M,)`` for
+        (:mod:`torchgeo_cg.core.grid`). ``sdf_fn`` gets points ``(M, 3)`` and returns ``(M,)`` for
         one shape or ``(B, M)`` for a batch of shapes.
 
     Args:

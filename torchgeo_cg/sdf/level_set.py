@@ -31,7 +31,7 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
-from torchgeo_cg.sdf.grid import Volume, check_spacing
+from torchgeo_cg.core.grid import Volume, check_spacing
 
 __all__ = ["LevelSetPoints", "zero_level_set"]
 
@@ -64,12 +64,12 @@ def zero_level_set(
     cubes for a mesh.
 
     Convention:
-        Grid convention of :mod:`torchgeo_cg.sdf.grid` (``"ij"``; index ``(i, j, k)`` at
+        Grid convention of :mod:`torchgeo_cg.core.grid` (``"ij"``; index ``(i, j, k)`` at
         ``origin + spacing * (i, j, k)``). Points come in C order of ``(b, i, j, k)``.
         Not differentiable (a selection).
 
     Args:
-        volume: a :class:`~torchgeo_cg.sdf.grid.Volume`, or values ``(X, Y, Z)`` /
+        volume: a :class:`~torchgeo_cg.core.grid.Volume`, or values ``(X, Y, Z)`` /
             ``(B, X, Y, Z)`` with ``origin`` and ``spacing``.
         origin: ``(3,)``; taken from the Volume when omitted.
         spacing: ``(3,)``, positive; taken from the Volume when omitted.
@@ -77,7 +77,8 @@ def zero_level_set(
             must be positive.
 
     Raises:
-        ValueError: ``spacing`` or ``tol`` not positive.
+        ValueError: ``spacing`` or ``tol`` not positive, or a NaN sample in the volume
+            (as :func:`~torchgeo_cg.mesh.marching_cubes` does).
 
     Returns:
         :class:`LevelSetPoints` ``(points (M, 3), indices (M, 3), batch (M,), counts (B,))``.
@@ -114,6 +115,10 @@ def zero_level_set(
     if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not tol > 0:
         raise ValueError(f"tol: expected a positive tolerance, got {tol}")
     batched = values if values.dim() == 4 else values[None]
+    nan = int(torch.isnan(values.detach()).sum())
+    if nan:  # a NaN sample is neither near the surface nor away from it
+        raise ValueError(f"volume: expected no NaN samples (NaN is neither within tol of 0 "
+                         f"nor away from it), got {nan} of {values.numel()}")
     hits = torch.nonzero(batched.abs() < tol)  # (M, 4): b, i, j, k
     batch, indices = hits[:, 0], hits[:, 1:]
     points = origin.to(values) + spacing.to(values) * indices.to(values.dtype)

@@ -42,51 +42,29 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import (
-    ShapeError,
     check_broadcastable,
+    check_choice,
     check_float,
     check_shape,
     check_tensor,
 )
-from torchgeo_cg.core.coerce import check_same_dtype
-from torchgeo_cg.core.numerics import cast_back, hypot, working_dtype
-from torchgeo_cg.mesh.faces import triangulate_faces
-from torchgeo_cg.sdf.mesh_search import far_radius, power_of_two_scale, pull_in_far_points
+from torchgeo_cg.core.numerics import cast_back, hypot, power_of_two_scale, working_dtype
+from torchgeo_cg.mesh.faces import check_mesh
+from torchgeo_cg.sdf._triangle import (
+    closest_point_on_triangle,
+    dot3,
+    pseudo_normals,
+    solid_angles_sum,
+)
+from torchgeo_cg.sdf.engines import (
+    engine_sdf,
+    new_cache_key,
+    resolve_backend,
+    search_faces,
+)
+from torchgeo_cg.sdf.mesh_search import far_radius, pull_in_far_points
 
-__all__ = [
-    "FEATURES",
-    "MeshSDFResult",
-    "MeshSDF",
-    "check_mesh",
-    "batch_mesh_points",
-    "gather_triangles",
-    "pseudo_normals",
-    "resolve_sign",
-    "evaluate_sdf",
-    "search_and_evaluate",
-    "TriangleClosestPoint",
-    "closest_point_on_triangle",
-    "is_watertight",
-    "winding_number",
-    "mesh_sdf",
-]
-
-#: Feature codes of :func:`closest_point_on_triangle`: the closest point lies on
-#: 0 the face interior, 1 edge v0v1, 2 edge v1v2, 3 edge v2v0, 4 vertex v0, 5 v1, 6 v2.
-FEATURES = ("face", "edge01", "edge12", "edge20", "vertex0", "vertex1", "vertex2")
-
-
-class TriangleClosestPoint(NamedTuple):
-    """Closest point on a triangle and the feature it lies on.
-
-    Attributes:
-        points: ``(*, 3)`` closest points.
-        feature: ``(*,)`` long codes: 0 interior, 1-3 edges v0v1/v1v2/v2v0, 4-6 vertices.
-    """
-
-    points: torch.Tensor
-    feature: torch.Tensor
-
+__all__ = ["MeshSDFResult", "MeshSDF", "is_watertight", "winding_number", "mesh_sdf"]
 
 class MeshSDFResult(NamedTuple):
     """Result of :func:`mesh_sdf`; fields not asked for are ``None``.
@@ -101,155 +79,6 @@ class MeshSDFResult(NamedTuple):
     closest_points: torch.Tensor | None
     face_ids: torch.Tensor | None
 
-
-def _dot(a, b):
-    """Dot product of two 3-vectors given as component lists (structure of arrays)."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _segment(p, a, b):
-    """Closest point on segment ab (component lists): (point, t in [0, 1], detached
-    squared distance); zero-length safe."""
-    ab = [y - x for x, y in zip(a, b)]
-    den = _dot(ab, ab)
-    ok = den > 0
-    t = torch.where(ok, _dot([y - x for x, y in zip(a, p)], ab)
-                    / torch.where(ok, den, torch.ones_like(den)), 0.0).clamp(0.0, 1.0)
-    q = [x + t * y for x, y in zip(a, ab)]
-    with torch.no_grad():
-        diff = [x - y for x, y in zip(p, q)]
-        return q, t, _dot(diff, diff)
-
-
-def closest_point_on_triangle(
-    points: torch.Tensor, v0: torch.Tensor, v1: torch.Tensor, v2: torch.Tensor
-) -> TriangleClosestPoint:
-    """Exact closest point on triangle ``(v0, v1, v2)`` to each point, and its feature.
-
-    The candidates are the projection onto the plane (when it falls inside the
-    triangle) and the closest points of the three edges; the nearest wins, the face
-    first on ties. Degenerate triangles fall back to their edges, so there is no
-    division by a zero area.
-
-    Convention:
-        All arguments broadcast and share one float dtype (a ``TypeError`` naming two
-        otherwise); feature codes as in :data:`FEATURES` (0 face, 1-3 edges v0v1, v1v2,
-        v2v0, 4-6 vertices). Differentiable almost everywhere w.r.t. all inputs, with
-        finite gradients. Scale-free: computed relative to ``v0`` and divided by a power
-        of two per element, so no intermediate overflows at any finite scale.
-        float16/bfloat16 are computed in float32 and returned in the input dtype.
-
-    Args:
-        points: ``(*, 3)``.
-        v0, v1, v2: ``(*, 3)`` triangle corners.
-
-    Returns:
-        :class:`TriangleClosestPoint` ``(points (*, 3), feature (*,))``.
-
-    Example:
-        >>> tri = torch.eye(3)
-        >>> r = closest_point_on_triangle(torch.tensor([[1.0, 1.0, 1.0], [2.0, -1.0, -1.0]]),
-        ...                               tri[0], tri[1], tri[2])
-        >>> r.points, r.feature
-        (tensor([[0.3333, 0.3333, 0.3333],
-                [1.0000, 0.0000, 0.0000]]), tensor([0, 4]))
-    """
-    named = {"points": points, "v0": v0, "v1": v1, "v2": v2}
-    for name, x in named.items():
-        check_float(x, name)
-        check_shape(x, ["*", "3"], name)
-    dtype = check_same_dtype(named).dtype
-    shape = tuple(check_broadcastable({k: x.shape[:-1] for k, x in named.items()})) + (3,)
-    # relative to v0 and divided by a power of two (exact, detached) per element, so that
-    # no product (up to 4th powers of lengths) overflows or underflows at any scale;
-    # float16/bfloat16 are computed in float32
-    origin = v0.to(working_dtype(dtype))
-    rel = [x.to(origin.dtype) - origin for x in (points, v1, v2)]
-    big = torch.maximum(torch.maximum(rel[0].detach().abs().amax(-1),
-                                      rel[1].detach().abs().amax(-1)),
-                        rel[2].detach().abs().amax(-1))
-    one = torch.ones_like(big)  # 2^(e-1) <= big < 2^e: never overflows, even near max
-    scale = torch.where(big > 0, torch.ldexp(one, torch.frexp(big)[1] - 1), one)[..., None]
-    rel = [x / scale for x in rel]
-    p, a, b, c = (x.movedim(-1, 0).contiguous().unbind(0)  # structure of arrays
-                  for x in (rel[0], torch.zeros_like(origin), rel[1], rel[2]))
-    e0, e1 = [y - x for x, y in zip(a, b)], [y - x for x, y in zip(a, c)]
-    w = [y - x for x, y in zip(a, p)]
-    d00, d01, d11 = _dot(e0, e0), _dot(e0, e1), _dot(e1, e1)
-    dot0, dot1 = _dot(w, e0), _dot(w, e1)
-    den = d00 * d11 - d01 * d01
-    ok = den > 1e-12 * d00 * d11
-    den_safe = torch.where(ok, den, torch.ones_like(den))
-    bv = (d11 * dot0 - d01 * dot1) / den_safe  # barycentric weight of v1
-    bw = (d00 * dot1 - d01 * dot0) / den_safe  # barycentric weight of v2
-    q = [x + bv * y + bw * z for x, y, z in zip(a, e0, e1)]
-    with torch.no_grad():
-        inside = ok & (bv >= 0) & (bw >= 0) & (bv + bw <= 1)
-        diff = [x - y for x, y in zip(p, q)]
-        best_d2 = torch.where(inside, _dot(diff, diff), math.inf)
-        code = torch.zeros(best_d2.shape, dtype=torch.long, device=best_d2.device)
-        t_best = torch.zeros_like(best_d2)
-    # the nearest candidate wins: face first, then edges v0v1, v1v2, v2v0 on ties
-    for k, (u, v) in enumerate(((a, b), (b, c), (c, a)), start=1):
-        q_k, t_k, d2_k = _segment(p, u, v)
-        better = d2_k < best_d2
-        best_d2 = torch.where(better, d2_k, best_d2)
-        code = torch.where(better, k, code)
-        t_best = torch.where(better, t_k.detach(), t_best)
-        q = [torch.where(better, y, x) for x, y in zip(q, q_k)]
-    edge = (code - 1).clamp_min(0)
-    start, end = (torch.tensor(x, device=code.device)[edge] for x in ([4, 5, 6], [5, 6, 4]))
-    feature = torch.where(t_best <= 0, start, torch.where(t_best >= 1, end, code))
-    feature = torch.where(code == 0, 0, feature).expand(shape[:-1])
-    q = torch.stack(torch.broadcast_tensors(*q), dim=-1) * scale + origin
-    return TriangleClosestPoint(cast_back(q.expand(shape), dtype), feature)
-
-
-def check_mesh(vertices: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-    """Validate a mesh for the distance queries; return its triangles ``(T, 3)`` long.
-
-    Faces with more than 3 vertices (``(F, K)`` padded with ``-1``, see
-    :mod:`torchgeo_cg.mesh.faces`) are fan-triangulated with
-    :func:`~torchgeo_cg.mesh.faces.triangulate_faces`: face ids of the results index
-    those triangles. Finiteness of the vertices is checked by the search.
-
-    Args:
-        vertices: ``(*, V, 3)`` float.
-        faces: ``(F, K)`` integer, ``K >= 3``.
-
-    Returns:
-        ``(T, 3)`` long triangles on the device of ``vertices``.
-
-    Example:
-        >>> check_mesh(torch.zeros(4, 3), torch.tensor([[0, 1, 2, 3]]))
-        tensor([[0, 1, 2],
-                [0, 2, 3]])
-    """
-    check_float(vertices, "vertices")
-    check_shape(vertices, ["*", "V", "3"], "vertices")
-    check_tensor(faces, "faces")
-    check_shape(faces, ["F", "K"], "faces")
-    if faces.is_floating_point() or faces.is_complex() or faces.dtype == torch.bool:
-        raise TypeError(f"faces: expected an integer tensor, got dtype {faces.dtype}")
-    V = vertices.shape[-2]
-    if faces.shape[1] < 3:
-        raise ShapeError(f"faces: expected shape (F, K) with K >= 3 vertices per face, got "
-                         f"{tuple(faces.shape)}")
-    if V == 0 or faces.shape[0] == 0:
-        raise ValueError(f"mesh: expected a non-empty mesh, got {V} vertices "
-                         f"and {faces.shape[0]} faces")
-    faces = faces.long()
-    used = faces[faces >= 0] if faces.shape[1] > 3 else faces
-    lo, hi = int(faces[:, :3].min()), int(used.max())
-    if lo < 0 or hi >= V:
-        raise ValueError(f"faces: expected indices in [0, {V - 1}], got range [{lo}, {hi}]")
-    tris = triangulate_faces(faces) if faces.shape[1] > 3 else faces
-    return tris.to(vertices.device)
-
-
-def _check_mesh(vertices: torch.Tensor, faces: torch.Tensor) -> None:
-    """Former private name of :func:`check_mesh` (kept for the sampler)."""
-    check_mesh(vertices, faces)
 
 def is_watertight(faces: torch.Tensor, num_vertices: int | None = None) -> bool:
     """Whether every directed edge occurs exactly once and its reverse exactly once.
@@ -284,27 +113,8 @@ def is_watertight(faces: torch.Tensor, num_vertices: int | None = None) -> bool:
     return bool(torch.isin(rev, key).all())
 
 
-def _solid_angles_sum(tri_bf33: torch.Tensor, points_bn3: torch.Tensor,
-                      chunk_pairs: int) -> torch.Tensor:
-    """Sum over faces of the signed solid angle, chunked over points: ``(B, N)``."""
-    B, F = tri_bf33.shape[:2]
-    N = points_bn3.shape[1]
-    step = max(1, chunk_pairs // max(1, B * F))
-    out = [points_bn3.new_zeros(B, 0)]
-    for s in range(0, N, step):
-        p = points_bn3[:, s:s + step, None]  # (B, m, 1, 3)
-        a = tri_bf33[:, None, :, 0] - p  # (B, m, F, 3)
-        b = tri_bf33[:, None, :, 1] - p
-        c = tri_bf33[:, None, :, 2] - p
-        la, lb, lc = a.norm(dim=-1), b.norm(dim=-1), c.norm(dim=-1)
-        det = (a * torch.cross(b, c, dim=-1)).sum(-1)
-        den = la * lb * lc + (a * b).sum(-1) * lc + (a * c).sum(-1) * lb + (b * c).sum(-1) * la
-        out.append(2.0 * torch.atan2(det, den).sum(-1))
-    return torch.cat(out, dim=1)
-
-
 def winding_number(
-    vertices: torch.Tensor,
+    verts: torch.Tensor,
     faces: torch.Tensor,
     points: torch.Tensor,
     chunk: int = 1 << 22,
@@ -326,10 +136,11 @@ def winding_number(
         the batch would give. Polygon faces are fan-triangulated.
 
     Args:
-        vertices: ``(V, 3)`` or ``(*, V, 3)``.
+        verts: ``(V, 3)`` or ``(*, V, 3)``.
         faces: ``(F, K)`` integer, ``K >= 3`` (padded with ``-1``).
         points: ``(*, N, 3)``.
-        chunk: maximal number of point-face pairs per step.
+        chunk: maximal number of point-face pairs per step, a positive int (``ValueError``
+            otherwise).
         backend: ``"auto"``, ``"torch"`` or an engine name; every backend computes the
             exact brute-force sum in torch today (validated like :func:`mesh_sdf`'s).
 
@@ -343,51 +154,51 @@ def winding_number(
         >>> winding_number(verts, tet, torch.tensor([[0.1, 0.1, 0.1], [1.0, 1.0, 1.0]])).abs()
         tensor([1., 0.])
     """
-    from torchgeo_cg.sdf.engines import resolve_backend
-
-    tris = check_mesh(vertices, faces)
+    tris = check_mesh(verts, faces)
     check_float(points, "points")
     check_shape(points, ["*", "N", "3"], "points")
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise ValueError(f"chunk: expected a positive number of point-face pairs, got {chunk!r}")
     resolve_backend(backend)
-    verts_bv3, points_bn3, lead = batch_mesh_points(vertices, points)
+    verts_bv3, points_bn3, lead = _batch_mesh_points(verts, points)
     work = working_dtype(points.dtype)  # float16/bfloat16: computed in float32
     with torch.no_grad():
-        scale = power_of_two_scale(verts_bv3.to(work))
-        tri = gather_triangles(verts_bv3.detach().to(work) / scale, tris)
-        total = _solid_angles_sum(tri, points_bn3.detach().to(work) / scale, chunk)
+        scale = power_of_two_scale(verts_bv3.to(work).abs().amax((1, 2), keepdim=True))
+        tri = _gather_triangles(verts_bv3.detach().to(work) / scale, tris)
+        total = solid_angles_sum(tri, points_bn3.detach().to(work) / scale, chunk)
     return cast_back((total / (4.0 * math.pi)).reshape(lead), points.dtype)
 
 
-def batch_mesh_points(vertices: torch.Tensor, points: torch.Tensor):
+def _batch_mesh_points(verts: torch.Tensor, points: torch.Tensor):
     """Flatten a mesh batch and a point batch to ``(B, V, 3)``, ``(B, N, 3)`` and the result's
     leading shape ``(*, N)``.
 
-    Unbatched ``vertices (V, 3)`` give ``B = 1`` and all points in one item; batched
+    Unbatched ``verts (V, 3)`` give ``B = 1`` and all points in one item; batched
     vertices broadcast their batch dims against those of ``points``.
 
     Example:
-        >>> v, p, lead = batch_mesh_points(torch.zeros(2, 4, 3), torch.zeros(5, 3))
+        >>> v, p, lead = _batch_mesh_points(torch.zeros(2, 4, 3), torch.zeros(5, 3))
         >>> v.shape, p.shape, lead
         (torch.Size([2, 4, 3]), torch.Size([2, 5, 3]), (2, 5))
     """
-    V, N = vertices.shape[-2], points.shape[-2]
-    if vertices.dim() == 2:
-        return (vertices[None], points.reshape(1, points.shape[:-1].numel(), 3),
+    V, N = verts.shape[-2], points.shape[-2]
+    if verts.dim() == 2:
+        return (verts[None], points.reshape(1, points.shape[:-1].numel(), 3),
                 tuple(points.shape[:-1]))
-    batch = check_broadcastable({"vertices": vertices.shape[:-2], "points": points.shape[:-2]})
+    batch = check_broadcastable({"verts": verts.shape[:-2], "points": points.shape[:-2]})
     B = math.prod(batch)
-    verts = vertices.expand(*batch, V, 3).reshape(B, V, 3)
+    verts = verts.expand(*batch, V, 3).reshape(B, V, 3)
     pts = points.expand(*batch, N, 3).reshape(B, N, 3)
     return verts, pts, (*batch, N)
 
 
-def gather_triangles(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
+def _gather_triangles(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
                      face_ids_bn: torch.Tensor | None = None) -> torch.Tensor:
     """Corners ``(B, T, 3, 3)`` of every triangle, or ``(B, N, 3, 3)`` of the triangles
     ``face_ids_bn (B, N)``; differentiable w.r.t. the vertices.
 
     Example:
-        >>> gather_triangles(torch.eye(3)[None], torch.tensor([[0, 1, 2]])).shape
+        >>> _gather_triangles(torch.eye(3)[None], torch.tensor([[0, 1, 2]])).shape
         torch.Size([1, 1, 3, 3])
     """
     B = verts_bv3.shape[0]
@@ -397,63 +208,15 @@ def gather_triangles(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
     flat = idx.reshape(B, 3 * K, 1).expand(-1, -1, 3)
     return torch.gather(verts_bv3, 1, flat).reshape(B, K, 3, 3)
 
-def _unit_normals(tri: torch.Tensor) -> torch.Tensor:
-    """Unit normals ``(..., 3)`` of triangles ``(..., 3, 3)``, zero for degenerate ones; the
-    norm is guarded only where it is exactly zero (coordinates are pre-scaled)."""
-    v0, v1, v2 = tri.unbind(-2)
-    n = torch.cross(v1 - v0, v2 - v0, dim=-1)
-    length = torch.linalg.vector_norm(n, dim=-1, keepdim=True)
-    good = length > 0
-    return torch.where(good, n / torch.where(good, length, torch.ones_like(length)), 0.0)
-
-
-def pseudo_normals(tri_bt33: torch.Tensor, tris_t3: torch.Tensor, num_vertices: int
-                   ) -> torch.Tensor:
-    """Per face, the 7 feature pseudo-normals (face, 3 edges, 3 vertices): ``(B, T, 7, 3)``.
-
-    Edges: the sum of the unit normals of the faces sharing the undirected edge; vertices:
-    the angle-weighted sum of the incident unit normals (Baerentzen & Aanaes 2005).
-
-    Args:
-        tri_bt33: ``(B, T, 3, 3)`` triangle corners.
-        tris_t3: ``(T, 3)`` long vertex indices.
-        num_vertices: ``V``.
-
-    Example:
-        >>> tet = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
-        >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-        >>> pseudo_normals(verts[tet][None], tet, 4)[0, 0, 0]
-        tensor([ 0.,  0., -1.])
-    """
-    B, T = tri_bt33.shape[:2]
-    unit = _unit_normals(tri_bt33)  # (B, T, 3)
-    a, b = tris_t3.reshape(-1), tris_t3[:, [1, 2, 0]].reshape(-1)
-    key = torch.minimum(a, b) * num_vertices + torch.maximum(a, b)
-    _, inverse = torch.unique(key, return_inverse=True)
-    per_edge = unit.new_zeros(B, int(inverse.max()) + 1, 3).index_add(
-        1, inverse, unit.repeat_interleave(3, dim=1))
-    edge_n = per_edge[:, inverse].reshape(B, T, 3, 3)
-    nxt, prv = tri_bt33[..., [1, 2, 0], :], tri_bt33[..., [2, 0, 1], :]
-    u, w = nxt - tri_bt33, prv - tri_bt33
-    angle = torch.atan2(torch.linalg.vector_norm(torch.cross(u, w, dim=-1), dim=-1),
-                        (u * w).sum(-1))  # (B, T, 3)
-    per_vertex = unit.new_zeros(B, num_vertices, 3).index_add(
-        1, tris_t3.reshape(-1), (angle[..., None] * unit[..., None, :]).reshape(B, -1, 3))
-    vert_n = per_vertex[:, tris_t3]  # (B, T, 3, 3)
-    return torch.cat([unit[:, :, None], edge_n, vert_n], dim=2)
-
-
-def resolve_sign(sign: str, tris_t3: torch.Tensor, num_vertices: int) -> str:
+def _resolve_sign(sign: str, tris_t3: torch.Tensor, num_vertices: int) -> str:
     """``"auto"`` -> ``"pseudonormal"`` on watertight meshes, else a warning and
     ``"winding"``; other values are validated and returned.
 
     Example:
-        >>> resolve_sign("none", torch.tensor([[0, 1, 2]]), 3)
+        >>> _resolve_sign("none", torch.tensor([[0, 1, 2]]), 3)
         'none'
     """
-    if sign not in ("auto", "pseudonormal", "winding", "none"):
-        raise ValueError(f"sign: expected 'auto', 'pseudonormal', 'winding' or 'none', "
-                         f"got {sign!r}")
+    check_choice(sign, ("auto", "pseudonormal", "winding", "none"), "sign")
     if sign != "auto":
         return sign
     if is_watertight(tris_t3, num_vertices):
@@ -463,7 +226,7 @@ def resolve_sign(sign: str, tris_t3: torch.Tensor, num_vertices: int) -> str:
     return "winding"
 
 
-def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: torch.Tensor,
+def _evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: torch.Tensor,
                  face_ids_bn: torch.Tensor, sign: str, normals_bt73: torch.Tensor | None = None
                  ) -> tuple[torch.Tensor, torch.Tensor]:
     """Exact signed distance and closest point on the given faces, in torch: ``(sdf (B, N),
@@ -475,7 +238,7 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
 
     Example:
         >>> v = torch.eye(3, dtype=torch.float64)[None]
-        >>> sdf, q = evaluate_sdf(v, torch.tensor([[0, 1, 2]]), v.new_zeros(1, 1, 3),
+        >>> sdf, q = _evaluate_sdf(v, torch.tensor([[0, 1, 2]]), v.new_zeros(1, 1, 3),
         ...                       torch.tensor([[0]]), "none")
         >>> sdf
         tensor([[0.5774]], dtype=torch.float64)
@@ -484,9 +247,9 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
     if points_bn3.numel() == 0:  # empty in, empty out (still attached to the inputs)
         empty = points_bn3 * 0 + verts_bv3[:, :1].to(dtype) * 0
         return empty.sum(-1), empty
-    scale = power_of_two_scale(verts_bv3).to(dtype)  # (B, 1, 1)
+    scale = power_of_two_scale(verts_bv3.abs().amax((1, 2), keepdim=True)).to(dtype)  # (B, 1, 1)
     vn, pn = verts_bv3.to(dtype) / scale, points_bn3 / scale
-    tri = gather_triangles(vn, tris_t3, face_ids_bn)  # (B, N, 3, 3)
+    tri = _gather_triangles(vn, tris_t3, face_ids_bn)  # (B, N, 3, 3)
     near = pull_in_far_points(pn)  # the feature as seen from far; measured from pn below
     cp = closest_point_on_triangle(near, tri[..., 0, :], tri[..., 1, :], tri[..., 2, :])
     diff = pn - cp.points
@@ -494,7 +257,7 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
     if sign == "pseudonormal":
         with torch.no_grad():
             if normals_bt73 is None:
-                normals_bt73 = pseudo_normals(gather_triangles(vn.detach(), tris_t3), tris_t3,
+                normals_bt73 = pseudo_normals(_gather_triangles(vn.detach(), tris_t3), tris_t3,
                                               verts_bv3.shape[1])
             B, T = normals_bt73.shape[:2]
             rows = torch.arange(B, device=face_ids_bn.device)[:, None] * (T * 7)
@@ -502,12 +265,12 @@ def evaluate_sdf(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, points_bn3: tor
             table = normals_bt73.to(dtype).reshape(B * T * 7, 3).t()  # (3, B T 7)
             normal = [table[k].index_select(0, flat).reshape(face_ids_bn.shape)
                       for k in range(3)]
-            inside = _dot(diff.detach().unbind(-1), normal) < 0
+            inside = dot3(diff.detach().unbind(-1), normal) < 0
         dist = torch.where(inside, -dist, dist)
     elif sign == "winding":
         with torch.no_grad():
-            tri_all = gather_triangles(vn.detach(), tris_t3)
-            inside = _solid_angles_sum(tri_all, pn.detach(), 1 << 22) > 2.0 * math.pi
+            tri_all = _gather_triangles(vn.detach(), tris_t3)
+            inside = solid_angles_sum(tri_all, pn.detach(), 1 << 22) > 2.0 * math.pi
         dist = torch.where(inside, -dist, dist)
     return dist * scale[..., 0], cp.points * scale
 
@@ -521,7 +284,7 @@ def _cast_result(result: MeshSDFResult, dtype: torch.dtype) -> MeshSDFResult:
 
 
 def mesh_sdf(
-    vertices: torch.Tensor,
+    verts: torch.Tensor,
     faces: torch.Tensor,
     points: torch.Tensor,
     sign: str = "auto",
@@ -535,9 +298,9 @@ def mesh_sdf(
         Negative inside; faces wound counter-clockwise seen from outside. Distances are
         Euclidean and exact up to floating point (the search is exhaustive, not
         approximate). ``sdf`` and ``closest_points`` are differentiable w.r.t. ``points``
-        and ``vertices`` (the face choice and the sign are piecewise constant), also
+        and ``verts`` (the face choice and the sign are piecewise constant), also
         under ``torch.func.vmap``/``jacrev``. Batched meshes share one topology:
-        ``vertices (*, V, 3)`` with ``points (*, N, 3)`` (batch dims broadcast) gives what
+        ``verts (*, V, 3)`` with ``points (*, N, 3)`` (batch dims broadcast) gives what
         a loop over the batch would. Polygon faces ``(F, K)`` padded with ``-1`` are
         fan-triangulated (:func:`~torchgeo_cg.mesh.faces.triangulate_faces`); face ids
         index those triangles. Scale-free: every guard is relative to the mesh's box
@@ -558,9 +321,9 @@ def mesh_sdf(
     ``"auto"`` picks the fastest installed engine, else torch.
 
     Args:
-        vertices: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
+        verts: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
         faces: ``(F, 3)`` (or ``(F, K)`` polygons padded with ``-1``) integer indices
-            into ``vertices``; ``F >= 1``.
+            into ``verts``; ``F >= 1``.
         points: ``(*, N, 3)`` float query points.
         sign: ``"auto"`` (pseudo-normal if watertight, else a warning and winding
             numbers), ``"pseudonormal"``, ``"winding"`` or ``"none"`` (unsigned).
@@ -587,19 +350,17 @@ def mesh_sdf(
         >>> r.sdf, r.face_ids
         (tensor([-0.1000,  2.0000]), tensor([3, 0]))
     """
-    from torchgeo_cg.sdf.engines import resolve_backend
-
-    tris = check_mesh(vertices, faces)
+    tris = check_mesh(verts, faces)
     check_float(points, "points")
     check_shape(points, ["*", "N", "3"], "points")
     if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: computed in float32
         work = working_dtype(points.dtype)
-        return _cast_result(mesh_sdf(vertices.to(work), faces, points.to(work), sign,
+        return _cast_result(mesh_sdf(verts.to(work), faces, points.to(work), sign,
                                     return_closest, backend, progress), points.dtype)
-    sign = resolve_sign(sign, tris, vertices.shape[-2])
+    sign = _resolve_sign(sign, tris, verts.shape[-2])
     engine = resolve_backend(backend)
-    verts_bv3, points_bn3, lead = batch_mesh_points(vertices, points)
-    sdf, closest, face_ids = search_and_evaluate(verts_bv3, tris, points_bn3, engine, sign,
+    verts_bv3, points_bn3, lead = _batch_mesh_points(verts, points)
+    sdf, closest, face_ids = _search_and_evaluate(verts_bv3, tris, points_bn3, engine, sign,
                                                  return_closest, -1, progress)
     return MeshSDFResult(sdf.reshape(lead), closest.reshape(*lead, 3) if return_closest else None,
                          face_ids.reshape(lead) if return_closest else None)
@@ -612,7 +373,7 @@ def _has_far_points(verts_bv3: torch.Tensor, points_bn3: torch.Tensor) -> bool:
     (rare; a cheap check)."""
     if points_bn3.numel() == 0:
         return False
-    scale = power_of_two_scale(verts_bv3.detach()).to(torch.float64)
+    scale = power_of_two_scale(verts_bv3.abs().amax((1, 2), keepdim=True)).to(torch.float64)
     top = (points_bn3.detach().abs().amax(-1) / scale[..., 0]).nan_to_num(0.0)
     try:
         return bool((top > far_radius(torch.float64)).any())
@@ -620,7 +381,7 @@ def _has_far_points(verts_bv3: torch.Tensor, points_bn3: torch.Tensor) -> bool:
         return True
 
 
-def search_and_evaluate(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
+def _search_and_evaluate(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
                         points_bn3: torch.Tensor, engine: str, sign: str,
                         return_closest: bool, key: int, progress: bool):
     """The closest face of every point, then the signed distance on it: ``(sdf (B, N),
@@ -628,11 +389,9 @@ def search_and_evaluate(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
 
     With an engine, a query that needs no gradient and no closest points (and signs by
     pseudo-normals or not at all) is answered by the engine's kernel alone, which
-    evaluates the same formulas as :func:`evaluate_sdf` in float64; otherwise the
+    evaluates the same formulas as :func:`_evaluate_sdf` in float64; otherwise the
     distance is evaluated in torch from the face found, where gradients flow.
     """
-    from torchgeo_cg.sdf.engines import engine_sdf, search_faces
-
     needs_grad = torch.is_grad_enabled() and (verts_bv3.requires_grad
                                               or points_bn3.requires_grad)
     if (engine != "torch" and sign in ("pseudonormal", "none") and not return_closest
@@ -641,7 +400,7 @@ def search_and_evaluate(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
                                    sign == "pseudonormal", key, progress)
         return sdf, None, face_ids
     face_ids = search_faces(verts_bv3, tris_t3, points_bn3, engine, key, progress)
-    sdf, closest = evaluate_sdf(verts_bv3, tris_t3, points_bn3, face_ids, sign)
+    sdf, closest = _evaluate_sdf(verts_bv3, tris_t3, points_bn3, face_ids, sign)
     return sdf, closest, face_ids
 
 
@@ -649,17 +408,17 @@ class MeshSDF(nn.Module):
     """:func:`mesh_sdf` against a fixed mesh, its search structure (the engine's BVH or the
     torch grids) built once and reused by every query.
 
-    The mesh is stored as buffers (``vertices``, ``faces``: the triangles), so the module
+    The mesh is stored as buffers (``verts``, ``faces``: the triangles), so the module
     follows ``.to()``, ``state_dict`` and ``deepcopy``; the structure is rebuilt only when
     the vertices change (new data or an in-place edit) or move.
 
     Convention:
         As :func:`mesh_sdf` (negative inside, outward counter-clockwise faces, same
         defaults, same dtype policy: results have the dtype of the query points).
-        ``vertices`` may be batched ``(*, V, 3)``.
+        ``verts`` may be batched ``(*, V, 3)``.
 
     Args:
-        vertices: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
+        verts: ``(V, 3)`` or ``(*, V, 3)`` float, finite.
         faces: ``(F, K)`` integer (polygons are fan-triangulated).
         sign: as :func:`mesh_sdf` (``"auto"`` is resolved here, once).
         backend: ``"auto"``, ``"torch"`` or an engine name.
@@ -671,23 +430,19 @@ class MeshSDF(nn.Module):
         tensor([-0.1000])
     """
 
-    def __init__(self, vertices: torch.Tensor, faces: torch.Tensor, sign: str = "auto",
+    def __init__(self, verts: torch.Tensor, faces: torch.Tensor, sign: str = "auto",
                  backend: str = "auto") -> None:
         super().__init__()
-        tris = check_mesh(vertices, faces)
-        self.sign = resolve_sign(sign, tris, vertices.shape[-2])
-        from torchgeo_cg.sdf.engines import resolve_backend
-
+        tris = check_mesh(verts, faces)
+        self.sign = _resolve_sign(sign, tris, verts.shape[-2])
         resolve_backend(backend)
         self.backend = backend
-        self.register_buffer("vertices", vertices.detach().clone())
+        self.register_buffer("verts", verts.detach().clone())
         self.register_buffer("faces", tris.clone())
         self._search_key = (None, -1)
 
     @torch.compiler.disable  # bookkeeping (a weakref finalizer), not part of any graph
     def _cache_key(self) -> int:
-        from torchgeo_cg.sdf.engines import new_cache_key
-
         if self._search_key[0] != id(self):  # first use, or a deepcopy
             self._search_key = (id(self), new_cache_key(self))
         return self._search_key[1]
@@ -695,20 +450,18 @@ class MeshSDF(nn.Module):
     def forward(self, points: torch.Tensor, return_closest: bool = False,
                 progress: bool = False) -> MeshSDFResult:
         """Signed distances of ``points (*, N, 3)``: :class:`MeshSDFResult`."""
-        from torchgeo_cg.sdf.engines import resolve_backend
-
         check_float(points, "points")
         check_shape(points, ["*", "N", "3"], "points")
         if working_dtype(points.dtype) != points.dtype:  # float16/bfloat16: in float32
             work = working_dtype(points.dtype)
-            return _cast_result(mesh_sdf(self.vertices.to(work), self.faces, points.to(work),
+            return _cast_result(mesh_sdf(self.verts.to(work), self.faces, points.to(work),
                                         self.sign, return_closest, self.backend, progress),
                                points.dtype)
         engine = resolve_backend(self.backend)
-        verts_bv3, points_bn3, lead = batch_mesh_points(self.vertices, points)
-        same_meshes = verts_bv3.shape[0] == self.vertices.shape[:-2].numel()
+        verts_bv3, points_bn3, lead = _batch_mesh_points(self.verts, points)
+        same_meshes = verts_bv3.shape[0] == self.verts.shape[:-2].numel()
         key = self._cache_key() if same_meshes else -1  # broadcast copies are not cached
-        sdf, closest, face_ids = search_and_evaluate(verts_bv3, self.faces, points_bn3, engine,
+        sdf, closest, face_ids = _search_and_evaluate(verts_bv3, self.faces, points_bn3, engine,
                                                      self.sign, return_closest, key, progress)
         return MeshSDFResult(sdf.reshape(lead),
                              closest.reshape(*lead, 3) if return_closest else None,

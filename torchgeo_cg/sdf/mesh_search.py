@@ -25,8 +25,9 @@ Algorithm (no Python loop over points, faces or batch items):
 Convention:
     Inputs are ``tri (B, F, 3, 3)`` float64 corners and ``points (B, N, 3)`` float64,
     on the CPU, finite, already scaled by a power of two into a unit-sized box (see
-    :func:`power_of_two_scale`): scaling by a power of two is exact, so the face chosen
-    is the one of the unscaled problem, and squared distances cannot overflow.
+    :func:`torchgeo_cg.core.numerics.power_of_two_scale` of the mesh): scaling by a power
+    of two is exact, so the face chosen is the one of the unscaled problem, and squared
+    distances cannot overflow.
 """
 
 from __future__ import annotations
@@ -37,41 +38,9 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-__all__ = [
-    "power_of_two_scale",
-    "far_radius",
-    "pull_in_far_points",
-    "face_table",
-    "pair_d2",
-    "FaceGrid",
-    "TorchSearch",
-    "build_torch_search",
-    "torch_closest_faces",
-]
+from torchgeo_cg.sdf._triangle import face_table, gather_rows, pair_d2
 
-
-def power_of_two_scale(x_bk3: torch.Tensor) -> torch.Tensor:
-    """Per batch item, the power of two at or above the largest absolute coordinate.
-
-    Dividing by it is exact (no rounding) and brings every coordinate into ``[-1, 1]``;
-    an all-zero item gets scale 1. Above the dtype's largest power of two (where the
-    next one would be ``inf``) it is that power, and coordinates land in ``[-2, 2]``.
-
-    Args:
-        x_bk3: ``(B, K, 3)`` finite coordinates.
-
-    Returns:
-        ``(B, 1, 1)`` scales, dtype of ``x_bk3``.
-
-    Example:
-        >>> power_of_two_scale(torch.tensor([[[3.0, -0.1, 0.0]], [[0.0, 0.0, 0.0]]])).flatten()
-        tensor([4., 1.])
-    """
-    big = x_bk3.detach().abs().amax(dim=(1, 2), keepdim=True)
-    _, exponent = torch.frexp(big)  # big = m * 2**e with m in [0.5, 1)
-    top = math.frexp(torch.finfo(big.dtype).max)[1] - 1  # 2**top is the largest finite
-    return torch.where(big > 0, torch.ldexp(torch.ones_like(big), exponent.clamp_max(top)),
-                       torch.ones_like(big))
+__all__: list[str] = []
 
 
 def far_radius(dtype: torch.dtype) -> float:
@@ -112,84 +81,6 @@ def pull_in_far_points(points_bn3: torch.Tensor) -> torch.Tensor:
     return torch.where(far, points_bn3 * (radius / torch.where(far, top, 1.0)), points_bn3)
 
 
-def face_table(tri_f33: torch.Tensor) -> torch.Tensor:
-    """Per-face constants for the float64 search, one row each: ``(24, F)``.
-
-    Rows: v0 (0-2), e0 = v1 - v0 (3-5), e1 = v2 - v0 (6-8), unit normal (9-11, zero if
-    degenerate), d00, d01, d11 (12-14), 1/den, 1/d00, 1/d11, 1/d22 (15-18, zero where
-    the denominator vanishes), d22 (19), centroid (20-22), bounding radius (23); with
-    ``dij = ei . ej``, ``e2 = v2 - v1``, ``den = d00 d11 - d01^2``. Rows (structure of
-    arrays) make every per-pair operation a contiguous 1-D kernel.
-
-    Args:
-        tri_f33: ``(F, 3, 3)`` triangle corners.
-
-    Returns:
-        ``(24, F)`` table.
-
-    Example:
-        >>> face_table(torch.eye(3)[None]).shape
-        torch.Size([24, 1])
-    """
-    v0, v1, v2 = tri_f33.unbind(1)
-    e0, e1, e2 = v1 - v0, v2 - v0, v2 - v1
-    d00, d01, d11, d22 = (e0 * e0).sum(-1), (e0 * e1).sum(-1), (e1 * e1).sum(-1), (e2 * e2).sum(-1)
-    den = d00 * d11 - d01 * d01
-    ok = den > 1e-12 * d00 * d11
-
-    def inv(x, good):
-        return torch.where(good, 1.0 / torch.where(good, x, torch.ones_like(x)),
-                           torch.zeros_like(x))
-
-    n = torch.cross(e0, e1, dim=-1)
-    length = n.norm(dim=-1, keepdim=True)
-    unit = torch.where(ok.unsqueeze(-1), n / torch.where(length > 0, length, 1.0), 0.0)
-    centroid = tri_f33.mean(1)
-    radius = (tri_f33 - centroid[:, None]).norm(dim=-1).amax(-1)
-    cols = [v0, e0, e1, unit,
-            torch.stack([d00, d01, d11, inv(den, ok), inv(d00, d00 > 0), inv(d11, d11 > 0),
-                         inv(d22, d22 > 0), d22], dim=-1),
-            centroid, radius[:, None]]
-    return torch.cat(cols, dim=-1).t().contiguous()
-
-
-def gather_rows(table: torch.Tensor, index: torch.Tensor, rows) -> list[torch.Tensor]:
-    """``[table[k, index] for k in rows]``: one 1-D gather per row (a fixed handful), about
-    twice as fast as ``index_select`` along dim 1 of the 2-D table."""
-    return [table[k].index_select(0, index) for k in rows]
-
-
-def pair_d2(table: torch.Tensor, p_3m: torch.Tensor, f_m: torch.Tensor) -> torch.Tensor:
-    """Squared point-triangle distances of pairs: points ``p_3m (3, M)`` (rows x, y, z) and
-    faces ``f_m (M,)`` (columns of :func:`face_table`); returns ``(M,)``.
-
-    Example:
-        >>> t = face_table(torch.eye(3, dtype=torch.float64)[None])
-        >>> pair_d2(t, torch.tensor([[0.0], [0.0], [0.0]], dtype=torch.float64),
-        ...         torch.tensor([0]))
-        tensor([0.3333], dtype=torch.float64)
-    """
-    g = gather_rows(table, f_m, range(20))
-    wx, wy, wz = p_3m[0] - g[0], p_3m[1] - g[1], p_3m[2] - g[2]
-    dot0 = wx * g[3] + wy * g[4] + wz * g[5]
-    dot1 = wx * g[6] + wy * g[7] + wz * g[8]
-    ww = wx * wx + wy * wy + wz * wz
-    plane = (wx * g[9] + wy * g[10] + wz * g[11]).square()
-    d00, d01, d11, inv_den, inv00, inv11, inv22, d22 = g[12:20]
-    bv = (d11 * dot0 - d01 * dot1) * inv_den
-    bw = (d00 * dot1 - d01 * dot0) * inv_den
-    inside = (inv_den > 0) & (bv >= 0) & (bw >= 0) & (bv + bw <= 1)
-    t = (dot0 * inv00).clamp(0.0, 1.0)
-    best = ww - t * (2.0 * dot0 - t * d00)
-    t = (dot1 * inv11).clamp(0.0, 1.0)
-    best = torch.minimum(best, ww - t * (2.0 * dot1 - t * d11))
-    wb_e2 = dot1 - dot0 - d01 + d00  # (w - e0) . (e1 - e0)
-    wb2 = ww - 2.0 * dot0 + d00  # |w - e0|^2
-    t = (wb_e2 * inv22).clamp(0.0, 1.0)
-    best = torch.minimum(best, wb2 - t * (2.0 * wb_e2 - t * d22))
-    return torch.where(inside, plane, best).clamp_min(0.0)
-
-
 class FaceGrid(NamedTuple):
     """Faces binned into a uniform grid of cell size ``h`` (CSR), each face once, in the
     cell of its bounding-box centre; one block of ``cells`` per mesh: key
@@ -207,14 +98,6 @@ class FaceGrid(NamedTuple):
     faces: torch.Tensor  # (F,) long global face ids, grouped by cell
     box_lo: torch.Tensor  # (B cells, 3) tight box of the boxes of the cell's faces
     box_hi: torch.Tensor  # (B cells, 3)
-
-
-def _cell_coords(key: torch.Tensor, dims: torch.Tensor) -> torch.Tensor:
-    """Linear cell index to ``(i, j, k)``: ``key = (i * Y + j) * Z + k``."""
-    k = key % dims[2]
-    j = (key // dims[2]) % dims[1]
-    i = key // (dims[1] * dims[2])
-    return torch.stack([i, j, k], dim=-1)
 
 
 def _face_grid(fmin: torch.Tensor, fmax: torch.Tensor, item: torch.Tensor, items: int,

@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.coerce import as_tensor_like, check_same_dtype
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype, check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = [
@@ -70,7 +70,8 @@ def union(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tensor
         Negative inside. Exact outside the union, a lower bound of the distance inside.
 
     Args:
-        a, b, *more: ``(*, N)`` signed distances (broadcastable).
+        a, b: ``(*, N)`` signed distances (broadcastable).
+        *more: further ``(*, N)`` signed distances.
 
     Returns:
         ``(*, N)``.
@@ -93,7 +94,8 @@ def intersection(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch
         Negative inside. Exact inside the intersection, a lower bound outside.
 
     Args:
-        a, b, *more: ``(*, N)`` signed distances.
+        a, b: ``(*, N)`` signed distances.
+        *more: further ``(*, N)`` signed distances.
 
     Returns:
         ``(*, N)``.
@@ -199,7 +201,8 @@ def product(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tens
         Inputs negative inside; output is an implicit function, not an SDF.
 
     Args:
-        a, b, *more: ``(*, N)`` implicit values.
+        a, b: ``(*, N)`` implicit values.
+        *more: further ``(*, N)`` implicit values.
 
     Returns:
         ``(*, N)``.
@@ -335,6 +338,7 @@ class Union(nn.Module):
         self.shapes = nn.ModuleList(children)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return union(*(s(points) for s in self.shapes))
 
 
@@ -348,6 +352,7 @@ class Intersection(Union):
     """
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return intersection(*(s(points) for s in self.shapes))
 
 
@@ -365,6 +370,7 @@ class Difference(nn.Module):
         self.a, self.b = a, b
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return difference(self.a(points), self.b(points))
 
 
@@ -384,6 +390,7 @@ class SmoothUnion(nn.Module):
         self.k = nn.Parameter(torch.tensor(float(k), device=device, dtype=dtype))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return smooth_union(self.a(points), self.b(points), self.k)
 
 
@@ -398,6 +405,7 @@ class SmoothIntersection(SmoothUnion):
     """
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return smooth_intersection(self.a(points), self.b(points), self.k)
 
 
@@ -411,6 +419,7 @@ class Product(Union):
     """
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return product(*(s(points) for s in self.shapes))
 
 
@@ -430,6 +439,7 @@ class Translate(nn.Module):
                                    .to(dtype or torch.get_default_dtype()))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return translate(self.shape, self.offset)(points)
 
 
@@ -451,6 +461,7 @@ class Rotate(nn.Module):
         self.register_buffer("world_from_local", world_from_local.clone(), persistent=False)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return rotate(self.shape, self.world_from_local)(points)
 
 
@@ -469,4 +480,5 @@ class Scale(nn.Module):
         self.factor = nn.Parameter(torch.tensor(float(factor), device=device, dtype=dtype))
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return scale(self.shape, self.factor)(points)

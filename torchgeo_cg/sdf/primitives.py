@@ -30,7 +30,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, hypot, safe_div, working_dtype
 
 __all__ = [
@@ -415,6 +415,7 @@ class Sphere(nn.Module):
         self.center = _param([0.0] * dim if center is None else center, dtype, device)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return sphere(points, self.radius, self.center)
 
 
@@ -430,6 +431,7 @@ class Circle(Sphere):
         super().__init__(radius, center, dim=2, device=device, dtype=dtype)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return circle(points, self.radius, self.center)
 
 
@@ -449,6 +451,7 @@ class Box(nn.Module):
         self.center = _param([0.0] * dim if center is None else center, dtype, device)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return box(points, self.half_size, self.radius, self.center)
 
 
@@ -464,6 +467,7 @@ class Rectangle(Box):
         super().__init__(half_size, radius, center, dim=2, device=device, dtype=dtype)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return rectangle(points, self.half_size, self.radius, self.center)
 
 
@@ -484,6 +488,7 @@ class Capsule(nn.Module):
         self.radius = _param(radius, dtype, device)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return capsule(points, self.start, self.end, self.radius)
 
 
@@ -502,6 +507,7 @@ class Plane(nn.Module):
         self.offset = _param(offset, dtype, device)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return plane(points, self.normal, self.offset)
 
 
@@ -521,6 +527,7 @@ class Torus(nn.Module):
         self.exact = exact
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return torus(points, self.major_radius, self.minor_radius, self.exact)
 
 
@@ -539,6 +546,7 @@ class Annulus(nn.Module):
         self.minor_radius = _param(minor_radius, dtype, device)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return annulus(points, self.major_radius, self.minor_radius)
 
 
@@ -556,4 +564,5 @@ class Gyroid(nn.Module):
         self.thickness = _param(thickness, dtype, device)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, points, "points")
         return gyroid(points, self.scale, self.thickness)

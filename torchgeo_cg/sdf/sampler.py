@@ -11,7 +11,7 @@ or the function itself.
 
 Convention:
     - SDF negative inside; points ``(*, N, 3)`` in world units, ``*`` the batch of a
-      mesh given as ``vertices (*, V, 3)`` sharing one topology (no batch for SDF
+      mesh given as ``verts (*, V, 3)`` sharing one topology (no batch for SDF
       functions).
     - Polygon faces (``(F, K)`` padded with ``-1``, e.g. from
       :func:`~torchgeo_cg.mesh.io.load_mesh`) are fan-triangulated with
@@ -41,22 +41,14 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
-from torchgeo_cg.mesh.faces import check_faces, triangulate_faces
+from torchgeo_cg.mesh.faces import check_mesh
 from torchgeo_cg.sdf.engines import resolve_backend
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
-__all__ = [
-    "SDFSamples",
-    "SDFSampler",
-    "sample_mesh_surface",
-    "triangle_mesh",
-    "worker_seed",
-    "save_samples",
-    "load_samples",
-]
+__all__ = ["SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples", "load_samples"]
 
 
 class SDFSamples(NamedTuple):
@@ -69,38 +61,6 @@ class SDFSamples(NamedTuple):
 
     points: torch.Tensor
     sdf: torch.Tensor
-
-
-def triangle_mesh(vertices, faces) -> tuple[torch.Tensor, torch.Tensor]:
-    """Validate a mesh ``(vertices (*, V, 3), faces)`` and return it with triangle faces.
-
-    Convention:
-        Polygons are fan-triangulated (see the module docstring).
-
-    Args:
-        vertices: ``(*, V, 3)`` float, finite.
-        faces: ``(F, 3)`` triangles or ``(F, K)`` polygons padded with ``-1`` (tensor,
-            array or list of index lists).
-
-    Returns:
-        ``vertices`` and ``(T, 3)`` long triangles.
-
-    Example:
-        >>> v, f = triangle_mesh(torch.rand(4, 3), [[0, 1, 2, 3]])
-        >>> f
-        tensor([[0, 1, 2],
-                [0, 2, 3]])
-    """
-    check_float(vertices, "vertices")
-    check_shape(vertices, ["*", "V", "3"], "vertices")
-    faces = check_faces(faces, vertices.shape[-2], "faces", allow_duplicates=True,
-                        allow_degenerate=True)
-    if vertices.shape[-2] == 0 or faces.shape[0] == 0:
-        raise ValueError(f"mesh: expected a non-empty mesh, got {vertices.shape[-2]} vertices "
-                         f"and {faces.shape[0]} faces")
-    if not bool(torch.isfinite(vertices).all()):
-        raise ValueError("vertices: expected finite coordinates, got NaN or inf")
-    return vertices, triangulate_faces(faces).to(vertices.device)
 
 
 def worker_seed(seed: int | None) -> int | None:
@@ -125,7 +85,7 @@ def worker_seed(seed: int | None) -> int | None:
 
 
 def sample_mesh_surface(
-    vertices: torch.Tensor, faces, n: int, generator: torch.Generator | None = None
+    verts: torch.Tensor, faces, n: int, generator: torch.Generator | None = None
 ) -> torch.Tensor:
     """Uniform (area-weighted) random points on a mesh, batched over shared topology.
 
@@ -137,18 +97,18 @@ def sample_mesh_surface(
         are fan-triangulated (module docstring).
 
     Args:
-        vertices: ``(*, V, 3)`` float, finite.
+        verts: ``(*, V, 3)`` float, finite.
         faces: ``(F, 3)`` triangles or ``(F, K)`` padded polygons; each mesh needs a face
             of positive area.
         n: number of points per mesh.
         generator: a CPU ``torch.Generator`` (default: the global one).
 
     Returns:
-        ``(*, n, 3)`` points, dtype and device of ``vertices`` (differentiable w.r.t.
-        ``vertices``; float16/bfloat16 are computed in float32).
+        ``(*, n, 3)`` points, dtype and device of ``verts`` (differentiable w.r.t.
+        ``verts``; float16/bfloat16 are computed in float32).
 
     Raises:
-        ValueError: non-finite vertices, an empty mesh, a mesh without area, bad ``n``.
+        ValueError: non-finite verts, an empty mesh, a mesh without area, bad ``n``.
 
     Example:
         >>> tri = torch.tensor([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -157,10 +117,10 @@ def sample_mesh_surface(
         >>> bool((p[:, 2] == 0).all() and (p[:, 0] + p[:, 1] <= 1).all())
         True
     """
-    vertices, tris = triangle_mesh(vertices, faces)
+    tris = check_mesh(verts, faces, finite=True)
     if isinstance(n, bool) or not isinstance(n, int) or n < 0:
         raise ValueError(f"n: expected a non-negative int, got {n!r}")
-    corners = vertices[..., tris, :]  # (*, T, 3, 3)
+    corners = verts[..., tris, :]  # (*, T, 3, 3)
     with torch.no_grad():
         c64 = corners.detach().double().cpu()
         area = torch.linalg.cross(c64[..., 1, :] - c64[..., 0, :],
@@ -168,15 +128,15 @@ def sample_mesh_surface(
         if not bool((area.amax(-1) > 0).all()):
             raise ValueError("faces: expected at least one face with positive area per mesh")
         cdf = area.cumsum(-1)
-        r = torch.rand(*vertices.shape[:-2], n, 3, generator=generator, dtype=torch.float64)
+        r = torch.rand(*verts.shape[:-2], n, 3, generator=generator, dtype=torch.float64)
         target = r[..., 0] * cdf[..., -1:]
         face = torch.searchsorted(cdf, target, right=True).clamp_max(tris.shape[0] - 1)
         s = r[..., 1].sqrt()
         w = torch.stack([1 - s, s * (1 - r[..., 2]), s * r[..., 2]], dim=-1)
-    face = face.to(vertices.device)
+    face = face.to(verts.device)
     picked = torch.gather(corners, -3, face[..., None, None].expand(*face.shape, 3, 3))
-    picked = picked.to(working_dtype(vertices.dtype))  # float16/bfloat16: in float32
-    return cast_back((w.to(picked).unsqueeze(-1) * picked).sum(-2), vertices.dtype)
+    picked = picked.to(working_dtype(verts.dtype))  # float16/bfloat16: in float32
+    return cast_back((w.to(picked).unsqueeze(-1) * picked).sum(-2), verts.dtype)
 
 
 def _parse_bounds(bounds) -> torch.Tensor:
@@ -209,12 +169,12 @@ def _mesh_source(source):
     elif hasattr(source, "verts") and hasattr(source, "faces"):
         verts, faces = source.verts, source.faces
     else:
-        raise TypeError("source: expected an SDF callable, a (vertices, faces) pair or "
+        raise TypeError("source: expected an SDF callable, a (verts, faces) pair or "
                         f"a mesh object, got {type(source).__name__}")
     verts = verts if isinstance(verts, torch.Tensor) else torch.as_tensor(np.asarray(verts))
     if not isinstance(faces, torch.Tensor) and not isinstance(faces, list):
         faces = torch.as_tensor(np.asarray(faces))
-    return triangle_mesh(verts, faces)
+    return verts, check_mesh(verts, faces, finite=True)
 
 
 class SDFSampler:
@@ -226,7 +186,7 @@ class SDFSampler:
 
     Args:
         source: an SDF callable ``(M, 3) -> (M,)`` (function or ``nn.Module``), or a
-            mesh as ``(vertices (*, V, 3), faces)`` (triangles or padded polygons, e.g. a
+            mesh as ``(verts (*, V, 3), faces)`` (triangles or padded polygons, e.g. a
             :class:`~torchgeo_cg.mesh.io.Mesh` from ``load_mesh``) or any object with
             ``.vertices`` and ``.faces`` arrays (e.g. ``trimesh.Trimesh``).
         bounds: box for uniform samples, ``(lo, hi)``, ``((x0, y0, z0), (x1, y1, z1))`` or
@@ -257,21 +217,28 @@ class SDFSampler:
                  uniform_fraction: float = 0.06, balanced: bool = False,
                  clamp: float | None = None, seed: int | None = None, sign: str = "auto",
                  backend: str = "auto", device=None, dtype=None):
-        self.vertices: torch.Tensor | None = None
+        self.verts: torch.Tensor | None = None
         self.faces: torch.Tensor | None = None
         self.sdf_fn: Callable | None = None
         kind_dtype, kind_device = None, None
         if callable(source) and not hasattr(source, "faces"):
             self.sdf_fn = source
         else:
-            self.vertices, self.faces = _mesh_source(source)
-            kind_dtype, kind_device = self.vertices.dtype, self.vertices.device
+            self.verts, self.faces = _mesh_source(source)
+            kind_dtype, kind_device = self.verts.dtype, self.verts.device
         self.dtype = dtype or kind_dtype or torch.get_default_dtype()
         self.device = torch.device(device) if device is not None else (
             kind_device or torch.device("cpu"))
         if bounds is None:
-            bounds = (-1.0, 1.0) if self.vertices is None else self._mesh_bounds()
+            bounds = (-1.0, 1.0) if self.verts is None else self._mesh_bounds()
         self.bounds = _parse_bounds(bounds)  # (*, 2, 3) float64 CPU
+        if self.sdf_fn is not None and self.bounds.dim() != 2:
+            raise ShapeError(f"bounds: expected one box (2, 3) for an SDF callable (one box "
+                             f"per mesh needs a batch of meshes), got {tuple(self.bounds.shape)}")
+        if check_broadcastable({"vertices": self.batch_shape,
+                                "bounds": self.bounds.shape[:-2]}) != self.batch_shape:
+            raise ShapeError(f"bounds: expected at most one box per mesh, got "
+                             f"{tuple(self.bounds.shape)} for meshes {self.batch_shape}")
         self.variances = _validate_options(variances, uniform_fraction, clamp)
         self.uniform_fraction = float(uniform_fraction)
         self.balanced = bool(balanced)
@@ -289,10 +256,10 @@ class SDFSampler:
     @property
     def batch_shape(self) -> tuple[int, ...]:
         """Leading batch dims of the mesh vertices (``()`` for functions)."""
-        return () if self.vertices is None else tuple(self.vertices.shape[:-2])
+        return () if self.verts is None else tuple(self.verts.shape[:-2])
 
     def _mesh_bounds(self) -> torch.Tensor:
-        verts = self.vertices.detach().double().cpu()
+        verts = self.verts.detach().double().cpu()
         lo, hi = verts.amin(-2), verts.amax(-2)
         pad = 0.1 * (hi - lo).amax(-1, keepdim=True)
         return torch.stack([lo - pad, hi + pad], dim=-2)
@@ -332,7 +299,7 @@ class SDFSampler:
                                  f"{tuple(pts.shape[:-1])}, got "
                                  f"{getattr(values, 'shape', type(values))}")
             return cast_back(values.to(working_dtype(self.dtype)), self.dtype)
-        verts = self.vertices.to(self.device, self.dtype)
+        verts = self.verts.to(self.device, self.dtype)
         with torch.no_grad():
             return mesh_sdf(verts, self.faces.to(self.device), pts, sign=self.sign,
                             backend=self.backend).sdf
@@ -348,7 +315,7 @@ class SDFSampler:
         """
         self._check_worker()
         if self.sdf_fn is None:
-            verts = self.vertices.detach().cpu().double()
+            verts = self.verts.detach().cpu().double()
             return sample_mesh_surface(verts, self.faces.cpu(), n, self.generator)
         return self._function_surface_points(n)
 

@@ -1,6 +1,7 @@
-"""Homogeneous 2D transforms, articulated scene graphs and transform estimation."""
+"""Homogeneous 2D and 3D transforms, rotations, articulated scene graphs and estimation."""
 
-from torchgeo_cg.transforms._correspondences import HomographyFit
+from torchgeo_cg.transforms import rotations
+from torchgeo_cg.transforms._correspondences import TransformFit
 from torchgeo_cg.transforms.correspondences import (
     HartleyNormalization,
     hartley_normalize,
@@ -44,6 +45,32 @@ from torchgeo_cg.transforms.report_shapes import (
     report_shapes,
 )
 from torchgeo_cg.transforms.robust import robust_loss, robust_weights
+from torchgeo_cg.transforms.rotations import (
+    axis_angle_to_matrix,
+    axis_angle_to_quaternion,
+    euler_to_matrix,
+    matrix_to_axis_angle,
+    matrix_to_euler,
+    matrix_to_quaternion,
+    matrix_to_rotation_6d,
+    quaternion_apply,
+    quaternion_conjugate,
+    quaternion_multiply,
+    quaternion_slerp,
+    quaternion_to_axis_angle,
+    quaternion_to_matrix,
+    random_rotations,
+    rotation_6d_to_matrix,
+    rotation_angle,
+    rotation_mean,
+    se3_exp,
+    se3_log,
+    so3_exp,
+    so3_hat,
+    so3_left_jacobian,
+    so3_left_jacobian_inverse,
+    so3_log,
+)
 from torchgeo_cg.transforms.scene_graph import (
     FixedTransform,
     Orbit,
@@ -56,7 +83,7 @@ __all__ = [
     "AffineDecomposition",
     "FitResult",
     "HartleyNormalization",
-    "HomographyFit",
+    "TransformFit",
     "HomographyModel",
     "RegistrationResult",
     "ReportShapes",
@@ -79,6 +106,31 @@ __all__ = [
     "reprojection_error",
     "robust_loss",
     "robust_weights",
+    "rotations",
+    "axis_angle_to_matrix",
+    "axis_angle_to_quaternion",
+    "euler_to_matrix",
+    "matrix_to_axis_angle",
+    "matrix_to_euler",
+    "matrix_to_quaternion",
+    "matrix_to_rotation_6d",
+    "quaternion_apply",
+    "quaternion_conjugate",
+    "quaternion_multiply",
+    "quaternion_slerp",
+    "quaternion_to_axis_angle",
+    "quaternion_to_matrix",
+    "random_rotations",
+    "rotation_6d_to_matrix",
+    "rotation_angle",
+    "rotation_mean",
+    "se3_exp",
+    "se3_log",
+    "so3_exp",
+    "so3_hat",
+    "so3_left_jacobian",
+    "so3_left_jacobian_inverse",
+    "so3_log",
     "warp_image",
     "WarpedImage",
     "FixedTransform",

@@ -16,12 +16,6 @@ from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
 
 
-def check_choice(value: str, choices, name: str) -> str:
-    if value not in choices:
-        raise ValueError(f"{name}: expected one of {sorted(choices)}, got {value!r}")
-    return value
-
-
 class HartleyNormalization(NamedTuple):
     """Result of :func:`hartley_normalize`.
 
@@ -38,20 +32,25 @@ class HartleyNormalization(NamedTuple):
     scale: torch.Tensor
 
 
-class HomographyFit(NamedTuple):
-    """Result of :func:`find_homography_dlt`.
+class TransformFit(NamedTuple):
+    """Result of the closed-form estimators (:func:`find_homography_dlt`, :func:`find_affine`,
+    :func:`find_similarity`, :func:`find_euclidean`, :func:`find_translation`).
 
     Attributes:
-        matrix: ``(*, 3, 3)`` ``dst_from_src``, scaled so ``matrix[..., 2, 2] = 1``
-            (or to unit Frobenius norm where ``|h33|`` is tiny).
-        rank_ok: ``(*)`` bool, False for degenerate problems (fewer than 4 points
-            with positive weight, collinear/coincident points, or a singular fit).
-        condition: ``(*)`` estimated condition of the normalized DLT system
-            ``σ_max / σ_8``, the largest singular value of the (trace-normalized)
-            DLT matrix over its second smallest; the estimate lies between 1 and 3
-            times the true ratio (exact for problems solved by ``eigh`` or SVD).
-            Large means ill-posed (the solution is not unique to working
-            precision); always finite.
+        matrix: ``(*, 3, 3)`` (2D) or ``(*, 4, 4)`` (3D) ``dst_from_src``; a
+            homography is scaled so ``matrix[..., 2, 2] = 1`` (or to unit Frobenius
+            norm where ``|h33|`` is tiny).
+        rank_ok: ``(*)`` bool, False for degenerate problems, where the model is
+            not determined by the points (too few points with positive weight,
+            collinear or coincident points, coplanar points where the model needs
+            more, a singular fit). The matrix is finite there, never NaN.
+        condition: ``(*)`` the conditioning of the problem, ``>= 1``, always finite
+            (the dtype's largest value stands for an infinite one); large means
+            ill-posed. Homography: ``σ_max / σ_8`` of the normalized DLT matrix
+            (estimated within a factor 3). Affine: ``λ_max / λ_min`` of the source
+            covariance. Euclidean and similarity in 3D: the spread of Horn's
+            4x4 matrix over the gap of its chosen eigenvalue; in 2D
+            ``Σ w |p̃||q̃| / |Σ w (p̃·q̃, p̃×q̃)|``. Translation: 1.
     """
 
     matrix: torch.Tensor
@@ -60,19 +59,25 @@ class HomographyFit(NamedTuple):
 
 
 def check_points_nonempty(points: torch.Tensor, name: str) -> None:
-    """ShapeError naming ``name`` when ``points`` (*, N, 2) has N = 0 (nothing to fit)."""
+    """ShapeError naming ``name`` when ``points`` (*, N, D) has N = 0 (nothing to fit)."""
     if points.shape[-2] == 0:
         raise ShapeError(
-            f"{name}: expected (*, N, 2) with N >= 1 (a transform of zero points is "
-            f"undefined), got {tuple(points.shape)}"
+            f"{name}: expected (*, N, {points.shape[-1]}) with N >= 1 (a transform of zero "
+            f"points is undefined), got {tuple(points.shape)}"
         )
 
 
-def check_pair(src: torch.Tensor, dst: torch.Tensor, weights: torch.Tensor | None):
-    """Validate a correspondence set; returns ``weights`` cast to ``src``'s dtype (or None)."""
-    sizes = check_shape(src, ["*", "N", "2"], "src")
+def check_pair(src: torch.Tensor, dst: torch.Tensor, weights: torch.Tensor | None,
+               dims: tuple[int, ...] = (2,)):
+    """Validate a correspondence set of dimension in ``dims``; returns ``weights`` cast to
+    ``src``'s dtype (or None)."""
+    check_shape(src, ["*", "N", "D"], "src")
+    if src.shape[-1] not in dims:
+        options = " or ".join(f"(*, N, {d})" for d in dims)
+        raise ShapeError(f"src: expected shape {options}, got {tuple(src.shape)}")
+    sizes = check_shape(src, ["*", "N", str(src.shape[-1])], "src")
     check_float(src, "src")
-    check_shape(dst, ["*", "N", "2"], "dst", sizes={"N": sizes["N"]})
+    check_shape(dst, ["*", "N", str(src.shape[-1])], "dst", sizes={"N": sizes["N"]})
     check_float(dst, "dst")
     if src.shape != dst.shape:
         raise ShapeError(
@@ -100,11 +105,30 @@ def to_working(*tensors: torch.Tensor | None) -> tuple:
     return tuple(None if t is None else t.to(working_dtype(t.dtype)) for t in tensors)
 
 
+def pow2_normalize(w: torch.Tensor, dim: int) -> torch.Tensor:
+    """Non-negative weights scaled by a power of two so their largest is in [0.5, 1).
+
+    Weights are relative: the scaling is exact, so every fit is the same for any
+    positive scale of the weights (1e-300 or 1e300 included), with no overflow.
+    Negative weights count as 0; NaN stays NaN; an all-zero set is left as it is.
+    """
+    w = torch.where(w < 0, torch.zeros_like(w), w)  # NaN stays NaN
+    if w.shape[dim] == 0:
+        return w
+    top = w.detach().amax(dim, keepdim=True)
+    ok = (top > 0) & torch.isfinite(top)
+    _, exponent = torch.frexp(torch.where(ok, top, torch.ones_like(top)))
+    # an exact power of two (torch.ldexp has no gradient): 2^-e times w
+    factor = torch.exp2(torch.where(ok, -exponent, torch.zeros_like(exponent)).to(w.dtype))
+    return w * factor
+
+
 def effective_weights(points: torch.Tensor, weights: torch.Tensor | None) -> torch.Tensor:
-    """(*, N) non-negative weights; an all-zero (or absent) set becomes all ones."""
+    """(*, N) non-negative weights, scaled exactly to a largest in [0.5, 1); an all-zero
+    (or absent) set becomes all ones."""
     if weights is None:
         return torch.ones_like(points[..., 0])
-    w = torch.where(weights < 0, torch.zeros_like(weights), weights)  # NaN stays NaN
+    w = pow2_normalize(weights, -1)
     total = w.sum(-1, keepdim=True)
     return torch.where(total == 0, torch.ones_like(w), w)
 

@@ -29,10 +29,9 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms._correspondences import (
-    check_choice,
     check_pair,
     check_points_nonempty,
     effective_weights,
@@ -182,6 +181,9 @@ def fit_transform(
         raise ValueError(f"steps: expected a non-negative int, got {steps!r}")
     lr = _DEFAULT_LR[optimizer] if lr is None else float(lr)
     tol = 1000 * torch.finfo(src.dtype).eps if tol is None else float(tol)
+    if not (math.isfinite(tol) and tol >= 0):
+        raise ValueError(f"tol: expected a finite number >= 0 (a relative improvement), "
+                         f"got {tol!r}")
     batch, n = src.shape[:-2], src.shape[-2]
     p_in, q_in = src.reshape(-1, n, 2), dst.reshape(-1, n, 2)
     w = effective_weights(p_in, None if weights is None else weights.reshape(-1, n))

@@ -1,10 +1,15 @@
-"""Homogeneous 2D transforms as batched 3x3 matrices (report section 2.1-2.2, Tables 1-2).
+"""Homogeneous transforms as batched 3x3 (2D) and 4x4 (3D) matrices (report section 2.1-2.2).
+
+:func:`translation`, :func:`compose`, :func:`transform_points` and :func:`inverse`
+take both: ``(*, 3, 3)`` matrices with ``(*, N, 2)`` points, or ``(*, 4, 4)``
+matrices with ``(*, N, 3)`` points. The other builders are 2D only (3D rotations
+are in :mod:`torchgeo_cg.transforms.rotations`).
 
 Convention:
     - Column vectors: a point ``p = (x, y)`` maps to ``p' = M @ [x, y, 1]^T``
       followed by the perspective divide, as in kornia. Row-vector users multiply
       ``[x, y, 1] @ M^T`` (report eq. 4); :func:`compose_trs` builds either form.
-    - Coordinates are ``(x, y)`` in that order, y pointing up; positive angles
+    - Coordinates are ``(x, y)`` (``(x, y, z)`` in 3D) in that order, y pointing up; positive angles
       rotate counter-clockwise. Angles are in degrees unless ``degrees=False``.
     - ``compose(A, B, C) = A @ B @ C``: the right-most matrix acts first.
     - Every function is batched over leading dimensions ``(*)`` (broadcast between
@@ -26,7 +31,14 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import (
+    ShapeError,
+    check_broadcastable,
+    check_float,
+    check_shape,
+    check_tensor,
+    format_shape,
+)
 from torchgeo_cg.core.coerce import as_tensor_like, check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, clamp_away_from_zero, working_dtype
 
@@ -51,26 +63,48 @@ def _from_rows(m00, m01, m02, m10, m11, m12, m20, m21, m22) -> torch.Tensor:
     return torch.stack(entries, dim=-1).unflatten(-1, (3, 3))
 
 
+def _dim(x: torch.Tensor, name: str, allowed: tuple[int, ...], square: bool) -> int:
+    """The size of ``x``'s last axis when it is one of ``allowed`` (and the matrix is
+    square when ``square``), else ShapeError naming ``name`` and both patterns."""
+    check_tensor(x, name)
+    ok = x.ndim >= (2 if square else 1) and x.shape[-1] in allowed
+    if ok and square:
+        ok = x.shape[-2] == x.shape[-1]
+    if not ok:
+        patterns = " or ".join(format_shape(["*", a, a] if square else ["*", a])
+                               for a in allowed)
+        raise ShapeError(f"{name}: expected shape {patterns}, got {format_shape(tuple(x.shape))}")
+    return x.shape[-1]
+
+
 def translation(offset: torch.Tensor) -> torch.Tensor:
     """Translation matrix ``T(a, b) = [[1, 0, a], [0, 1, b], [0, 0, 1]]`` (report Table 1).
 
+    A 3D offset ``(a, b, c)`` gives the ``(*, 4, 4)`` matrix ``[[I, t], [0, 1]]``.
+
     Convention:
-        Column vectors; ``offset = (a, b)`` in (x, y) order.
+        Column vectors; ``offset = (a, b)`` in (x, y) order, ``(a, b, c)`` in (x, y, z).
 
     Args:
-        offset: ``(*, 2)`` float tensor (or a numpy array / sequence of numbers).
+        offset: ``(*, 2)`` or ``(*, 3)`` float tensor (or a numpy array / sequence of numbers).
 
     Returns:
-        ``(*, 3, 3)`` matrices.
+        ``(*, 3, 3)`` matrices, ``(*, 4, 4)`` for a 3D offset.
 
     Example:
         >>> translation(torch.tensor([5.0, 1.0]))
         tensor([[1., 0., 5.],
                 [0., 1., 1.],
                 [0., 0., 1.]])
+        >>> translation(torch.tensor([1.0, 2.0, 3.0]))[:3, 3]
+        tensor([1., 2., 3.])
     """
     offset = as_tensor_like(offset, None, "offset")
-    check_shape(offset, ["*", "2"], "offset")
+    if _dim(offset, "offset", (2, 3), square=False) == 3:
+        eye = torch.eye(4, dtype=offset.dtype, device=offset.device)
+        out = eye.expand(*offset.shape[:-1], 4, 4).clone()
+        out[..., :3, 3] = offset
+        return out
     one, zero = torch.ones_like(offset[..., 0]), torch.zeros_like(offset[..., 0])
     return _from_rows(one, zero, offset[..., 0], zero, one, offset[..., 1], zero, zero, one)
 
@@ -248,7 +282,8 @@ def homography(h: torch.Tensor) -> torch.Tensor:
 
 
 def _check_matrix(m: torch.Tensor, name: str) -> torch.Tensor:
-    check_shape(m, ["*", "3", "3"], name)
+    """A float ``(*, 3, 3)`` or ``(*, 4, 4)`` matrix, else ShapeError naming ``name``."""
+    _dim(m, name, (3, 4), square=True)
     return check_float(m, name)
 
 
@@ -258,13 +293,14 @@ def compose(*matrices: torch.Tensor) -> torch.Tensor:
     Convention:
         Column vectors, so the right-most matrix acts first: the report's
         ``T·S·R`` (eq. 3) is ``compose(T, S, R)``. Batch dims broadcast. All
-        matrices share one dtype and device (else ``TypeError`` naming two of them).
+        matrices share one dtype and device (else ``TypeError`` naming two of them)
+        and one size: all 3x3 (2D) or all 4x4 (3D).
 
     Args:
-        *matrices: one or more ``(*, 3, 3)`` tensors.
+        *matrices: one or more ``(*, 3, 3)`` or ``(*, 4, 4)`` tensors.
 
     Returns:
-        ``(*, 3, 3)``, the broadcast product.
+        ``(*, 3, 3)`` or ``(*, 4, 4)``, the broadcast product.
 
     Example:
         >>> m = compose(translation(torch.tensor([1.0, 0.0])), scaling(2.0))
@@ -274,6 +310,9 @@ def compose(*matrices: torch.Tensor) -> torch.Tensor:
     if len(matrices) == 0:
         raise ValueError("compose: expected at least one matrix, got none")
     named = {f"matrices[{i}]": _check_matrix(m, f"matrices[{i}]") for i, m in enumerate(matrices)}
+    size = matrices[0].shape[-1]
+    for name, m in named.items():
+        check_shape(m, ["*", str(size), str(size)], name)  # one size for all
     check_broadcastable({name: m.shape[:-2] for name, m in named.items()})
     dtype = check_same_dtype(named).dtype
     work = working_dtype(dtype)
@@ -337,15 +376,17 @@ def compose_trs(
 def transform_points(
     matrix: torch.Tensor, points: torch.Tensor, eps: float | None = None
 ) -> torch.Tensor:
-    """Apply homogeneous ``matrix`` to 2D ``points``, with the perspective divide.
+    """Apply homogeneous ``matrix`` to 2D or 3D ``points``, with the perspective divide.
 
-    ``[x', y', w]ᵀ = M [x, y, 1]ᵀ`` and the result is ``(x'/w, y'/w)``.
+    ``[x', y', w]ᵀ = M [x, y, 1]ᵀ`` and the result is ``(x'/w, y'/w)``; in 3D
+    ``[x', y', z', w]ᵀ = M [x, y, z, 1]ᵀ`` and the result is ``(x', y', z') / w``.
 
     Convention:
         Column vectors as in kornia's ``transform_points(trans_01, points_1)``;
         equal to it wherever ``w`` is not numerically zero. ``w`` counts as zero
         below the rounding error of the bottom row, ``|w| < bound`` with
-        ``bound = finfo(dtype).eps * (|m20| + |m21| + |m22|)`` (relative, so the
+        ``bound = finfo(dtype).eps * (|m20| + |m21| + |m22|)`` (the bottom row's
+        four entries in 3D; relative, so the
         same at every scale of the points and of the matrix); there we divide by
         ``±bound`` (sign of ``w`` kept, ``+`` at exactly 0) instead of leaving the
         point undivided as kornia does: the output is huge but finite, forward and
@@ -353,28 +394,33 @@ def transform_points(
         NaN out. float16/bfloat16 are computed in float32 and saturate on return.
 
     Args:
-        matrix: ``(*, 3, 3)`` float transforms.
-        points: ``(*, N, 2)`` float points, same dtype and device as ``matrix``.
+        matrix: ``(*, 3, 3)`` or ``(*, 4, 4)`` float transforms.
+        points: ``(*, N, 2)`` (or ``(*, N, 3)`` with a 4x4 matrix) float points, same
+            dtype and device as ``matrix``.
         eps: ``None`` (default) for the relative bound above; a number is the
             legacy absolute bound on ``|w|``.
 
     Returns:
-        ``(*, N, 2)`` transformed points.
+        ``(*, N, 2)`` (or ``(*, N, 3)``) transformed points.
 
     Example:
         >>> h = homography(torch.tensor([1.0, 0, 0, 0, 1, 0, 0.5, 0]))
         >>> transform_points(h, torch.tensor([[2.0, 4.0], [-2.0, 1.0]]))
         tensor([[ 1.0000e+00,  2.0000e+00],
                 [-1.1185e+07,  5.5924e+06]])
+        >>> transform_points(translation(torch.tensor([1.0, 2.0, 3.0])), torch.zeros(1, 3))
+        tensor([[1., 2., 3.]])
     """
     _check_matrix(matrix, "matrix")
-    check_shape(points, ["*", "N", "2"], "points")
+    check_shape(points, ["*", "N", str(matrix.shape[-1] - 1)], "points")
     check_float(points, "points")
     check_broadcastable({"matrix": matrix.shape[:-2], "points": points.shape[:-2]})
     check_same_dtype({"points": points, "matrix": matrix})
     dtype = points.dtype
     work = working_dtype(dtype)
     matrix, points = matrix.to(work), points.to(work)
+    if matrix.shape[-1] == 4:
+        return cast_back(_transform_points_3d(matrix, points, eps, dtype), dtype)
     # Written out entry by entry: a (N,2)@(2,3) matmul is memory-bound and slower,
     # and the elementwise form keeps backward cheap. m_rc is (*, 1), x and y are (*, N).
     x, y = points[..., 0], points[..., 1]
@@ -393,8 +439,67 @@ def transform_points(
     return cast_back(out, dtype)
 
 
+def _transform_points_3d(matrix, points, eps, dtype) -> torch.Tensor:
+    """(*, 4, 4) matrices on (*, N, 3) points, the divide guarded as in 2D."""
+    h = points @ matrix[..., :, :3].mT + matrix[..., None, :, 3]  # (*, N, 4)
+    bottom = matrix[..., 3:, :]  # (*, 1, 4)
+    if eps is None:  # the rounding error of w, per matrix: (*, 1)
+        eps = torch.finfo(dtype).eps * bottom.detach().abs().sum(-1)
+    w = clamp_away_from_zero(h[..., 3], eps)  # (*, N)
+    return h[..., :3] / w[..., None]
+
+
+def _adjugate4(m: torch.Tensor):
+    """Adjugate (*, 4, 4) and determinant (*) of (*, 4, 4) by 2x2 minors (Laplace)."""
+    a = [[m[..., r, c] for c in range(4)] for r in range(4)]
+    s0 = a[0][0] * a[1][1] - a[1][0] * a[0][1]
+    s1 = a[0][0] * a[1][2] - a[1][0] * a[0][2]
+    s2 = a[0][0] * a[1][3] - a[1][0] * a[0][3]
+    s3 = a[0][1] * a[1][2] - a[1][1] * a[0][2]
+    s4 = a[0][1] * a[1][3] - a[1][1] * a[0][3]
+    s5 = a[0][2] * a[1][3] - a[1][2] * a[0][3]
+    c5 = a[2][2] * a[3][3] - a[3][2] * a[2][3]
+    c4 = a[2][1] * a[3][3] - a[3][1] * a[2][3]
+    c3 = a[2][1] * a[3][2] - a[3][1] * a[2][2]
+    c2 = a[2][0] * a[3][3] - a[3][0] * a[2][3]
+    c1 = a[2][0] * a[3][2] - a[3][0] * a[2][2]
+    c0 = a[2][0] * a[3][1] - a[3][0] * a[2][1]
+    det = s0 * c5 - s1 * c4 + s2 * c3 + s3 * c2 - s4 * c1 + s5 * c0
+    adj = [
+        a[1][1] * c5 - a[1][2] * c4 + a[1][3] * c3,
+        -a[0][1] * c5 + a[0][2] * c4 - a[0][3] * c3,
+        a[3][1] * s5 - a[3][2] * s4 + a[3][3] * s3,
+        -a[2][1] * s5 + a[2][2] * s4 - a[2][3] * s3,
+        -a[1][0] * c5 + a[1][2] * c2 - a[1][3] * c1,
+        a[0][0] * c5 - a[0][2] * c2 + a[0][3] * c1,
+        -a[3][0] * s5 + a[3][2] * s2 - a[3][3] * s1,
+        a[2][0] * s5 - a[2][2] * s2 + a[2][3] * s1,
+        a[1][0] * c4 - a[1][1] * c2 + a[1][3] * c0,
+        -a[0][0] * c4 + a[0][1] * c2 - a[0][3] * c0,
+        a[3][0] * s4 - a[3][1] * s2 + a[3][3] * s0,
+        -a[2][0] * s4 + a[2][1] * s2 - a[2][3] * s0,
+        -a[1][0] * c3 + a[1][1] * c1 - a[1][2] * c0,
+        a[0][0] * c3 - a[0][1] * c1 + a[0][2] * c0,
+        -a[3][0] * s3 + a[3][1] * s1 - a[3][2] * s0,
+        a[2][0] * s3 - a[2][1] * s1 + a[2][2] * s0,
+    ]
+    return torch.stack(adj, dim=-1).unflatten(-1, (4, 4)), det
+
+
+def _adjugate3(matrix: torch.Tensor):
+    """Adjugate (*, 3, 3) and determinant (*) of (*, 3, 3) by cofactors."""
+    a, b, c = matrix[..., 0, 0], matrix[..., 0, 1], matrix[..., 0, 2]
+    d, e, f = matrix[..., 1, 0], matrix[..., 1, 1], matrix[..., 1, 2]
+    g, h, i = matrix[..., 2, 0], matrix[..., 2, 1], matrix[..., 2, 2]
+    # cofactors: adj(M)[r, c] = cofactor(M)[c, r]
+    A, B, C = e * i - f * h, -(d * i - f * g), d * h - e * g
+    D, E, F = -(b * i - c * h), a * i - c * g, -(a * h - b * g)
+    G, H, I = b * f - c * e, -(a * f - c * d), a * e - b * d
+    return _from_rows(A, D, G, B, E, H, C, F, I), a * A + b * B + c * C
+
+
 def inverse(matrix: torch.Tensor, eps: float | None = None) -> torch.Tensor:
-    """Inverse of homogeneous 3x3 matrices by the adjugate, ``M⁻¹ = adj(M) / det(M)``.
+    """Inverse of homogeneous 3x3 or 4x4 matrices by the adjugate, ``M⁻¹ = adj(M) / det(M)``.
 
     Convention:
         Closed form, batched and differentiable, exact at every scale (no
@@ -406,12 +511,12 @@ def inverse(matrix: torch.Tensor, eps: float | None = None) -> torch.Tensor:
         float16/bfloat16 are computed in float32 and saturate on return.
 
     Args:
-        matrix: ``(*, 3, 3)`` float tensor.
+        matrix: ``(*, 3, 3)`` or ``(*, 4, 4)`` float tensor.
         eps: ``None`` (default) as above; a number is the legacy absolute bound on
             ``|det|`` (clamped to ``±eps``).
 
     Returns:
-        ``(*, 3, 3)`` inverses.
+        ``(*, 3, 3)`` or ``(*, 4, 4)`` inverses.
 
     Example:
         >>> m = compose_trs(torch.tensor([2.0, 1.0]), 30.0, 2.0)
@@ -423,15 +528,7 @@ def inverse(matrix: torch.Tensor, eps: float | None = None) -> torch.Tensor:
     _check_matrix(matrix, "matrix")
     dtype = matrix.dtype
     matrix = matrix.to(working_dtype(dtype))
-    a, b, c = matrix[..., 0, 0], matrix[..., 0, 1], matrix[..., 0, 2]
-    d, e, f = matrix[..., 1, 0], matrix[..., 1, 1], matrix[..., 1, 2]
-    g, h, i = matrix[..., 2, 0], matrix[..., 2, 1], matrix[..., 2, 2]
-    # cofactors: adj(M)[r, c] = cofactor(M)[c, r]
-    A, B, C = e * i - f * h, -(d * i - f * g), d * h - e * g
-    D, E, F = -(b * i - c * h), a * i - c * g, -(a * h - b * g)
-    G, H, I = b * f - c * e, -(a * f - c * d), a * e - b * d
-    det = a * A + b * B + c * C
-    adj = _from_rows(A, D, G, B, E, H, C, F, I)
+    adj, det = _adjugate4(matrix) if matrix.shape[-1] == 4 else _adjugate3(matrix)
     if eps is None:
         size = matrix.detach().abs().amax((-2, -1)) * adj.detach().abs().amax((-2, -1))
         eps = torch.finfo(dtype).eps * size  # (*)

@@ -14,7 +14,12 @@ import math
 import torch
 
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
-from torchgeo_cg.transforms._correspondences import HomographyFit, check_pair, hartley_last
+from torchgeo_cg.transforms._correspondences import (
+    TransformFit,
+    check_pair,
+    hartley_last,
+    pow2_normalize,
+)
 from torchgeo_cg.transforms._dlt import (
     adjugate3,
     dlt_moments,
@@ -35,7 +40,7 @@ def find_homography_dlt(
     double: bool = True,
     max_condition: float = 1e6,
     iters: int = 6,
-) -> HomographyFit:
+) -> TransformFit:
     """Homography ``dst_from_src`` by the Hartley-normalized DLT, exact, batched, flagged.
 
     Both point sets are normalized (:func:`hartley_normalize`), the 9x9 normal
@@ -70,7 +75,7 @@ def find_homography_dlt(
             shrinks by ``λ₁/λ₂`` per step); unconverged problems go to ``eigh``.
 
     Returns:
-        :class:`HomographyFit` ``(matrix (*, 3, 3), rank_ok (*), condition (*))``.
+        :class:`TransformFit` ``(matrix (*, 3, 3), rank_ok (*), condition (*))``.
 
     Example:
         >>> from torchgeo_cg.transforms import homography, transform_points
@@ -94,7 +99,7 @@ def find_homography_dlt(
     if w_in is None:
         w = torch.ones_like(p_in[0])  # (N, B)
     else:
-        w = torch.where(w_in < 0, torch.zeros_like(w_in), w_in)  # NaN stays NaN
+        w = pow2_normalize(w_in, 0)  # relative weights, scaled exactly; NaN stays NaN
         w = torch.where(w.sum(0) == 0, torch.ones_like(w), w)  # all-zero: count every point
     (p, cs, ss), (q, cd, sd) = hartley_last(p_in, w), hartley_last(q_in, w)
     moments, trace_safe = dlt_moments(p, q, w)
@@ -138,7 +143,7 @@ def find_homography_dlt(
     fro_safe = torch.where(fro > 0, fro, torch.ones_like(fro))
     den = torch.where(use_h33, h33, fro_safe)
     h = (h / den).permute(2, 0, 1)  # (B, 3, 3)
-    return HomographyFit(
+    return TransformFit(
         cast_back(h, src.dtype).reshape(*batch, 3, 3),
         rank_ok.reshape(batch),
         cast_back(condition, src.dtype).reshape(batch),

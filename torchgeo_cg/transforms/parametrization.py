@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
-from torchgeo_cg.transforms._correspondences import check_choice
 from torchgeo_cg.transforms.homogeneous import transform_points
 
 __all__ = [
@@ -142,7 +141,8 @@ def _parameters_to_matrix(params, model, parametrization, base):
             # unit square (u, v) from corner frame: u = (x + 1) / 2
             half = torch.tensor([[0.5, 0, 0.5], [0, 0.5, 0.5], [0, 0, 1.0]],
                                 dtype=params.dtype, device=params.device)
-            return _square_to_quad(quad) @ half
+            poison = (params * 0).sum(-1)[..., None, None]  # a NaN offset anywhere gives NaN
+            return _square_to_quad(quad) @ half + poison
         gen = torch.einsum("...i,ijk->...jk", params, _sl3_basis(params))
         h = torch.linalg.matrix_exp(gen)
         return h if base is None else base @ h

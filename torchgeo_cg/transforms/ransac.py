@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms._correspondences import check_pair, hartley_weighted, similarity_matrix
 from torchgeo_cg.transforms._dlt import adjugate3, dlt_moments, dlt_smallest_eigenpair, matmul3
@@ -140,7 +141,7 @@ def _minimal_fits(model: str, ps: torch.Tensor, qs: torch.Tensor):
     else:
         dp, dq = ps[..., 1, :] - ps[..., 0, :], qs[..., 1, :] - qs[..., 0, :]
         valid = (dp.square().sum(-1) > tol) & (dq.square().sum(-1) > tol)
-    return _CLOSED_FORMS[model](ps, qs), valid
+    return _CLOSED_FORMS[model](ps, qs).matrix, valid
 
 
 def _squared_errors(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
@@ -278,7 +279,7 @@ def _dlt_in_frame(frame: _Frame, w_fit: torch.Tensor):
 def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, final: bool):
     """Least-squares refit on weights w_fit (B, N): DLT (or LM from ``init`` when ``final``)."""
     if model != "homography":
-        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit), (w_fit > 0).sum(-1) >= 2
+        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit).matrix, (w_fit > 0).sum(-1) >= 2
     if not final:
         return _dlt_in_frame(frame, w_fit)
     ok = (w_fit > 0).sum(-1) >= 4
@@ -322,8 +323,7 @@ def _final_refit(frame: _Frame, model, best):
 
 def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
               lo_iterations, min_inliers):
-    if model not in SAMPLE_SIZES:
-        raise ValueError(f"model: expected one of {sorted(SAMPLE_SIZES)}, got {model!r}")
+    check_choice(model, SAMPLE_SIZES, "model")
     if not (isinstance(threshold, (int, float)) and math.isfinite(threshold) and threshold > 0):
         raise ValueError(f"threshold: expected a finite positive number, got {threshold!r}")
     if not (isinstance(confidence, (int, float)) and 0 < confidence < 1):

@@ -35,7 +35,7 @@ from typing import NamedTuple
 import torch
 import torch.nn.functional as F
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = ["WarpedImage", "RegistrationResult", "REGISTRATION_MODELS", "warp_image",
@@ -553,12 +553,9 @@ def register_images(
         >>> fit.matrix[0, :2, 2].round(decimals=3), bool(fit.converged[0])
         (tensor([ 2.5000, -1.5000]), True)
     """
-    if model not in REGISTRATION_MODELS:
-        raise ValueError(f"model: expected one of {sorted(REGISTRATION_MODELS)}, got {model!r}")
-    if loss not in ("ssd", "ncc"):
-        raise ValueError(f"loss: expected 'ssd' or 'ncc', got {loss!r}")
-    if optimizer not in ("gn", "adam"):
-        raise ValueError(f"optimizer: expected 'gn' or 'adam', got {optimizer!r}")
+    check_choice(model, REGISTRATION_MODELS, "model")
+    check_choice(loss, ("ssd", "ncc"), "loss")
+    check_choice(optimizer, ("gn", "adam"), "optimizer")
     if isinstance(levels, bool) or not isinstance(levels, int) or levels < 1:
         raise ValueError(f"levels: expected an int >= 1, got {levels!r}")
     if not (math.isfinite(tol) and tol > 0):

@@ -36,16 +36,7 @@ from torchgeo_cg.transforms.homogeneous import (
 )
 from torchgeo_cg.transforms.homography_dlt import find_homography_dlt
 
-__all__ = [
-    "ReportShapes",
-    "ShapeFit",
-    "REPORT_NAMES",
-    "REPORT_FORMULAS",
-    "report_shapes",
-    "fit_report_shapes",
-    "format_transform",
-    "format_report_table",
-]
+__all__ = ["ReportShapes", "ShapeFit", "report_shapes", "fit_report_shapes", "format_report_table"]
 
 #: Table 3's shape names.
 REPORT_NAMES: tuple[str, ...] = ("A", "B", "C", "D", "E", "F", "G", "H")

@@ -20,8 +20,7 @@ import math
 
 import torch
 
-from torchgeo_cg.core.check import check_broadcastable, check_float, check_tensor
-from torchgeo_cg.transforms._correspondences import check_choice
+from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_tensor
 
 __all__ = ["LOSSES", "robust_loss", "robust_weights"]
 

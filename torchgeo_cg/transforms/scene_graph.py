@@ -18,7 +18,7 @@ by their parents' world matrices in a single batched matmul.
 
 from __future__ import annotations
 
-import math  # noqa: F401 - used by the doctests
+import math
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import check_float, check_shape
-from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.homogeneous import rotation, translation
 
@@ -107,6 +107,7 @@ class Orbit(nn.Module):
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
         """``(T,)`` phases in radians -> ``(T, 3, 3)`` ``parent_from_node``."""
+        check_module_dtype(self, theta, "theta")
         check_float(theta, "theta")
         theta_w = theta.to(working_dtype(theta.dtype))
         radius, speed, phase = (p.to(theta_w) for p in (self.radius, self.speed, self.phase))
@@ -142,8 +143,11 @@ class FixedTransform(nn.Module):
         self.register_buffer("matrix", matrix.clone(), persistent=True)
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
+        check_module_dtype(self, theta, "theta")
         check_float(theta, "theta")  # an integer theta would truncate the matrix
-        return cast_back(self.matrix, theta.dtype).expand(*theta.shape, 3, 3)
+        matrix = cast_back(self.matrix, theta.dtype).expand(*theta.shape, 3, 3)
+        # the matrix does not depend on the time, but an undefined time stays undefined
+        return torch.where(theta.isnan()[..., None, None], math.nan, matrix)
 
 
 class _CallableTransform(nn.Module):
@@ -218,7 +222,10 @@ class SceneGraph(nn.Module):
                 f"SceneGraph.add: parent {parent!r} of {name!r} is not a node; have {self.names}"
             )
         if local_transform is None:
-            local_transform = FixedTransform(torch.eye(3))
+            # the identity has no dtype of its own: it follows theta
+            local_transform = _CallableTransform(
+                lambda theta: torch.eye(3, dtype=theta.dtype, device=theta.device).expand(
+                    *theta.shape, 3, 3) + 0 * theta[..., None, None])
         elif isinstance(local_transform, torch.Tensor):
             local_transform = FixedTransform(local_transform)
         elif not isinstance(local_transform, nn.Module):
@@ -264,6 +271,7 @@ class SceneGraph(nn.Module):
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
         """``(K, T, 3, 3)``: same as ``world_transforms(theta).matrices``."""
+        check_module_dtype(self, theta, "theta")
         return self.world_transforms(theta).matrices
 
 

@@ -19,8 +19,9 @@ from torchgeo_cg.curves import (
     marching_squares,
     quartic_bezier,
 )
+from torchgeo_cg.viz._style import plt, save
+from torchgeo_cg.viz.glyph_fit import fit_glyph, glyph_pieces, plot_glyph_fit
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 
@@ -192,7 +193,6 @@ def _hermite(path: Path) -> None:
     "Right: the loss.",
 )
 def _glyph(path: Path) -> None:
-    from torchgeo_cg.viz.glyph_fit import fit_glyph, glyph_pieces, plot_glyph_fit
 
     parts = glyph_pieces("d")
     plot_glyph_fit(parts, fit_glyph(parts.runs), path)

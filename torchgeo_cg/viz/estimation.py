@@ -14,8 +14,8 @@ from torchgeo_cg.transforms import (
     transform_points,
 )
 from torchgeo_cg.transforms.report_shapes import ShapeFit, format_transform
+from torchgeo_cg.viz._style import closed, plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import closed, plt, save
 
 __all__ = ["plot_report_fits"]
 

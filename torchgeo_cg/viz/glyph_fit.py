@@ -26,8 +26,7 @@ import torch
 
 from torchgeo_cg.curves import BezierCurve, fit_parameters
 
-__all__ = ["GlyphFit", "GlyphPieces", "glyph_polygon", "glyph_pieces", "fit_glyph",
-           "plot_glyph_fit"]
+__all__ = ["GlyphFit", "GlyphPieces", "glyph_pieces", "fit_glyph", "plot_glyph_fit"]
 
 
 class GlyphPieces(NamedTuple):
@@ -159,7 +158,7 @@ def fit_glyph(runs: torch.Tensor, steps: int = 400, lr: float = 0.05) -> GlyphFi
 
 def plot_glyph_fit(parts: GlyphPieces, fit: GlyphFit, path: str | Path) -> None:
     """Left: samples, corners, start and fitted curves with their control points; right: loss."""
-    from torchgeo_cg.viz.style import plt, save
+    from torchgeo_cg.viz._style import plt, save
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 6), gridspec_kw={"width_ratios": [1, 1.2]},
                              layout="constrained")

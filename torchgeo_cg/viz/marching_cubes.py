@@ -7,13 +7,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from torchgeo_cg.core.grid import Volume
+from torchgeo_cg.mesh.data import mri_phantom
 from torchgeo_cg.mesh.marching_cubes import marching_cubes
-from torchgeo_cg.sdf.grid import Volume, sample_grid
+from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS
+from torchgeo_cg.sdf.grid import sample_grid
 from torchgeo_cg.sdf.primitives import torus
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
-__all__: list[str] = ["mri_phantom"]
+__all__: list[str] = []
 
 _LIGHT = np.array([0.4, -0.6, 0.7]) / np.linalg.norm([0.4, -0.6, 0.7])
 _LO, _HI = -1.2, 1.2
@@ -104,29 +107,6 @@ def _soft(path: Path) -> None:
     save(fig, path)
 
 
-def mri_phantom(shape=(10, 96, 96), seed: int = 0) -> np.ndarray:
-    """A realistic MRI-like volume: 10 thick slices of a head-shaped ellipsoid with a smooth
-    tissue texture, quantised to uint16 like scanner data (many exact ties, so many
-    ambiguous faces at half-integer levels). ``(Z, Y, X)`` like ``skimage.data.brain()``,
-    padded by one zero sample on every side.
-
-    Example:
-        >>> phantom = mri_phantom((4, 8, 8))
-        >>> phantom.shape, phantom.dtype, int(phantom.max()) > 30000
-        ((6, 10, 10), dtype('uint16'), True)
-    """
-    gen = torch.Generator().manual_seed(seed)
-    coarse = torch.randn(1, 1, shape[0], shape[1] // 2, shape[2] // 2, generator=gen,
-                         dtype=torch.float64)
-    texture = torch.nn.functional.interpolate(coarse, size=shape, mode="trilinear",
-                                              align_corners=True)[0, 0].numpy()
-    z, y, x = np.meshgrid(*(np.linspace(-1, 1, n) for n in shape), indexing="ij")
-    head = 1.0 - (x / 0.85) ** 2 - (y / 0.95) ** 2 - (z / 1.6) ** 2
-    values = np.clip(head, 0, None) ** 0.5 * (0.6 + 0.5 * texture / texture.std())
-    values = np.clip(values, 0, None) / values.max() * 60000.0
-    return np.pad(np.round(values).astype(np.uint16), 1)
-
-
 def _area(mesh) -> float:
     tri = mesh.verts.double()[mesh.faces]
     return float(torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).norm(dim=1)
@@ -145,7 +125,6 @@ def _area(mesh) -> float:
     "its Lewiner mesh; faces in cells whose case is ambiguous are drawn in blue.",
 )
 def _ambiguity(path: Path) -> None:
-    from torchgeo_cg.mesh._marching_cubes_tables import AMBIGUOUS
 
     phantom = mri_phantom()
     values = torch.from_numpy(phantom.astype(np.float64)).permute(2, 1, 0).contiguous()  # x y z

@@ -13,10 +13,10 @@ from torchgeo_cg.transforms import (
     register_images,
     warp_image,
 )
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
-__all__ = ["plot_registration", "plot_robust_fit"]
+__all__: list[str] = []
 
 
 def plot_registration(source: torch.Tensor, target: torch.Tensor, matrix: torch.Tensor,

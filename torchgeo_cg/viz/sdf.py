@@ -18,8 +18,8 @@ from torchgeo_cg.sdf import (
     torus,
     zero_level_set,
 )
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 

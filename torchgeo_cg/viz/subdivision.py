@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.mesh.faces import pad_faces
-from torchgeo_cg.mesh.io import load_mesh
+from torchgeo_cg.mesh.io import to_trimesh
 from torchgeo_cg.mesh.subdivision import catmull_clark
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 
@@ -83,8 +83,7 @@ def _cube_levels(path: Path) -> None:
 def _rabbit(path: Path) -> None:
     import trimesh
 
-    rabbit = load_mesh(files("torchgeo_cg.mesh.data") / "rabbit.obj", dtype=torch.float64)
-    from torchgeo_cg.mesh.io import to_trimesh
+    rabbit = sample_data.rabbit(dtype=torch.float64)
 
     tri = to_trimesh(rabbit)
     fig = plt.figure(figsize=(13, 6.4))

@@ -1,4 +1,4 @@
-"""Gallery figures for subdivision tags and face-varying data (issue 14): creases at
+"""Gallery figures for subdivision tags and face-varying data: creases at
 OpenSubdiv sharpness 0, 1, 2 and infinity, a hole, and a UV checkerboard carried
 through Catmull-Clark by the face-varying operator."""
 
@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from torchgeo_cg.mesh.face_varying import face_varying_subdivide
 from torchgeo_cg.mesh.subdivision import catmull_clark
-from torchgeo_cg.mesh.tags import INFINITELY_SHARP, SubdivisionTags
+from torchgeo_cg.mesh.subdivision.face_varying import face_varying_subdivide
+from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 

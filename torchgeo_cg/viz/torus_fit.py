@@ -20,21 +20,12 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.mesh.marching_cubes import MarchingCubesResult, marching_cubes
-from torchgeo_cg.sdf.grid import Volume, grid_spacing
+from torchgeo_cg.sdf.grid import grid_spacing
 from torchgeo_cg.viz.registry import figure
 
-__all__ = [
-    "TRUE_RADII",
-    "START_RADII",
-    "TorusFit",
-    "torus_grid_sdf",
-    "sample_torus_surface",
-    "extract_torus",
-    "soft_chamfer",
-    "fit_torus_radii",
-    "plot_torus_fit",
-]
+__all__ = ["TRUE_RADII", "TorusFit", "fit_torus_radii", "plot_torus_fit"]
 
 #: The target torus ``(R, r)`` and the deliberately poor starting guess.
 TRUE_RADII = (0.65, 0.25)
@@ -171,7 +162,7 @@ def plot_torus_fit(fit: TorusFit, path: str | Path) -> None:
     import numpy as np
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    from torchgeo_cg.viz.style import plt, save
+    from torchgeo_cg.viz._style import plt, save
 
     light = np.array([0.4, -0.6, 0.7]) / np.linalg.norm([0.4, -0.6, 0.7])
     fig = plt.figure(figsize=(12, 4))

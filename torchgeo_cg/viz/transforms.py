@@ -16,8 +16,8 @@ from torchgeo_cg.transforms import (
     transform_points,
     translation,
 )
+from torchgeo_cg.viz._style import closed, plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import closed, plt, save
 
 __all__: list[str] = []
 

@@ -7,7 +7,7 @@ end of the message after ``"<file>, "`` (the line or element it names included):
 ``load_mesh`` must raise ``ValueError("<path>, <expected>")`` or, where no line
 applies, ``ValueError("<path>: <expected>")``.
 
-The first cases are the ones measured in issue 14 (a ``v`` line with two
+The first cases are the classic malformations (a ``v`` line with two
 coordinates, a byte-order mark, binary garbage, faces of degree 0-2, ``3 0 1.7 2``,
 ``element face 3`` with one face line, OBJ index 0, ``99999999999999999999``,
 ``-1`` in a face, unknown property types, property before element, truncated

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["cube_sphere", "extrude", "make_rabbit", "main"]
+__all__: list[str] = []
 
 HERE = Path(__file__).resolve().parent
 

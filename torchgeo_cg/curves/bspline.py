@@ -1,0 +1,305 @@
+"""B-spline curves of any degree and dimension: evaluation, derivatives, closed curves.
+
+``C(t) = sum_i N_{i,p}(t) P_i`` with ``n + 1`` control points ``P_i`` and the
+B-spline basis ``N_{i,p}`` of degree ``p`` over a knot vector (Piegl & Tiller, The
+NURBS Book, ch. 2-3).
+
+Convention:
+    - Control points are ``(*, n + 1, D)``, as for :func:`~torchgeo_cg.curves.bezier`;
+      ``n + 1 >= p + 1``.
+    - ``t`` is ``(T,)`` (shared) or ``(*, T)`` (per curve, broadcast against the
+      control points' batch). ``knots`` is ``(n + p + 2,)`` (shared) or
+      ``(*, n + p + 2)`` (per curve), always the full non-decreasing vector; the
+      domain is ``[u_p, u_{n+1}]``. ``knots=None`` means clamped uniform knots on
+      ``[0, 1]``, where the curve starts at ``P_0``, ends at ``P_n``, and with
+      ``n = p`` is the Bezier curve of the same control points.
+    - Spans are right-continuous (scipy's rule); ``t`` outside the domain
+      extrapolates the end pieces, as scipy's ``BSpline(extrapolate=True)``.
+    - ``periodic=True``: a closed curve through the ``n + 1`` distinct control points
+      ``P_0..P_n``; the basis runs over the wrapped points ``P_0..P_n, P_0..P_{p-1}``
+      and ``t`` is taken modulo the period. ``knots`` is then one period of
+      ``n + 2`` breakpoints ``tau_0 < ... < tau_{n+1}`` (``None``: uniform on
+      ``[0, 1]``); the full vector of the wrapped curve (``n + 2p + 2`` values) is
+      their periodic extension. The curve is ``C^(p-1)`` everywhere, the seam too.
+    - Differentiable with respect to control points, ``t`` and knots. dtypes are
+      promoted (``torch.promote_types``); float16/bfloat16 are rejected.
+    - Scale: the curve is affine in the control points, so scaling them by ``s``
+      scales points and derivatives by ``s``; no threshold anywhere.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+from torch import nn
+
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype
+from torchgeo_cg.curves.bernstein import check_degree
+from torchgeo_cg.curves.knots import (
+    check_bspline_knots,
+    find_spans,
+    local_basis_list,
+    uniform_knots,
+)
+
+__all__ = ["BSplineControls", "BSplineCurve", "bspline", "bspline_derivative"]
+
+
+class BSplineControls(NamedTuple):
+    """A B-spline as data: control points ``(*, n + 1, D)`` and full knots ``(*, n + p + 2)``.
+
+    Returned by :func:`insert_knot`, :func:`bezier_to_bspline` and
+    :func:`interpolate_bspline`.
+
+    Example:
+        >>> from torchgeo_cg.curves import bezier_to_bspline
+        >>> bezier_to_bspline(torch.tensor([[[0.0], [1.0]]])).knots
+        tensor([0., 0., 1., 1.])
+    """
+
+    control_points: torch.Tensor
+    knots: torch.Tensor
+
+
+def _check_control_points(control_points: torch.Tensor, degree: int, periodic: bool) -> int:
+    check_float(control_points, "control_points", low_precision=False)
+    sizes = check_shape(control_points, ["*", "K", "D"], "control_points")
+    least = 1 if periodic else degree + 1
+    if sizes["K"] < least:
+        raise ShapeError(f"control_points: a degree {degree} B-spline needs at least {least} "
+                         f"control points, got shape {tuple(control_points.shape)}")
+    return sizes["K"]
+
+
+def _periodic_knots(knots: torch.Tensor, count: int, degree: int) -> torch.Tensor:
+    """Full ``(*, n + 2p + 2)`` knots extending one period of ``n + 2`` breakpoints."""
+    check_float(knots, "knots", low_precision=False)
+    check_shape(knots, ["*", count + 1], "knots")
+    check_bspline_knots(knots, count, 0)  # non-decreasing, tau_{n+1} > tau_0
+    period = knots[..., -1:] - knots[..., :1]
+    g = torch.arange(-degree, count + degree + 1, device=knots.device)  # full index - p
+    wraps = torch.div(g, count, rounding_mode="floor")
+    return knots[..., g - wraps * count] + wraps.to(knots.dtype) * period
+
+
+def prepare_bspline(control_points, t, degree, knots=None, periodic=False):
+    """Validate and normalise a B-spline: ``(points, t, knots)`` ready for evaluation.
+
+    Periodic curves come back as their wrapped open form with ``t`` reduced into the
+    domain. dtypes are promoted together; ``t`` and ``knots`` keep their own batch.
+
+    Example:
+        >>> cp, t, knots = prepare_bspline(torch.zeros(3, 2), torch.tensor([1.25]), 1,
+        ...                                periodic=True)
+        >>> cp.shape, t, knots.shape
+        (torch.Size([4, 2]), tensor([0.2500]), torch.Size([6]))
+    """
+    degree = check_degree(degree)
+    count = _check_control_points(control_points, degree, periodic)
+    check_float(t, "t", low_precision=False)
+    check_shape(t, ["*", "T"], "t")
+    dtype = torch.promote_types(control_points.dtype, t.dtype)
+    if knots is not None:
+        check_float(knots, "knots", low_precision=False)
+        dtype = torch.promote_types(dtype, knots.dtype)
+    batches = {"control_points": control_points.shape[:-2]}
+    if t.dim() > 1:
+        batches["t"] = t.shape[:-1]
+    if knots is not None and knots.dim() > 1:
+        batches["knots"] = knots.shape[:-1]
+    check_broadcastable(batches)
+    control_points, t = control_points.to(dtype), t.to(dtype)
+    if periodic:
+        if knots is None:
+            knots = uniform_knots(count, degree, periodic=True, dtype=dtype,
+                                  device=control_points.device)
+        else:
+            knots = _periodic_knots(knots.to(dtype), count, degree)
+        wrap = torch.arange(count + degree, device=control_points.device) % count
+        control_points = control_points[..., wrap, :]
+        start, end = knots[..., degree:degree + 1], knots[..., count + degree:count + degree + 1]
+        t = start + torch.remainder(t - start, end - start)
+    elif knots is None:
+        knots = uniform_knots(count, degree, dtype=dtype, device=control_points.device)
+    else:
+        check_bspline_knots(knots, count, degree)
+        knots = knots.to(dtype)
+    return control_points, t, knots
+
+
+def evaluate_local(control_points, basis, spans, degree: int) -> torch.Tensor:
+    """``sum_j basis[..., j] P_{span - p + j}``: ``(*, T, p + 1)`` basis -> ``(*, T, D)``.
+
+    ``basis`` may also be a list of the ``p + 1`` tensors ``(*, T)``. With one shared basis
+    ``(T, p + 1)`` the basis is scattered into a dense ``(T, n + 1)`` matrix and applied by
+    one GEMM to every curve at once (the result is a view of that product); otherwise the
+    ``p + 1`` control points of every parameter are gathered, one coordinate at a time.
+
+    Example:
+        >>> cp = torch.tensor([[0.0], [1.0], [4.0]])
+        >>> evaluate_local(cp, torch.tensor([[0.5, 0.5]]), torch.tensor([1]), 1)  # P0 / 2 + P1 / 2
+        tensor([[0.5000]])
+    """
+    k, d = control_points.shape[-2:]
+    if spans.dim() == 1:
+        basis = torch.stack(basis, -1) if isinstance(basis, list) else basis
+        columns = spans[:, None] - degree + torch.arange(degree + 1, device=spans.device)
+        dense = basis.new_zeros(basis.shape[0], k).scatter_add(1, columns, basis)  # (T, K)
+        if control_points.dim() == 2:
+            return dense @ control_points
+        batch = control_points.shape[:-2]
+        flat = control_points.reshape(-1, k, d).permute(1, 0, 2).reshape(k, -1)  # (K, B D)
+        out = (dense @ flat).reshape(basis.shape[0], *batch, d)  # (T, *, D)
+        return out.movedim(0, -2)  # a view: (*, T, D)
+    if not isinstance(basis, list):
+        basis = list(basis.unbind(-1))
+    batch = torch.broadcast_shapes(control_points.shape[:-2], spans.shape[:-1])
+    cp = control_points.expand(*batch, k, d).reshape(-1, k, d)  # (B, K, D)
+    spans = spans.expand(*batch, spans.shape[-1]).reshape(cp.shape[0], -1)  # (B, T)
+    inplace = not (torch.is_grad_enabled() and (cp.requires_grad or any(
+        b.requires_grad for b in basis)))
+    out = None
+    first = spans - degree
+    for j in range(degree + 1):  # loop over the p + 1 local control points
+        index = (first + j if j else first)[..., None].expand(-1, -1, d)
+        weight = basis[j].expand(*batch, spans.shape[-1]).reshape(spans.shape)[..., None]
+        points = cp.gather(1, index)  # (B, T, D)
+        if out is None:
+            out = points.mul_(weight) if inplace else points * weight
+        else:
+            out = out.addcmul_(points, weight) if inplace else out + points * weight
+    return out.reshape(*batch, -1, d)
+
+
+def _evaluate(control_points, t, knots, degree: int, order: int) -> torch.Tensor:
+    if t.numel() == 0 or control_points.numel() == 0:
+        batch = torch.broadcast_shapes(control_points.shape[:-2], t.shape[:-1], knots.shape[:-1])
+        return control_points.new_zeros(*batch, t.shape[-1], control_points.shape[-1])
+    if knots.dim() > 1 or t.dim() > 1:
+        batch = torch.broadcast_shapes(knots.shape[:-1], t.shape[:-1])
+        knots, t = knots.expand(*batch, knots.shape[-1]), t.expand(*batch, t.shape[-1])
+    spans = find_spans(knots, t, degree)
+    basis = local_basis_list(knots, t, spans, degree, order)[order]
+    return evaluate_local(control_points, basis, spans, degree)
+
+
+def bspline(control_points: torch.Tensor, t: torch.Tensor, degree: int,
+            knots: torch.Tensor | None = None, *, periodic: bool = False) -> torch.Tensor:
+    """Evaluate B-spline curves of degree ``p`` at parameters ``t``.
+
+    Convention:
+        See the module docstring: ``(*, n + 1, D)`` control points, shared or per-curve
+        ``t`` and ``knots`` (full vectors, ``n + p + 2`` values), clamped uniform
+        knots on ``[0, 1]`` by default, right-continuous spans, extrapolation outside
+        the domain, ``periodic`` closed curves.
+
+    Args:
+        control_points: ``(*, n + 1, D)``.
+        t: ``(T,)`` or ``(*, T)`` parameters.
+        degree: ``p >= 0``.
+        knots: ``(n + p + 2,)`` or ``(*, n + p + 2)``; periodic: ``(*, n + 2)``
+            breakpoints of one period; ``None``: uniform on ``[0, 1]``.
+        periodic: a closed curve (see the module docstring).
+
+    Returns:
+        ``(*, T, D)`` points (for shared ``t`` and knots, a view of one matrix product).
+
+    Raises:
+        ShapeError: too few control points, or knots of the wrong length.
+        ValueError: knots that decrease (naming the first) or an empty domain.
+
+    Example:
+        >>> P = torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0]])
+        >>> bspline(P, torch.tensor([0.0, 0.5, 1.0]), 2)
+        tensor([[0.0000, 0.0000],
+                [2.0000, 2.0000],
+                [4.0000, 0.0000]])
+        >>> square = torch.tensor([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+        >>> bspline(square, torch.tensor([0.0, 1.0]), 1, periodic=True)  # closed
+        tensor([[0., 0.],
+                [0., 0.]])
+    """
+    control_points, t, knots = prepare_bspline(control_points, t, degree, knots, periodic)
+    return _evaluate(control_points, t, knots, degree, 0)
+
+
+def bspline_derivative(control_points: torch.Tensor, t: torch.Tensor, degree: int,
+                       order: int = 1, knots: torch.Tensor | None = None, *,
+                       periodic: bool = False) -> torch.Tensor:
+    """The ``order``-th derivative ``d^k C / dt^k`` of B-spline curves at ``t``.
+
+    Convention:
+        As :func:`bspline`. Exact (basis derivatives, Piegl & Tiller eq. 2.9); at a
+        knot the derivative is the right-hand one (right-continuous spans); ``order >
+        degree`` gives zeros.
+
+    Args:
+        control_points: ``(*, n + 1, D)``.
+        t: ``(T,)`` or ``(*, T)``.
+        degree: ``p >= 0``.
+        order: ``k >= 0`` (0 is :func:`bspline`).
+        knots: as :func:`bspline`.
+        periodic: a closed curve.
+
+    Returns:
+        ``(*, T, D)`` derivative values (length / parameter^k).
+
+    Example:
+        >>> P = torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0]])
+        >>> bspline_derivative(P, torch.tensor([0.0, 1.0]), 3)  # 3 (P1 - P0), 3 (P3 - P2)
+        tensor([[ 3.,  6.],
+                [ 3., -6.]])
+    """
+    order = check_degree(order, "order")
+    control_points, t, knots = prepare_bspline(control_points, t, degree, knots, periodic)
+    return _evaluate(control_points, t, knots, degree, order)
+
+
+class BSplineCurve(nn.Module):
+    """A (batch of) B-spline curve(s) with learnable control points; ``forward`` is :func:`bspline`.
+
+    Convention:
+        As :func:`bspline`. The knots are a non-learnable buffer (``None``: the default
+        knots, built at each call in the control points' dtype).
+
+    Args:
+        control_points: ``(*, n + 1, D)``.
+        degree: ``p >= 0``.
+        knots: as :func:`bspline`, or ``None``.
+        periodic: a closed curve.
+        learnable: store the control points as an ``nn.Parameter`` (else a buffer).
+
+    Example:
+        >>> curve = BSplineCurve(torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0]]), 2)
+        >>> curve(torch.tensor([0.5])).detach()
+        tensor([[2., 2.]])
+        >>> curve.derivative(torch.tensor([0.0])).detach()
+        tensor([[4., 8.]])
+    """
+
+    control_points: torch.Tensor
+    knots: torch.Tensor | None
+
+    def __init__(self, control_points: torch.Tensor, degree: int,
+                 knots: torch.Tensor | None = None, periodic: bool = False,
+                 learnable: bool = True) -> None:
+        super().__init__()
+        prepare_bspline(control_points, control_points.new_zeros(1), degree, knots, periodic)
+        self.degree, self.periodic, self.learnable = degree, periodic, learnable
+        if learnable:
+            self.control_points = nn.Parameter(control_points.detach().clone())
+        else:
+            self.register_buffer("control_points", control_points, persistent=False)
+        self.register_buffer("knots", None if knots is None else knots.detach().clone())
+
+    def forward(self, t: torch.Tensor) -> torch.Tensor:
+        """``(T,)`` or ``(*, T)`` parameters -> ``(*, T, D)`` points."""
+        check_module_dtype(self, t, "t")
+        return bspline(self.control_points, t, self.degree, self.knots, periodic=self.periodic)
+
+    def derivative(self, t: torch.Tensor, order: int = 1) -> torch.Tensor:
+        """``(*, T, D)`` ``order``-th derivative; see :func:`bspline_derivative`."""
+        return bspline_derivative(self.control_points, t, self.degree, order, self.knots,
+                                  periodic=self.periodic)

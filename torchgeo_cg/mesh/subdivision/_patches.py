@@ -1,0 +1,139 @@
+"""Regular Catmark patches of an all-quad mesh level: which faces are regular, their 4 x 4
+B-spline control grids, and the basis with boundary (phantom) rows folded in.
+
+Convention (OpenSubdiv's ``Far::PatchBuilder`` with ``useInfSharpPatch``):
+    A quad is regular when it is not a hole and each of its corners is one of: a smooth
+    vertex of valence 4; a crease vertex (two infinitely sharp edges, vertex untagged)
+    of valence 3 on a boundary, or of valence 4 with the crease running straight
+    through (each of its four faces has exactly one crease edge); a corner (infinitely
+    sharp vertex) of valence 2 with one face. No semi-sharp edge or vertex may touch
+    the quad's corners. Infinitely sharp edges of the quad are the patch's boundary: the
+    row of points beyond is the phantom ``2 P_edge - P_inner`` (the crease rule's cubic
+    B-spline), which the basis absorbs.
+
+    Grid ``G[j][k]`` has ``k`` along ``u`` and ``j`` along ``v``; the quad's corners
+    0-3 sit at ``G[1][1], G[1][2], G[2][2], G[2][1]`` ((0,0), (1,0), (1,1), (0,1)).
+"""
+
+from __future__ import annotations
+
+import torch
+
+from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP
+
+# grid slots (j, k) of: the corners; the outer point next to corner i across edge i; the
+# outer point next to corner i + 1 across edge i; the diagonal point at corner i
+_CORNER = ((1, 1), (1, 2), (2, 2), (2, 1))
+_ADJ_START = ((0, 1), (1, 3), (3, 2), (2, 0))
+_ADJ_END = ((0, 2), (2, 3), (3, 1), (1, 0))
+_DIAGONAL = ((0, 0), (0, 3), (3, 3), (3, 0))
+
+
+def _next(c: torch.Tensor) -> torch.Tensor:
+    return c - c % 4 + (c + 1) % 4
+
+
+def _prev(c: torch.Tensor) -> torch.Tensor:
+    return c - c % 4 + (c + 3) % 4
+
+
+def quad_twins(topo) -> torch.Tensor:
+    """``(C,)`` long: the opposite corner (half-edge) across each corner's out-edge, ``-1``
+    where the edge does not have exactly two consistently wound faces."""
+    edge_c, vert_c = topo.edge_c, topo.vert_c
+    C = edge_c.numel()
+    order = torch.sort(edge_c, stable=True).indices
+    count_e = torch.bincount(edge_c, minlength=topo.edge_lo_e.numel())
+    twin = torch.full((C,), -1, dtype=torch.long, device=edge_c.device)
+    if C == 0:
+        return twin
+    first = torch.ones(C, dtype=torch.bool, device=edge_c.device)
+    first[1:] = edge_c[order[1:]] != edge_c[order[:-1]]
+    pair = first & (count_e[edge_c[order]] == 2)
+    a = order[pair]
+    b = order[torch.nonzero(pair).flatten() + 1]
+    consistent = vert_c[a] != vert_c[b]
+    a, b = a[consistent], b[consistent]
+    twin[a], twin[b] = b, a
+    return twin
+
+
+def regular_quads(topo, faces_q4, sharp_e, sharp_v, hole_f) -> torch.Tensor:
+    """``(F,)`` bool: the quads whose limit is one bicubic B-spline patch (module docstring)."""
+    V = topo.valence_v.numel()
+    inf_e = sharp_e >= INFINITELY_SHARP
+    semi_e = (sharp_e > 0) & ~inf_e
+    ends = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
+
+    def count(mask):
+        return torch.bincount(ends[torch.cat([mask, mask])], minlength=V)
+
+    n_inf, n_semi = count(inf_e), count(semi_e)
+    per_corner = inf_e[topo.edge_c].long() + inf_e[topo.edge_c[topo.prev_corner_c]].long()
+    most = torch.zeros(V, dtype=torch.long, device=ends.device).scatter_reduce(
+        0, topo.vert_c, per_corner, "amax")
+    val, nf = topo.valence_v, topo.num_faces_v
+    free = sharp_v == 0
+    smooth = free & (n_inf == 0) & (val == 4) & (nf == 4)
+    straight = (val == 4) & (nf == 4) & (most == 1)
+    crease = free & (n_inf == 2) & (((val == 3) & (nf == 2)) | straight)
+    corner = (sharp_v >= INFINITELY_SHARP) & (val == 2) & (nf == 1)
+    regular_v = (smooth | crease | corner) & (n_semi == 0)
+    if faces_q4.shape[0] == 0:
+        return torch.zeros(0, dtype=torch.bool, device=ends.device)
+    return regular_v[faces_q4].all(1) & ~hole_f
+
+
+def patch_grids(topo, twin, sharp_e, faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(grid (n, 4, 4) long, phantom (n, 4) bool)`` for the regular quads ``faces``:
+    the control vertex of each grid slot (any index where the slot is a phantom) and
+    whether each edge of the quad is a patch boundary."""
+    h = 4 * faces[:, None] + torch.arange(4, device=faces.device)  # (n, 4) corners
+    vert = topo.vert_c
+    t = twin[h].clamp(min=0)
+    phantom = sharp_e[topo.edge_c[h]] >= INFINITELY_SHARP
+    diag_he = twin[_next(t)].clamp(min=0)
+    grid = torch.zeros(faces.numel(), 4, 4, dtype=torch.long, device=faces.device)
+    for i in range(4):  # the four sides of one quad, not a loop over elements
+        for (j, k), values in ((_CORNER[i], vert[h[:, i]]),
+                               (_ADJ_START[i], vert[_next(_next(t[:, i]))]),
+                               (_ADJ_END[i], vert[_prev(t[:, i])]),
+                               (_DIAGONAL[i], vert[_prev(diag_he[:, i])])):
+            grid[:, j, k] = values
+    return grid, phantom
+
+
+def bspline_basis(t: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Uniform cubic B-spline basis and its derivative at ``t (n,)``: two ``(n, 4)``."""
+    s = 1.0 - t
+    t2, t3 = t * t, t * t * t
+    basis = torch.stack([s * s * s, 3 * t3 - 6 * t2 + 4, -3 * t3 + 3 * t2 + 3 * t + 1, t3], -1)
+    deriv = torch.stack([-3 * s * s, 9 * t2 - 12 * t, -9 * t2 + 6 * t + 3, 3 * t2], -1)
+    return basis / 6.0, deriv / 6.0
+
+
+def fold_phantoms(w: torch.Tensor, low: torch.Tensor, high: torch.Tensor) -> torch.Tensor:
+    """Basis weights ``(n, 4)`` with the phantom rows folded in: where ``low``, point 0 is
+    ``2 P1 - P2``; where ``high``, point 3 is ``2 P2 - P1``."""
+    lo, hi = low[:, None].to(w.dtype), high[:, None].to(w.dtype)
+    w0, w1, w2, w3 = w.unbind(-1)
+    w0, w3 = w0[:, None], w3[:, None]
+    out = w.clone()
+    out[:, 0:1] = w0 * (1 - lo)
+    out[:, 1:2] = w1[:, None] + lo * 2 * w0 - hi * w3
+    out[:, 2:3] = w2[:, None] - lo * w0 + hi * 2 * w3
+    out[:, 3:4] = w3 * (1 - hi)
+    return out
+
+
+def patch_weights(s, t, phantom) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Weights ``(n, 4, 4)`` of the grid for the position and the ``s``, ``t`` derivatives
+    at local ``(s, t)``; ``phantom (n, 4)`` marks the quad's boundary edges."""
+    bu, du = bspline_basis(s)
+    bv, dv = bspline_basis(t)
+    bu, du = fold_phantoms(bu, phantom[:, 3], phantom[:, 1]), fold_phantoms(du, phantom[:, 3],
+                                                                            phantom[:, 1])
+    bv, dv = fold_phantoms(bv, phantom[:, 0], phantom[:, 2]), fold_phantoms(dv, phantom[:, 0],
+                                                                            phantom[:, 2])
+    outer = lambda a, b: a[:, :, None] * b[:, None, :]  # noqa: E731  (j along v, k along u)
+    return outer(bv, bu), outer(bv, du), outer(dv, bu)

@@ -1,0 +1,92 @@
+"""Corner, edge and vertex tables of a padded polygon mesh, and the checks the schemes share.
+
+Every scheme's builder (Catmark, Loop, bilinear, face-varying) and the limit masks read
+the same tables, built with sort/unique/bincount and no Python loop over elements.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+from torchgeo_cg.core.check import check_choice, check_float, check_shape, check_tensor
+from torchgeo_cg.mesh.subdivision._creasing import CREASE_METHODS
+
+BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")
+
+
+class Topology(NamedTuple):
+    """Corner/edge/vertex tables of a padded polygon mesh (all 1-D, long or bool)."""
+
+    face_c: torch.Tensor  # (C,) face of each corner, corners in face-major order
+    pos_c: torch.Tensor  # (C,) position of the corner in its face
+    vert_c: torch.Tensor  # (C,) vertex at the corner
+    next_c: torch.Tensor  # (C,) next vertex in the face (half-edge vert_c -> next_c)
+    prev_corner_c: torch.Tensor  # (C,) index of the previous corner of the same face
+    size_c: torch.Tensor  # (C,) size of the corner's face
+    edge_c: torch.Tensor  # (C,) edge of the half-edge vert_c -> next_c
+    edge_lo_e: torch.Tensor  # (E,) smaller endpoint
+    edge_hi_e: torch.Tensor  # (E,) larger endpoint
+    sharp_e: torch.Tensor  # (E,) bool: not exactly two faces
+    valence_v: torch.Tensor  # (V,) number of edges
+    num_faces_v: torch.Tensor  # (V,) number of incident faces
+    kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
+
+
+def check_crease_method(crease_method: str) -> str:
+    return check_choice(crease_method, CREASE_METHODS, "crease_method")
+
+
+def check_boundary(boundary: str) -> str:
+    return check_choice(boundary, BOUNDARY_MODES, "boundary")
+
+
+def check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:
+    check_tensor(verts, name)
+    check_shape(verts, ["*", "V", "D"], name, {"V": num_vertices})
+    check_float(verts, name)
+
+
+def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "edge_only"
+                  ) -> Topology:
+    """Corner, edge and vertex tables of ``(F, K)`` padded faces (sort/unique/bincount).
+
+    Example:
+        >>> topo = mesh_topology(torch.tensor([[0, 1, 2]]), 3)
+        >>> topo.edge_lo_e.tolist(), topo.edge_hi_e.tolist(), topo.valence_v.tolist()
+        ([0, 0, 1], [1, 2, 2], [2, 2, 2])
+    """
+    V = num_vertices
+    valid_fk = faces_fk >= 0
+    size_f = valid_fk.sum(1)
+    F, K = faces_fk.shape
+    if bool(valid_fk.all()):  # no padding (pure triangles or quads): skip nonzero
+        face_c = torch.arange(F, device=faces_fk.device).repeat_interleave(K)
+        pos_c = torch.arange(K, device=faces_fk.device).repeat(F)
+    else:
+        face_c, pos_c = torch.nonzero(valid_fk, as_tuple=True)  # face-major, then position
+    size_c = size_f[face_c]
+    start_c = (torch.cumsum(size_f, 0) - size_f)[face_c]
+    vert_c = faces_fk[face_c, pos_c]
+    next_c = faces_fk[face_c, (pos_c + 1) % size_c]
+    prev_corner_c = start_c + (pos_c - 1) % size_c
+    lo_c, hi_c = torch.minimum(vert_c, next_c), torch.maximum(vert_c, next_c)
+    key_e, edge_c = torch.unique(lo_c * max(V, 1) + hi_c, return_inverse=True)
+    E = key_e.numel()
+    edge_lo_e, edge_hi_e = key_e // max(V, 1), key_e % max(V, 1)
+    sharp_e = torch.bincount(edge_c, minlength=E) != 2
+    ends = torch.cat([edge_lo_e, edge_hi_e])
+    valence_v = torch.bincount(ends, minlength=V)
+    sharp_v = torch.bincount(ends[torch.cat([sharp_e, sharp_e])], minlength=V)
+    num_faces_v = torch.bincount(vert_c, minlength=V)
+    kind_v = torch.ones(V, dtype=torch.long, device=faces_fk.device)
+    kind_v[sharp_v == 2] = 2
+    if boundary == "edge_and_corner":
+        kind_v[(sharp_v == 2) & (valence_v == 2)] = 3
+    kind_v[sharp_v > 2] = 3
+    kind_v[valence_v == 0] = 0
+    return Topology(
+        face_c, pos_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
+        sharp_e, valence_v, num_faces_v, kind_v,
+    )

@@ -1,0 +1,289 @@
+"""Stencil tables: a sparse ``(R, C)`` matrix kept as plain CSR tensors, applied by one op.
+
+OpenSubdiv's ``Far::StencilTable`` keeps sizes, indices and weights, a CSR matrix in
+all but name. :class:`StencilMatrix` does the same with three dense tensors (row
+offsets, column indices, weights) plus those of its transpose, so that the tensors can
+be module buffers (``.to()``, ``copy.deepcopy``, ``state_dict``, DDP's broadcast all
+handle dense tensors), and :func:`apply_stencils` multiplies them through one custom
+operator ``torchgeo_cg::stencil_matmul``. That operator is opaque to ``torch.compile``
+(``fullgraph=True`` works), has a ``vmap`` rule (a leading batch of data, the matrix
+shared), and its backward is the same operator on the cached transpose, so
+``jacrev``, double backward and ``vmap`` of gradients compose.
+
+Convention:
+    Rows are output items, columns input items: ``out[..., r, :] = sum_c S[r, c] x[..., c, :]``.
+    ``crow`` is ``(R + 1,)`` long, ``col`` and ``weights`` are ``(nnz,)``, rows sorted,
+    duplicate entries summed at build time. The weights are cast to the data's dtype
+    and device on use; float16/bfloat16 data is multiplied in float32 (sparse matmuls
+    have no half-precision kernels, and the sums would lose digits) and cast back.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+from torchgeo_cg.core.numerics import cast_back, working_dtype
+
+__all__: list[str] = []
+
+_CHUNK_COLUMNS = 12  # dense columns per sparse matmul: keeps the gathered rows in cache
+
+
+class StencilMatrix(NamedTuple):
+    """A sparse ``(R, C)`` matrix and its transpose as plain CSR tensors.
+
+    Attributes:
+        crow: ``(R + 1,)`` long row offsets.
+        col: ``(nnz,)`` long column of each entry.
+        weights: ``(nnz,)`` float value of each entry.
+        crow_t: ``(C + 1,)`` long row offsets of the transpose.
+        col_t: ``(nnz,)`` long columns of the transpose (rows of the matrix).
+        weights_t: ``(nnz,)`` float values of the transpose.
+
+    Example:
+        >>> s = stencil_matrix(torch.tensor([0, 0, 1]), torch.tensor([0, 1, 1]),
+        ...                    torch.tensor([0.5, 0.5, 1.0]), (2, 2))
+        >>> s.dense()
+        tensor([[0.5000, 0.5000],
+                [0.0000, 1.0000]])
+    """
+
+    crow: Tensor
+    col: Tensor
+    weights: Tensor
+    crow_t: Tensor
+    col_t: Tensor
+    weights_t: Tensor
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(R, C)``."""
+        return self.crow.numel() - 1, self.crow_t.numel() - 1
+
+    def sparse(self) -> Tensor:
+        """The matrix as a ``torch.sparse_csr`` tensor (shares memory)."""
+        return _csr(self.crow, self.col, self.weights, self.shape[1])
+
+    def sparse_t(self) -> Tensor:
+        """The transpose as a ``torch.sparse_csr`` tensor (shares memory)."""
+        return _csr(self.crow_t, self.col_t, self.weights_t, self.shape[0])
+
+    def dense(self) -> Tensor:
+        """The ``(R, C)`` dense matrix."""
+        return self.sparse().to_dense()
+
+
+_CSR_WARNING_SEEN = False
+
+
+def _csr(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int) -> Tensor:
+    global _CSR_WARNING_SEEN
+    shape = (crow.numel() - 1, num_cols)
+    if _CSR_WARNING_SEEN:  # torch warns once per process: no filter needed afterwards
+        return torch.sparse_csr_tensor(crow, col, weights, shape, check_invariants=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "sparse CSR is in beta"
+        matrix = torch.sparse_csr_tensor(crow, col, weights, shape, check_invariants=False)
+    _CSR_WARNING_SEEN = True
+    return matrix
+
+
+def weights_dtype(dtype: torch.dtype | None) -> torch.dtype:
+    """The dtype of an operator's weights: ``dtype``, or the default dtype for ``None``.
+
+    Raises:
+        TypeError: ``dtype`` is not a floating-point dtype (an integer dtype would be
+            promoted away silently).
+
+    Example:
+        >>> weights_dtype(None) == torch.get_default_dtype(), weights_dtype(torch.float64)
+        (True, torch.float64)
+    """
+    if dtype is None:
+        return torch.get_default_dtype()
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype: expected a floating-point torch.dtype, got {dtype!r}")
+    return dtype
+
+
+def stencil_matrix(
+    rows: Tensor, cols: Tensor, weights: Tensor, shape: tuple[int, int]
+) -> StencilMatrix:
+    """Build a :class:`StencilMatrix` from ``(row, col, weight)`` triplets.
+
+    Duplicate ``(row, col)`` entries are summed and zero weights dropped: one sort of
+    the flattened keys ``row * C + col``, a scatter-add of the weights, and one stable
+    sort of the columns for the transpose (no Python loop over entries).
+
+    Args:
+        rows: ``(N,)`` long in ``[0, R)``.
+        cols: ``(N,)`` long in ``[0, C)``.
+        weights: ``(N,)`` float.
+        shape: ``(R, C)``.
+
+    Returns:
+        :class:`StencilMatrix` on the device of ``rows``, dtype of ``weights``.
+
+    Example:
+        >>> s = stencil_matrix(torch.tensor([1, 1]), torch.tensor([0, 0]),
+        ...                    torch.tensor([0.25, 0.5]), (2, 1))
+        >>> s.crow.tolist(), s.col.tolist(), s.weights.tolist()
+        ([0, 0, 1], [0], [0.75])
+    """
+    n_rows, n_cols = shape
+    keep = weights != 0
+    if not bool(keep.all()):
+        rows, cols, weights = rows[keep], cols[keep], weights[keep]
+    key_s, perm = torch.sort(rows * n_cols + cols)
+    first = torch.ones_like(key_s, dtype=torch.bool)
+    first[1:] = key_s[1:] != key_s[:-1]
+    segment = torch.cumsum(first, 0) - 1  # index of the unique key of each sorted entry
+    key_u = key_s[first]
+    values_u = weights.new_zeros(key_u.numel()).index_add_(0, segment, weights[perm])
+    rows_u, cols_u = key_u // max(n_cols, 1), key_u % max(n_cols, 1)
+    crow = rows_u.new_zeros(n_rows + 1)
+    crow[1:] = torch.cumsum(torch.bincount(rows_u, minlength=n_rows), 0)
+    order_t = torch.sort(cols_u, stable=True).indices  # rows stay sorted within a column
+    crow_t = cols_u.new_zeros(n_cols + 1)
+    crow_t[1:] = torch.cumsum(torch.bincount(cols_u, minlength=n_cols), 0)
+    return StencilMatrix(crow, cols_u, values_u, crow_t, rows_u[order_t], values_u[order_t])
+
+
+def _spmm_batched(matrix: Tensor, x_bvd: Tensor) -> Tensor:
+    """``(R, V)`` sparse times each ``(V, D)`` item of ``(B, V, D)`` -> contiguous ``(B, R, D)``.
+
+    Items are grouped so that each sparse matmul sees about ``_CHUNK_COLUMNS``
+    dense columns (a loop over batch chunks, not elements): one very wide
+    product thrashes the cache, many narrow ones waste the stencil reads.
+    """
+    B, V, D = x_bvd.shape
+    R = matrix.shape[0]
+    if B == 1:
+        return (matrix @ x_bvd[0]).unsqueeze(0)
+    per = max(1, _CHUNK_COLUMNS // max(D, 1))
+    out_brd = x_bvd.new_empty(B, R, D)
+    for b0 in range(0, B, per):  # loop over batch chunks
+        x2d = x_bvd[b0:b0 + per].movedim(1, 0).reshape(V, -1)  # (V, b*D)
+        out_brd[b0:b0 + per] = (matrix @ x2d).view(R, -1, D).movedim(0, 1)
+    return out_brd
+
+
+def _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd: Tensor) -> Tensor:
+    """``(R, C)`` stencils times ``(B, C, D)`` data -> ``(B, R, D)`` (weights in x's dtype)."""
+    if x_bvd.shape[1] == 0 or crow.numel() == 1 or x_bvd.shape[0] * x_bvd.shape[2] == 0:
+        return x_bvd.new_zeros(x_bvd.shape[0], crow.numel() - 1, x_bvd.shape[2])
+    matrix = _csr(crow, col, weights, crow_t.numel() - 1)
+    return _spmm_batched(matrix, x_bvd.contiguous())
+
+
+@torch.library.custom_op("torchgeo_cg::stencil_matmul", mutates_args=())
+def _stencil_matmul(
+    crow: Tensor,
+    col: Tensor,
+    weights: Tensor,
+    crow_t: Tensor,
+    col_t: Tensor,
+    weights_t: Tensor,
+    x_bvd: Tensor,
+) -> Tensor:
+    """The opaque op that ``torch.compile`` sees (sparse tensors never enter a graph)."""
+    return _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd)
+
+
+@_stencil_matmul.register_fake
+def _(crow, col, weights, crow_t, col_t, weights_t, x_bvd):
+    return x_bvd.new_empty(x_bvd.shape[0], crow.shape[0] - 1, x_bvd.shape[2])
+
+
+class _StencilApply(torch.autograd.Function):
+    """``S @ X`` through the opaque op; backward applies ``S^T`` through this same
+    Function, so gradients are differentiable and vmap-able. (No forward-mode ``jvp``:
+    Dynamo cannot trace a Function that defines one.)"""
+
+    @staticmethod
+    def forward(crow, col, weights, crow_t, col_t, weights_t, x_bvd):
+        if torch.compiler.is_compiling():  # opaque to Dynamo
+            return _stencil_matmul(crow, col, weights, crow_t, col_t, weights_t, x_bvd)
+        return _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd)  # no dispatch cost
+
+    @staticmethod
+    def setup_context(ctx, inputs, output):
+        ctx.save_for_backward(*inputs[:6])
+
+    @staticmethod
+    def backward(ctx, grad_brd):
+        crow, col, weights, crow_t, col_t, weights_t = ctx.saved_tensors
+        if not torch.is_grad_enabled() and _plain_eager():  # no double backward, no transform
+            grad_x = _stencil_matmul_eager(crow_t, col_t, weights_t, crow, grad_brd)
+        else:
+            grad_x = _StencilApply.apply(crow_t, col_t, weights_t, crow, col, weights, grad_brd)
+        return None, None, None, None, None, None, grad_x
+
+    @staticmethod
+    def vmap(info, in_dims, crow, col, weights, crow_t, col_t, weights_t, x_bvd):
+        if any(d is not None for d in in_dims[:6]):
+            raise ValueError("apply_stencils: vmap over the stencil matrix is not supported; "
+                             "batch the data instead")
+        x_nbvd = x_bvd.movedim(in_dims[6], 0)
+        N, B, V, D = x_nbvd.shape
+        out = _StencilApply.apply(crow, col, weights, crow_t, col_t, weights_t,
+                                  x_nbvd.reshape(N * B, V, D))
+        return out.reshape(N, B, -1, D), 0
+
+
+class _StencilApplyEager(torch.autograd.Function):
+    """The plain-eager twin of :class:`_StencilApply` (no ``setup_context``, so no
+    per-call signature binding); used when no transform is active and nothing compiles.
+    Its backward goes through :class:`_StencilApply`, so double backward still works."""
+
+    @staticmethod
+    def forward(ctx, crow, col, weights, crow_t, col_t, weights_t, x_bvd):
+        ctx.save_for_backward(crow, col, weights, crow_t, col_t, weights_t)
+        return _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd)
+
+    @staticmethod
+    def backward(ctx, grad_brd):
+        return _StencilApply.backward(ctx, grad_brd)
+
+
+def _plain_eager() -> bool:
+    return not (torch.compiler.is_compiling() or torch._C._are_functorch_transforms_active())
+
+
+def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
+    """Multiply ``(*, C, D)`` data by the ``(R, C)`` stencils -> ``(*, R, D)``.
+
+    Convention:
+        Rows are items (vertices): ``x[..., c, :]`` is item ``c``. Differentiable in
+        ``x`` (backward applies the transpose through the same op); works under
+        ``torch.compile(fullgraph=True)``, ``torch.func.vmap`` and ``jacrev``. The
+        weights are cast to ``x``'s dtype and device when they differ; float16 and
+        bfloat16 ``x`` are computed in float32 and the result cast back.
+
+    Args:
+        stencils: :class:`StencilMatrix` of shape ``(R, C)``.
+        x: ``(*, C, D)`` float.
+
+    Returns:
+        ``(*, R, D)``, same dtype and device as ``x``.
+
+    Example:
+        >>> s = stencil_matrix(torch.tensor([0, 0]), torch.tensor([0, 1]),
+        ...                    torch.tensor([0.5, 0.5]), (1, 2))
+        >>> apply_stencils(s, torch.tensor([[0., 2.], [4., 6.]]))
+        tensor([[2., 4.]])
+    """
+    batch, (C, D) = x.shape[:-2], x.shape[-2:]
+    dtype = working_dtype(x.dtype)
+    parts = list(stencils)
+    if parts[2].dtype != dtype or parts[2].device != x.device:
+        parts = [p.to(x.device) for p in parts]
+        parts[2], parts[5] = parts[2].to(dtype), parts[5].to(dtype)
+    function = _StencilApplyEager if _plain_eager() else _StencilApply
+    y_brd = function.apply(*parts, x.to(dtype).reshape(math.prod(batch), C, D))
+    return cast_back(y_brd.reshape(*batch, y_brd.shape[1], D), x.dtype)

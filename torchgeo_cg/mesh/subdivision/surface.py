@@ -1,0 +1,559 @@
+"""The Catmark limit surface at any point of any control face, as sparse stencils.
+
+Convention:
+    - Points are ``(face_ids, uv)`` in OpenSubdiv's ptex numbering (``Far::PtexIndices``)
+      of the operator's input mesh: faces in order, a quad is one ptex face, any other
+      ``k``-gon is ``k`` of them (sub-face ``j`` is the quad at corner ``j``). A quad's
+      corners 0-3 sit at ``uv`` (0,0), (1,0), (1,1), (0,1); sub-face ``j`` of a ``k``-gon
+      has (0,0) at corner ``j``, (1,0) at the middle of edge ``j -> j+1`` and (1,1) at
+      the face's centre. ``du``, ``dv`` are the derivatives in that parametrisation, and
+      ``normals = normalize(du x dv)`` point outward for counter-clockwise faces.
+    - Evaluation is OpenSubdiv's feature-adaptive scheme: the point's quad after one
+      level (the operator) is refined around the point until its patch is regular
+      (:mod:`~torchgeo_cg.mesh.subdivision._patches`: smooth valence-4 corners,
+      boundary and infinitely sharp crease corners, corners of valence 2), and there it
+      is the bicubic B-spline patch, exact to rounding. Infinitely sharp creases are
+      patch boundaries (OpenSubdiv's ``useInfSharpPatch``). Points still in an irregular
+      quad at level ``max_level`` (within ``2**-max_level`` of the face size of an
+      extraordinary or irregular-boundary vertex, a dart, a corner of another valence,
+      a hole's vertex, or a semi-sharp feature sharper than ``max_level``) take a
+      bilinear end cap through the exact limit positions of that quad's corners: so
+      at every vertex the result equals :func:`limit_positions`, and positions stay
+      continuous across every edge.
+    - Tags, holes and ``boundary`` are those the operator was built with; pass the same
+      ``crease_method`` (the operator does not record it). Points on holes raise.
+    - The result is linear in the control points: :func:`limit_stencils` builds sparse
+      ``(N, V0)`` matrices once (under ``torch.no_grad()``, without Python loops over
+      faces or points; a loop over the levels), and :func:`limit_surface` applies them,
+      one sparse matmul for a whole batch of shapes sharing the topology, differentiable
+      in ``verts``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+from torchgeo_cg.core.check import check_shape, check_tensor
+from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.mesh.subdivision._creasing import effective_sharpness
+from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils
+from torchgeo_cg.mesh.subdivision._normals import unit_normals
+from torchgeo_cg.mesh.subdivision._patches import (
+    patch_grids,
+    patch_weights,
+    quad_twins,
+    regular_quads,
+)
+from torchgeo_cg.mesh.subdivision._topology import check_verts, mesh_topology
+from torchgeo_cg.mesh.subdivision.catmark import catmull_clark_operator
+from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
+from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
+
+__all__ = [
+    "LimitSurfaceSample", "LimitStencils", "SurfaceSamples", "limit_stencils", "limit_surface",
+    "sample_limit_surface",
+]
+
+_CHUNK = 1 << 16  # points per batched product (bounds the gathered per-face matrices)
+
+# child quad p of a quad: its local (s', t') = A_p (s, t) + b_p (module docstring's layout)
+_CHILD_A = ((2, 0, 0, 2), (0, 2, -2, 0), (-2, 0, 0, -2), (0, -2, 2, 0))
+_CHILD_B = ((0, 0), (0, 2), (2, 2), (2, 0))
+
+
+class LimitSurfaceSample(NamedTuple):
+    """Points of the limit surface.
+
+    Attributes:
+        positions: ``(*, N, D)``.
+        du: ``(*, N, D)`` derivative along ptex ``u``.
+        dv: ``(*, N, D)`` derivative along ptex ``v``.
+        normals: ``(*, N, 3)`` unit ``du x dv`` (zero where it vanishes), or ``None`` when
+            ``D != 3``.
+    """
+
+    positions: torch.Tensor
+    du: torch.Tensor
+    dv: torch.Tensor
+    normals: torch.Tensor | None
+
+
+class LimitStencils(NamedTuple):
+    """Sparse ``(N, V0)`` stencils of the limit positions and derivatives at N points.
+
+    Attributes:
+        positions: :class:`~torchgeo_cg.mesh.subdivision.stencils.StencilMatrix`.
+        du: the same for the ``u`` derivative.
+        dv: the same for the ``v`` derivative.
+    """
+
+    positions: StencilMatrix
+    du: StencilMatrix
+    dv: StencilMatrix
+
+
+class SurfaceSamples(NamedTuple):
+    """Points drawn on the limit surface.
+
+    Attributes:
+        positions: ``(*B, N, D)``.
+        normals: ``(*B, N, 3)`` or ``None`` when ``D != 3``.
+        face_ids: ``(N,)`` long ptex face of each point.
+        uv: ``(N, 2)`` its ptex coordinates.
+    """
+
+    positions: torch.Tensor
+    normals: torch.Tensor | None
+    face_ids: torch.Tensor
+    uv: torch.Tensor
+
+
+class _Level(NamedTuple):
+    faces: torch.Tensor  # (F, 4) quads of this level's (partial) mesh
+    num_vertices: int
+    tags: SubdivisionTags
+    chain: tuple  # CSR (crow, col, weights) of this level's vertices in control vertices
+
+
+def _expand(rows, cols, vals, csr):
+    """Triplets ``(row, col, w)`` times a CSR matrix (indexed by ``col``): the triplets of
+    the product, unsummed."""
+    crow, col, val = csr
+    start = crow[cols]
+    n = crow[cols + 1] - start
+    rep = torch.repeat_interleave(torch.arange(cols.numel(), device=cols.device), n)
+    first = torch.repeat_interleave(torch.cumsum(n, 0) - n, n)
+    k = start[rep] + torch.arange(rep.numel(), device=cols.device) - first
+    return rows[rep], col[k], vals[rep] * val[k]
+
+
+def _face_matrices(slots: torch.Tensor, chains, num_cols: int, dtype):
+    """Per face, its ``S`` slot vertices ``(m, S)`` composed through ``chains`` (CSR
+    matrices applied right to left): ``(C (m, S, K) dense, cols (m, K))``."""
+    m, S = slots.shape
+    rows = torch.arange(m * S, device=slots.device)
+    cols, vals = slots.reshape(-1), torch.ones(m * S, dtype=dtype, device=slots.device)
+    for csr in chains:
+        rows, cols, vals = _expand(rows, cols, vals, csr)
+    face = rows // S
+    key, inverse = torch.unique(face * num_cols + cols, return_inverse=True)
+    ukey_face = key // num_cols
+    count = torch.bincount(ukey_face, minlength=m)
+    first = torch.cumsum(count, 0) - count
+    k_u = torch.arange(key.numel(), device=slots.device) - first[ukey_face]
+    K = int(count.max()) if m else 0
+    C = torch.zeros(m, S, K, dtype=dtype, device=slots.device)
+    C.index_put_((face, rows % S, k_u[inverse]), vals, accumulate=True)
+    out_cols = torch.zeros(m, K, dtype=torch.long, device=slots.device)
+    out_cols[ukey_face, k_u] = key % num_cols
+    return C, out_cols
+
+
+def _emit(out, sample, face_local, weights, C, cols):
+    """Append the blocks of points ``sample`` whose slot weights are ``weights (n, 3, S)``
+    on faces ``face_local`` of the per-face matrices ``C``, ``cols``."""
+    for lo in range(0, sample.numel(), _CHUNK):  # bounded memory: chunks of points
+        sl = slice(lo, lo + _CHUNK)
+        f = face_local[sl]
+        out.append((sample[sl], cols[f], torch.bmm(weights[sl], C[f])))  # (n,), (n, K), (n, 3, K)
+
+
+def _chain_rule(ws, wt, jac):
+    """Weights of d/du and d/dv from those of d/ds, d/dt and ``jac = d(s, t)/d(u, v)``."""
+    a, b = jac[:, 0, 0, None], jac[:, 1, 0, None]
+    c, d = jac[:, 0, 1, None], jac[:, 1, 1, None]
+    return ws * a + wt * b, ws * c + wt * d
+
+
+def _to_child(s, t, jac):
+    """Child quad ``p (n,)`` holding local ``(s, t)``, and the point's coordinates and
+    Jacobian in it."""
+    hi_s, hi_t = s >= 0.5, t >= 0.5
+    p = torch.where(hi_t, torch.where(hi_s, 2, 3), torch.where(hi_s, 1, 0))
+    A = torch.tensor(_CHILD_A, dtype=s.dtype, device=s.device).reshape(4, 2, 2)[p]
+    b = torch.tensor(_CHILD_B, dtype=s.dtype, device=s.device)[p]
+    st = torch.einsum("nij,nj->ni", A, torch.stack([s, t], -1)) + b
+    return p, st[:, 0].clamp(0, 1), st[:, 1].clamp(0, 1), A @ jac
+
+
+def _ptex_to_level_one(operator, face_ids, uv, dtype):
+    """``(face (n,), s, t, jac (n, 2, 2))`` of each ptex point in the operator's child quads."""
+    V0, F0 = operator.num_vertices_in, operator.num_faces_in
+    child = operator.faces if operator.child_faces is None else operator.child_faces
+    parent = child[:, 2] - V0  # the face point of a child quad is its parent's
+    size = torch.bincount(parent, minlength=F0)
+    first_child = torch.cumsum(size, 0) - size
+    count = torch.where(size == 4, 1, size)
+    ptex_end = torch.cumsum(count, 0)
+    total = int(ptex_end[-1]) if F0 else 0
+    bad = (face_ids < 0) | (face_ids >= total)
+    if bool(bad.any()):
+        i = int(torch.nonzero(bad.flatten())[0])
+        raise ValueError(f"face_ids: expected ptex face ids in [0, {total}), got "
+                         f"{int(face_ids.flatten()[i])} at flat index {i}")
+    f = torch.searchsorted(ptex_end, face_ids, right=True)
+    u, v = uv[:, 0].to(dtype), uv[:, 1].to(dtype)
+    eye = torch.eye(2, dtype=dtype, device=uv.device).expand(face_ids.numel(), 2, 2)
+    p, s, t, jac = _to_child(u, v, eye)
+    quad = size[f] == 4
+    sub = face_ids - (ptex_end[f] - count[f])
+    face = first_child[f] + torch.where(quad, p, sub)
+    s, t = torch.where(quad, s, u), torch.where(quad, t, v)
+    jac = torch.where(quad[:, None, None], jac, eye)
+    return face, s, t, jac
+
+
+def _sub_tags(tags: SubdivisionTags, vmap, fmap, sub_faces) -> SubdivisionTags:
+    """The tags of a partial mesh: creases that are edges of ``sub_faces``, kept corners
+    and holes, renumbered by ``vmap`` / ``fmap`` (``-1``: dropped)."""
+    n = max(int(vmap.max()) + 1 if vmap.numel() else 0, 1)
+    a, b = vmap[tags.creases[:, 0]], vmap[tags.creases[:, 1]]
+    ring = torch.cat([sub_faces, sub_faces[:, :1]], 1)
+    lo = torch.minimum(ring[:, :-1], ring[:, 1:]).flatten()
+    hi = torch.maximum(ring[:, :-1], ring[:, 1:]).flatten()
+    keys = torch.unique(lo * n + hi)
+    key = torch.minimum(a, b) * n + torch.maximum(a, b)
+    pos = torch.searchsorted(keys, key).clamp(max=max(keys.numel() - 1, 0))
+    keep = (a >= 0) & (b >= 0) & (keys[pos] == key) if keys.numel() else a < -1
+    corner_keep = vmap[tags.corners] >= 0
+    holes = fmap[tags.holes]
+    return SubdivisionTags(
+        torch.stack([a, b], 1)[keep], tags.crease_sharpness[keep],
+        vmap[tags.corners][corner_keep], tags.corner_sharpness[corner_keep], holes[holes >= 0],
+    )
+
+
+def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, num_cols):
+    """The next level of the part of ``level`` within two rings of ``faces_needed``, and
+    the map from this level's faces to the part's faces (``-1`` outside)."""
+    faces, V = level.faces, level.num_vertices
+    mark_f = torch.zeros(faces.shape[0], dtype=torch.bool, device=faces.device)
+    mark_f[faces_needed] = True
+    for _ in range(2):  # two rings of faces: every vertex the next level needs is interior
+        mark_v = torch.zeros(V, dtype=torch.bool, device=faces.device)
+        mark_v[faces[mark_f].flatten()] = True
+        mark_f = mark_v[faces].any(1)
+    keep_f = torch.nonzero(mark_f).flatten()
+    keep_v, sub_faces = torch.unique(faces[keep_f], return_inverse=True)
+    vmap = torch.full((V,), -1, dtype=torch.long, device=faces.device)
+    vmap[keep_v] = torch.arange(keep_v.numel(), device=faces.device)
+    fmap = torch.full((faces.shape[0],), -1, dtype=torch.long, device=faces.device)
+    fmap[keep_f] = torch.arange(keep_f.numel(), device=faces.device)
+    tags = _sub_tags(level.tags, vmap, fmap, sub_faces)
+    op = catmull_clark_operator(sub_faces, keep_v.numel(), boundary, dtype=dtype, tags=tags,
+                                crease_method=crease_method)
+    st = op.stencils
+    rows = torch.repeat_interleave(torch.arange(op.num_vertices_out, device=faces.device),
+                                   st.crow[1:] - st.crow[:-1])
+    rows, cols, vals = _expand(rows, keep_v[st.col], st.weights, level.chain)
+    chain = stencil_matrix(rows, cols, vals, (op.num_vertices_out, num_cols))
+    child_tags = op.child_tags if op.child_tags is not None else SubdivisionTags.empty(
+        dtype, faces.device)
+    nxt = _Level(op.child_faces, op.num_vertices_out, child_tags,
+                 (chain.crow, chain.col, chain.weights))
+    return nxt, fmap
+
+
+def _sharp_tags(tags: SubdivisionTags) -> SubdivisionTags:
+    """Tags with every positive sharpness made infinite (the end caps' limit masks)."""
+    inf = lambda s: torch.where(s > 0, torch.full_like(s, INFINITELY_SHARP), s)  # noqa: E731
+    return tags._replace(crease_sharpness=inf(tags.crease_sharpness),
+                         corner_sharpness=inf(tags.corner_sharpness))
+
+
+def _emit_patches(out, level, topo, twin, sharp_e, sample, face, s, t, jac, num_cols):
+    """Triplets of the points ``sample`` in regular quads ``face`` of ``level``."""
+    fu, face_local = torch.unique(face, return_inverse=True)
+    grid, phantom = patch_grids(topo, twin, sharp_e, fu)
+    C, cols = _face_matrices(grid.reshape(-1, 16), (level.chain,), num_cols, s.dtype)
+    w, ws, wt = (x.reshape(-1, 16) for x in patch_weights(s, t, phantom[face_local]))
+    wu, wv = _chain_rule(ws, wt, jac)
+    _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
+
+
+def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
+    """Triplets of the points ``sample`` in irregular quads at the last level: the bilinear
+    patch through the exact limit positions of the quad's corners."""
+    fu, face_local = torch.unique(face, return_inverse=True)
+    limit = catmark_limit_stencils(level.faces, level.num_vertices, boundary, s.dtype,
+                                   _sharp_tags(level.tags))
+    C, cols = _face_matrices(level.faces[fu], ((limit.crow, limit.col, limit.weights),
+                                               level.chain), num_cols, s.dtype)
+    a, b = 1 - s, 1 - t
+    w = torch.stack([a * b, s * b, s * t, a * t], -1)
+    ws = torch.stack([-b, b, t, -t], -1)
+    wt = torch.stack([-a, -s, s, a], -1)
+    wu, wv = _chain_rule(ws, wt, jac)
+    _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
+
+
+def _check_level(max_level) -> int:
+    if isinstance(max_level, bool) or not isinstance(max_level, int) or max_level < 1:
+        raise ValueError(f"max_level: expected an int >= 1, got {max_level!r}")
+    return max_level
+
+
+def _check_points(operator, face_ids, uv):
+    if operator.scheme != "catmark":
+        raise ValueError(f"operator: the limit surface needs a 'catmark' operator, got one of "
+                         f"scheme {operator.scheme!r}")
+    check_tensor(face_ids, "face_ids")
+    check_tensor(uv, "uv")
+    if face_ids.dtype.is_floating_point or face_ids.dtype.is_complex or face_ids.dtype == \
+            torch.bool:
+        raise TypeError(f"face_ids: expected an integer tensor, got {face_ids.dtype}")
+    if not uv.dtype.is_floating_point:
+        raise TypeError(f"uv: expected a floating-point tensor, got {uv.dtype}")
+    check_shape(uv, [*(str(n) for n in face_ids.shape), "2"], "uv",
+                {str(n): n for n in face_ids.shape})
+    outside = ~((uv >= 0) & (uv <= 1))
+    if bool(outside.any()):
+        i = int(torch.nonzero(outside.reshape(-1, 2).any(1))[0])
+        raise ValueError(f"uv: expected coordinates in [0, 1], got "
+                         f"{uv.reshape(-1, 2)[i].tolist()} at point {i}")
+
+
+def limit_stencils(
+    operator: SubdivisionOperator,
+    face_ids: torch.Tensor,
+    uv: torch.Tensor,
+    *,
+    crease_method: str = "uniform",
+    max_level: int = 8,
+) -> LimitStencils:
+    """Sparse ``(N, V0)`` stencils of the Catmark limit surface at ptex points.
+
+    Convention:
+        See the module docstring (ptex numbering and ``uv``, feature-adaptive evaluation,
+        exact farther than ``2**-max_level`` from irregular features).
+
+    Args:
+        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        face_ids: ``(*, N)`` integer ptex face ids; the rows are the flattened points.
+        uv: ``(*, N, 2)`` float in ``[0, 1]``.
+        crease_method: the ``crease_method`` the operator was built with.
+        max_level: refinement levels at most (``>= 1``; 8 by default).
+
+    Returns:
+        :class:`LimitStencils` of three ``(prod(*) * N, V0)`` stencil matrices in the
+        operator's weights dtype.
+
+    Raises:
+        ValueError: a non-Catmark operator, ``face_ids`` out of range, ``uv`` outside
+            ``[0, 1]``, a point on a hole, or a bad ``max_level``.
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
+        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, "edge_and_corner",
+        ...                             dtype=torch.float64)
+        >>> st = limit_stencils(op, torch.tensor([0]), torch.tensor([[0.5, 0.5]]))
+        >>> st.positions.dense()
+        tensor([[0.2500, 0.2500, 0.2500, 0.2500]], dtype=torch.float64)
+    """
+    _check_level(max_level)
+    _check_points(operator, face_ids, uv)
+    with torch.no_grad():
+        return _build(operator, face_ids.reshape(-1).long(), uv.reshape(-1, 2),
+                      crease_method, max_level)
+
+
+def _build(operator, face_ids, uv, crease_method, max_level):
+    V0, dtype = operator.num_vertices_in, operator.stencils.weights.dtype
+    boundary = "edge_only" if operator.boundary == "none" else operator.boundary
+    st = operator.stencils
+    faces = operator.faces if operator.child_faces is None else operator.child_faces
+    tags = operator.child_tags if operator.child_tags is not None else SubdivisionTags.empty(
+        dtype, faces.device)
+    level = _Level(faces, operator.num_vertices_out, tags, (st.crow, st.col, st.weights))
+    face, s, t, jac = _ptex_to_level_one(operator, face_ids.to(faces.device), uv, dtype)
+    sample = torch.arange(face.numel(), device=faces.device)
+    out = []
+    for depth in range(1, max_level + 1):  # a loop over levels
+        if sample.numel() == 0:
+            break
+        topo = mesh_topology(level.faces, level.num_vertices, boundary)
+        sharp_e, sharp_v, hole_f = effective_sharpness(
+            topo, level.tags, level.num_vertices, level.faces.shape[0], boundary, dtype)
+        if bool(hole_f[face].any()):
+            i = int(sample[hole_f[face]][0])
+            raise ValueError(f"face_ids: point {i} (ptex face {int(face_ids[i])}) is on a hole")
+        regular = regular_quads(topo, level.faces, sharp_e, sharp_v, hole_f)[face]
+        twin = quad_twins(topo)
+        points = (sample, face, s, t, jac)
+        if bool(regular.any()):
+            _emit_patches(out, level, topo, twin, sharp_e, *(x[regular] for x in points), V0)
+        rest = ~regular
+        if depth == max_level:
+            if bool(rest.any()):
+                _emit_end_caps(out, level, boundary, *(x[rest] for x in points), V0)
+            break
+        sample, face, s, t, jac = (x[rest] for x in points)
+        if sample.numel() == 0:
+            break
+        level, fmap = _refine_around(level, torch.unique(face), boundary, dtype, crease_method,
+                                     V0)
+        p, s, t, jac = _to_child(s, t, jac)
+        face = 4 * fmap[face] + p
+    return _assemble(out, face_ids.numel(), V0, dtype, faces.device)
+
+
+def _assemble(blocks, num_rows, num_cols, dtype, device) -> LimitStencils:
+    """The three CSR stencil matrices from the per-point blocks (each point is in exactly
+    one block, so rows need no sort: the padded ``(N, K)`` layout is already CSR order)."""
+    K = max([c.shape[1] for _, c, _ in blocks] + [1])
+    cols = torch.full((num_rows, K), num_cols, dtype=torch.long, device=device)
+    vals = torch.zeros(3, num_rows, K, dtype=dtype, device=device)
+    for sample, c, v in blocks:  # one block per level and chunk
+        cols[sample, :c.shape[1]] = c
+        vals[:, sample, :c.shape[1]] = v.permute(1, 0, 2)
+    out = []
+    for i in range(3):
+        key = torch.where(vals[i] != 0, cols, num_cols)  # zeros sort last, then drop
+        key, order = torch.sort(key, dim=1)
+        w = torch.gather(vals[i], 1, order)
+        keep = key < num_cols
+        crow = torch.zeros(num_rows + 1, dtype=torch.long, device=device)
+        crow[1:] = torch.cumsum(keep.sum(1), 0)
+        col, weights = key[keep], w[keep]
+        rows = torch.repeat_interleave(torch.arange(num_rows, device=device), crow[1:] - crow[:-1])
+        order_t = torch.sort(col.to(torch.int32), stable=True).indices
+        crow_t = torch.zeros(num_cols + 1, dtype=torch.long, device=device)
+        crow_t[1:] = torch.cumsum(torch.bincount(col, minlength=num_cols), 0)
+        out.append(StencilMatrix(crow, col, weights, crow_t, rows[order_t], weights[order_t]))
+    return LimitStencils(*out)
+
+
+def limit_surface(
+    operator: SubdivisionOperator,
+    verts: torch.Tensor,
+    face_ids: torch.Tensor,
+    uv: torch.Tensor,
+    *,
+    crease_method: str = "uniform",
+    max_level: int = 8,
+) -> LimitSurfaceSample:
+    """Positions, derivatives and normals of the Catmark limit surface at ptex points.
+
+    Convention:
+        See the module docstring. Builds :func:`limit_stencils` and applies them; to
+        evaluate the same points on many shapes or steps, build the stencils once and
+        use :func:`~torchgeo_cg.mesh.subdivision.stencils.apply_stencils`.
+
+    Args:
+        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        verts: ``(*B, V0, D)`` float control points (shapes sharing the topology).
+        face_ids: ``(*P, N)`` integer ptex face ids.
+        uv: ``(*P, N, 2)`` float in ``[0, 1]``.
+        crease_method: the ``crease_method`` the operator was built with.
+        max_level: refinement levels at most (``>= 1``).
+
+    Returns:
+        :class:`LimitSurfaceSample` of ``(*B, *P, N, D)`` tensors (normals ``(*B, *P, N,
+        3)`` or ``None`` when ``D != 3``), differentiable in ``verts``.
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
+        >>> cube_v = torch.tensor([[x, y, z] for x in (0., 1.) for y in (0., 1.)
+        ...                        for z in (0., 1.)], dtype=torch.float64)
+        >>> cube_f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6],
+        ...           [0, 2, 6, 4], [1, 5, 7, 3]]
+        >>> op = catmull_clark_operator(cube_f, 8, dtype=torch.float64)
+        >>> out = limit_surface(op, cube_v, torch.tensor([0]), torch.tensor([[0.5, 0.5]]))
+        >>> out.positions  # the middle of the face x = 0 (OpenSubdiv: 0.0802469...)
+        tensor([[0.0802, 0.5000, 0.5000]], dtype=torch.float64)
+        >>> out.normals.round(decimals=12) + 0.0
+        tensor([[-1.,  0.,  0.]], dtype=torch.float64)
+    """
+    check_verts(verts, operator.num_vertices_in)
+    st = limit_stencils(operator, face_ids, uv, crease_method=crease_method,
+                        max_level=max_level)
+    shape = (*verts.shape[:-2], *face_ids.shape, verts.shape[-1])
+    pos, du, dv = (apply_stencils(m, verts).reshape(shape) for m in st)
+    wdt = working_dtype(verts.dtype)  # half precision: the normals in float32, cast back
+    normals = cast_back(unit_normals(du.to(wdt), dv.to(wdt)), verts.dtype) \
+        if verts.shape[-1] == 3 else None
+    return LimitSurfaceSample(pos, du, dv, normals)
+
+
+def _num_ptex_faces(operator) -> int:
+    child = operator.faces if operator.child_faces is None else operator.child_faces
+    size = torch.bincount(child[:, 2] - operator.num_vertices_in,
+                          minlength=operator.num_faces_in)
+    return int(torch.where(size == 4, 1, size).sum())
+
+
+def sample_limit_surface(
+    operator: SubdivisionOperator,
+    verts: torch.Tensor,
+    num_samples: int,
+    *,
+    generator: torch.Generator | None = None,
+    crease_method: str = "uniform",
+    max_level: int = 8,
+) -> SurfaceSamples:
+    """Points uniformly distributed by area on the Catmark limit surface, with normals.
+
+    Convention:
+        Each ptex face gets an area bound from ``|du x dv|`` on a 5 x 5 grid (times 1.5,
+        a margin for the interior maximum); candidates are drawn by that bound, uniform
+        in ``uv``, and kept with probability ``|du x dv| / bound`` (rejection sampling,
+        a loop over rounds, not faces). With several shapes ``(*B, V0, D)``, the area is
+        the first shape's, and the same ``(face_ids, uv)`` are evaluated on all of them.
+        Differentiable in ``verts`` (the choice of points is not).
+
+    Args:
+        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        verts: ``(*B, V0, 3)`` float control points.
+        num_samples: ``N >= 0``.
+        generator: the ``torch.Generator`` for the draws (``None``: the global one).
+        crease_method, max_level: as in :func:`limit_stencils`.
+
+    Returns:
+        :class:`SurfaceSamples`.
+
+    Example:
+        >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
+        >>> cube_v = torch.tensor([[x, y, z] for x in (0., 1.) for y in (0., 1.)
+        ...                        for z in (0., 1.)], dtype=torch.float64)
+        >>> cube_f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6],
+        ...           [0, 2, 6, 4], [1, 5, 7, 3]]
+        >>> op = catmull_clark_operator(cube_f, 8, dtype=torch.float64)
+        >>> out = sample_limit_surface(op, cube_v, 1000, generator=torch.Generator().manual_seed(0))
+        >>> out.positions.shape, bool(((out.positions - 0.5).norm(dim=-1) < 0.5).all())
+        (torch.Size([1000, 3]), True)
+    """
+    check_verts(verts, operator.num_vertices_in)
+    if isinstance(num_samples, bool) or not isinstance(num_samples, int) or num_samples < 0:
+        raise ValueError(f"num_samples: expected an int >= 0, got {num_samples!r}")
+    first = verts.detach().reshape(-1, *verts.shape[-2:])[0] if verts.numel() else verts
+    device, dtype = verts.device, verts.dtype
+    P = _num_ptex_faces(operator)
+    grid = torch.linspace(0, 1, 5, dtype=dtype, device=device)
+    uv_g = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
+    faces_g = torch.arange(P, device=device).repeat_interleave(uv_g.shape[0])
+    probe = limit_surface(operator, first, faces_g, uv_g.repeat(P, 1),
+                          crease_method=crease_method, max_level=max_level)
+    bound = 1.5 * torch.linalg.cross(probe.du, probe.dv).norm(dim=-1).reshape(P, -1).amax(1)
+    chosen_f, chosen_uv = [], []
+    have = 0
+    while have < num_samples and float(bound.sum()) > 0:  # rounds of rejection sampling
+        n = 2 * (num_samples - have) + 16
+        f = torch.multinomial(bound, n, replacement=True, generator=generator)
+        uv = torch.rand(n, 2, dtype=dtype, device=device, generator=generator)
+        at = limit_surface(operator, first, f, uv, crease_method=crease_method,
+                           max_level=max_level)
+        area = torch.linalg.cross(at.du, at.dv).norm(dim=-1)
+        keep = torch.rand(n, dtype=dtype, device=device, generator=generator) * bound[f] < area
+        chosen_f.append(f[keep])
+        chosen_uv.append(uv[keep])
+        have += int(keep.sum())
+    face_ids = torch.cat(chosen_f)[:num_samples] if chosen_f else torch.zeros(
+        0, dtype=torch.long, device=device)
+    uv = torch.cat(chosen_uv)[:num_samples] if chosen_uv else torch.zeros(
+        0, 2, dtype=dtype, device=device)
+    out = limit_surface(operator, verts, face_ids, uv, crease_method=crease_method,
+                        max_level=max_level)
+    return SurfaceSamples(out.positions, out.normals, face_ids, uv)
