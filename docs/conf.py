@@ -143,7 +143,7 @@ def api_index() -> str:
 
 def gallery_page() -> str:
     from torchgeo_cg.viz import registered_figures
-    from torchgeo_cg.viz._gallery import load_figure_modules
+    from torchgeo_cg.viz.gallery import load_figure_modules
 
     load_figure_modules()
     source = os.environ.get("TORCHGEO_CG_DOCS_FIGURES") or (

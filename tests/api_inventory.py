@@ -804,6 +804,12 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.viz.curves": [],
     "torchgeo_cg.viz.estimation": ["plot_report_fits"],
+    "torchgeo_cg.viz.gallery": [
+        "build_gallery",
+        "check_output_folder",
+        "check_sections",
+        "load_figure_modules",
+    ],
     "torchgeo_cg.viz.glyph_fit": [
         "GlyphFit",
         "GlyphPieces",
@@ -811,6 +817,7 @@ INVENTORY: dict[str, list[str]] = {
         "glyph_pieces",
         "plot_glyph_fit",
     ],
+    "torchgeo_cg.viz.icp": ["plot_icp"],
     "torchgeo_cg.viz.limit_surface": [],
     "torchgeo_cg.viz.marching_cubes": [],
     "torchgeo_cg.viz.registration": [],
@@ -825,6 +832,7 @@ INVENTORY: dict[str, list[str]] = {
         "rabbit_surface",
     ],
     "torchgeo_cg.viz.sdf": [],
+    "torchgeo_cg.viz.sparse_marching_cubes": [],
     "torchgeo_cg.viz.splines": [],
     "torchgeo_cg.viz.subdivision": [],
     "torchgeo_cg.viz.subdivision_tags": [],

@@ -72,7 +72,7 @@ def _same(module: str, name: str, obj: object) -> bool:
 def site(tmp_path_factory) -> Path:
     """The reference built with ``sphinx-build -W`` (one cheap figure rendered for it)."""
     from torchgeo_cg.viz import registered_figures
-    from torchgeo_cg.viz._gallery import load_figure_modules
+    from torchgeo_cg.viz.gallery import load_figure_modules
 
     load_figure_modules()
     figures = tmp_path_factory.mktemp("figures")

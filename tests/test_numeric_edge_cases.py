@@ -237,8 +237,10 @@ def test_rotate_parameters_follow_the_points():
     got = rotate(P.capsule, rot)(pts)
     assert got.dtype == F64
     torch.testing.assert_close(got, want)
-    module = Rotate(P.Capsule(dtype=F64), rot)
-    torch.testing.assert_close(module(pts), want)
+    module = Rotate(P.Capsule(dtype=F64), rot)  # module state is float32: the one rule
+    with pytest.raises(TypeError, match="float32"):
+        module(pts)
+    torch.testing.assert_close(module.double()(pts), want)
 
 
 def test_numpy_scalars_and_arrays_accepted_uniformly():

@@ -100,7 +100,7 @@ def test_gallery_unknown_section(tmp_path, capsys):
 
 def test_gallery_failing_figure_is_one_line(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(registry, "_REGISTRY", {})
-    monkeypatch.setattr("torchgeo_cg.viz._gallery.load_figure_modules", lambda: [])
+    monkeypatch.setattr("torchgeo_cg.viz.gallery.load_figure_modules", lambda: [])
 
     @registry.figure("demo", "bad.png", "Bad", "raises")
     def bad(path):

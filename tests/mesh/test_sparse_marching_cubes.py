@@ -134,14 +134,16 @@ def test_seams_face_edge_corner_and_samples_at_iso():
     seams at faces, edges and the corner), with samples exactly at iso on seams; and
     planes lying exactly on a block boundary."""
     bounds = torch.tensor(BOUNDS, dtype=torch.float64)  # 33 samples: spacing 1/16
-    field = lambda p: sphere(p, 0.5)  # (0.5, 0, 0) is sample 24 = a block corner
+    def field(p):
+        return sphere(p, 0.5)  # (0.5, 0, 0) is sample 24 = a block corner
     vol = sample_grid(field, 33, bounds)
     assert int((vol.values == 0).sum()) >= 6
     for block in (4, 8):
         _assert_equal(sparse_marching_cubes(field, bounds, 33, block=block),
                       marching_cubes(vol))
     for axis in range(3):  # plane on the seam x = 0 (samples exactly 0, outside)
-        plane = lambda p, a=axis: p[:, a] - 0.0
+        def plane(p, a=axis):
+            return p[:, a] - 0.0
         sparse = sparse_marching_cubes(plane, bounds, 33, block=4)
         dense = marching_cubes(sample_grid(plane, 33, bounds))
         _assert_equal(sparse, dense, watertight=False)
@@ -160,7 +162,8 @@ def test_float32_points_and_equal_dense():
 
 def test_iso_level_and_no_surface():
     bounds = torch.tensor(BOUNDS, dtype=torch.float64)
-    field = lambda p: sphere(p, 0.3)
+    def field(p):
+        return sphere(p, 0.3)
     sparse = sparse_marching_cubes(field, bounds, 30, iso=0.25)
     _assert_equal(sparse, marching_cubes(sample_grid(field, 30, bounds), iso=0.25))
     empty = sparse_marching_cubes(field, bounds, 30, iso=5.0)
@@ -182,7 +185,8 @@ def test_pruning_skips_far_blocks():
 def test_bound_too_small_is_the_caller_s_promise():
     """A wrong (too small) bound prunes blocks holding the surface: the mesh has holes.
     This documents that the bound is trusted, not checked."""
-    field = lambda p: 10 * sphere(p, 0.5)
+    def field(p):
+        return 10 * sphere(p, 0.5)
     sparse = sparse_marching_cubes(field, torch.tensor(BOUNDS, dtype=torch.float64), 33,
                                    lipschitz=10.0)
     _assert_equal(sparse, _dense(field, 33))
@@ -355,7 +359,8 @@ def test_gradcheck_tiny_field():
 
     assert torch.autograd.gradcheck(f, (centre, radius))
     iso = torch.tensor(0.1, dtype=torch.float64, requires_grad=True)
-    g = lambda i: sparse_marching_cubes(lambda p: p.norm(dim=1) - 0.5, bounds, 9, iso=i).verts
+    def g(i):
+        return sparse_marching_cubes(lambda p: p.norm(dim=1) - 0.5, bounds, 9, iso=i).verts
     assert torch.autograd.gradcheck(g, (iso,))
 
 
@@ -470,7 +475,7 @@ def test_chunks_respect_max_points_per_call():
 def test_a_torchgeo_sdf_module_as_field():
     from torchgeo_cg.sdf import Torus
 
-    field = Torus(0.6, 0.25)
+    field = Torus(0.6, 0.25).double()  # module state and bounds share one dtype
     sparse = sparse_marching_cubes(field, torch.tensor(BOUNDS, dtype=torch.float64), 30)
     _assert_equal(sparse, _dense(field, 30))
 

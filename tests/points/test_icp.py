@@ -154,7 +154,8 @@ def _open3d_icp(o3d, pairs, method, max_distance, normals, iterations):
         r = reg.registration_icp(src, tgt, max_distance, np.eye(4), est,
                                  reg.ICPConvergenceCriteria(1e-6, 1e-6, iterations))
         out.append((np.asarray(r.transformation), r.inlier_rmse))
-    return torch.tensor(np.stack([t for t, _ in out])), torch.tensor([e for _, e in out], dtype=torch.float64)
+    transforms = torch.tensor(np.stack([t for t, _ in out]))
+    return transforms, torch.tensor([e for _, e in out], dtype=torch.float64)
 
 
 @pytest.mark.slow
@@ -179,7 +180,8 @@ def test_against_open3d_on_rabbit_scans(method):
 @pytest.mark.xfail(reason="measured: Cauchy converges in 1 of 5 cases (its scale, estimated "
                    "from the first, misaligned matches, is too wide)", strict=False)
 def test_cauchy_with_outliers_beats_least_squares():
-    pairs = rabbit_scan_pairs(5, 6000, seed=2, outliers=0.3)
+    # 5 pairs of 2000 points keep CI time bounded (6000 points took 811 s with the outliers)
+    pairs = rabbit_scan_pairs(5, 2000, seed=2, outliers=0.3)
     l2 = icp(pairs.source, pairs.target, max_iterations=40)
     cauchy = icp(pairs.source, pairs.target, loss="cauchy", max_iterations=40)
     ok_l2 = _angle_deg(l2.transform, pairs.truth) < 0.5
@@ -189,7 +191,7 @@ def test_cauchy_with_outliers_beats_least_squares():
 
 @pytest.mark.slow
 def test_tukey_from_a_rough_alignment():
-    pairs = rabbit_scan_pairs(3, 6000, seed=3, outliers=0.3, angles=(3.0, 5.0), shift=0.01)
+    pairs = rabbit_scan_pairs(3, 3000, seed=3, outliers=0.3, angles=(3.0, 5.0), shift=0.01)
     res = icp(pairs.source, pairs.target, loss="tukey", method="point_to_plane",
               max_iterations=30)
     assert bool((_angle_deg(res.transform, pairs.truth) < 0.5).all())

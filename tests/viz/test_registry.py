@@ -3,13 +3,13 @@
 import pytest
 
 from torchgeo_cg.viz import registry
-from torchgeo_cg.viz._gallery import build_gallery
+from torchgeo_cg.viz.gallery import build_gallery
 
 
 @pytest.fixture
 def clean_registry(monkeypatch):
     monkeypatch.setattr(registry, "_REGISTRY", {})
-    monkeypatch.setattr("torchgeo_cg.viz._gallery.load_figure_modules", lambda: [])
+    monkeypatch.setattr("torchgeo_cg.viz.gallery.load_figure_modules", lambda: [])
     return registry
 
 

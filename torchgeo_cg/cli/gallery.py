@@ -17,7 +17,7 @@ def _run(args: argparse.Namespace) -> int:
         raise CommandError(
             "needs matplotlib and pillow: pip install 'torchgeo_cg[plot]'", exit_code=1
         ) from None
-    from torchgeo_cg.viz._gallery import build_gallery, check_output_folder, check_sections
+    from torchgeo_cg.viz.gallery import build_gallery, check_output_folder, check_sections
 
     try:
         out = check_output_folder(args.out)

@@ -5,7 +5,7 @@ Importing :mod:`torchgeo_cg.viz` does not import matplotlib; the figure modules
 loads them.
 """
 
-from torchgeo_cg.viz._gallery import build_gallery
+from torchgeo_cg.viz.gallery import build_gallery
 from torchgeo_cg.viz.registry import GalleryFigure, figure, registered_figures
 
 __all__ = ["GalleryFigure", "build_gallery", "figure", "registered_figures"]

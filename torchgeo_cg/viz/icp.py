@@ -7,9 +7,9 @@ from pathlib import Path
 import torch
 
 from torchgeo_cg.points import estimate_normals, icp
+from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
 from torchgeo_cg.viz.scans import rabbit_scan_pairs
-from torchgeo_cg.viz.style import plt, save
 
 __all__ = ["plot_icp"]
 

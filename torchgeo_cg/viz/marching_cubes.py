@@ -31,7 +31,7 @@ def _extract(field: Volume, **kwargs):
     return marching_cubes(field, **kwargs)
 
 
-def _axes3d(ax, lim: float = 1.05, view=(35, -60)) -> None:
+def axes3d(ax, lim: float = 1.05, view=(35, -60)) -> None:
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)
     ax.set_zlim(-lim, lim)
@@ -40,7 +40,7 @@ def _axes3d(ax, lim: float = 1.05, view=(35, -60)) -> None:
     ax.set_axis_off()
 
 
-def _shaded(ax, mesh, color=(0.85, 0.65, 0.45), edges: bool = False) -> None:
+def shaded_mesh(ax, mesh, color=(0.85, 0.65, 0.45), edges: bool = False) -> None:
     """Lambert shading from the marching-cubes normals (outward, unit)."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
@@ -66,8 +66,8 @@ def _torus(path: Path) -> None:
     for col, n in enumerate((24, 64)):
         mesh = _extract(_torus_field(n))
         ax = fig.add_subplot(1, 2, col + 1, projection="3d")
-        _shaded(ax, mesh, edges=n < 32)
-        _axes3d(ax, 0.8)
+        shaded_mesh(ax, mesh, edges=n < 32)
+        axes3d(ax, 0.8)
         ax.set_title(f"{n}^3 samples: {mesh.verts.shape[0]} vertices, "
                      f"{mesh.faces.shape[0]} faces", fontsize=9)
     save(fig, path)
@@ -99,7 +99,7 @@ def _soft(path: Path) -> None:
         w = mesh.face_weights.numpy()
         ax = fig.add_subplot(1, 2, col + 1, projection="3d")
         ax.add_collection3d(Poly3DCollection(v[f], facecolors=cmap(w), edgecolors="none"))
-        _axes3d(ax, 0.85)
+        axes3d(ax, 0.85)
         ax.set_title(f"tau = {tau}: weights in [{w.min():.2f}, {w.max():.2f}], "
                      f"mean {w.mean():.2f}", fontsize=9)
     mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, 1))

@@ -9,9 +9,9 @@ import torch
 
 from torchgeo_cg.mesh.marching_cubes import sparse_marching_cubes
 from torchgeo_cg.sdf.primitives import torus
-from torchgeo_cg.viz.marching_cubes import _axes3d, _shaded
+from torchgeo_cg.viz._style import plt, save
+from torchgeo_cg.viz.marching_cubes import axes3d, shaded_mesh
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.style import plt, save
 
 __all__: list[str] = []
 
@@ -54,7 +54,7 @@ def sparse_figure(path: Path) -> None:
     share = pts.shape[0] / _N**3
     ax.set_title(f"slice z = 0: evaluated samples ({100 * share:.0f}% of the grid in all)")
     ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-    _shaded(ax3, mesh)
-    _axes3d(ax3)
+    shaded_mesh(ax3, mesh)
+    axes3d(ax3)
     ax3.set_title(f"{mesh.faces.shape[0]} faces, watertight")
     save(fig, path)

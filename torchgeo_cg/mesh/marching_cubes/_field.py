@@ -149,7 +149,8 @@ class FieldEvaluator:
         make = (lambda s: ijk[s]) if as_points else (lambda s: grid.points(ijk[s]))
         with torch.no_grad():
             if self.world == 1:
-                parts = [self._call(make(slice(s, s + self.chunk))) for s in range(0, n, self.chunk)]
+                parts = [self._call(make(slice(s, s + self.chunk)))
+                         for s in range(0, n, self.chunk)]
                 return torch.cat(parts) if parts else grid.origin.new_zeros(0)
             return self._sharded(make, n, grid)
 
