@@ -14,7 +14,8 @@
   torch thread: the workers already fill the cores, and oversubscribed OpenMP threads
   made small ops 10-100x slower on 2 shared cores.
 - Hypothesis profiles, chosen with ``HYPOTHESIS_PROFILE``: ``ci`` (the default, 40
-  examples, the same on every run) and ``thorough`` (500 examples, for a nightly or a release check).
+  examples, the same on every run) and ``thorough`` (500 examples, for a nightly or a
+  release check).
 """
 
 from __future__ import annotations
