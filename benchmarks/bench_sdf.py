@@ -194,10 +194,13 @@ def _peer_engines(V, F, points):
 
 
 def _warp_peer(Vf, Fn, Pf):
+    import logging
+
     import numpy as np
     import warp as wp
 
-    from torchgeo_cg.sdf import engine_warp  # noqa: F401 (quiet init)
+    wp.config.log_level = max(wp.config.log_level, logging.WARNING)  # no banner
+    wp.init()
 
     @wp.kernel
     def query(mesh: wp.uint64, pts: wp.array(dtype=wp.vec3), face: wp.array(dtype=wp.int32),

@@ -34,7 +34,7 @@ from torchgeo_cg.mesh.subdivision import (
     limit_stencils,
 )
 from torchgeo_cg.mesh.subdivision.loop import loop_operator
-from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
+from torchgeo_cg.mesh import apply_stencils
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 

@@ -33,7 +33,7 @@ ALLOWED: dict[str, set[str] | None] = {
 
 #: Function-level imports that stay, with why: (file, imported module) -> reason.
 FUNCTION_LEVEL_OK: dict[tuple[str, str], str] = {
-    ("sdf/engines.py", "torchgeo_cg.sdf.engine_warp"):
+    ("sdf/engines.py", "torchgeo_cg.sdf._engine_warp"):
         "the optional engine: importing it imports and initialises Warp",
     ("viz/glyph_fit.py", "torchgeo_cg.viz._style"):
         "matplotlib (extra 'plot') only for the figure, not for the fit",

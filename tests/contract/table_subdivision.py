@@ -161,6 +161,8 @@ ENTRIES: list[Entry] = [
           empty=((0, 0), (0, -1)), bad=BADV8),
     Entry("mesh.apply_operator[batch0d]", lambda v: M.apply_operator(_CC_CUBE, v),
           (Arg("verts", (8, 2), CUBE_V),), empty=(0, -1), bad=((7, 2), (2,))),
+    Entry("mesh.apply_stencils", lambda x: M.apply_stencils(_CC_CUBE.stencils, x),
+          (Arg("x", (2, 8, 3), CUBE_V),), empty=((0, 0), (0, -1)), bad=((2, 7, 3), (3,))),
     Entry("mesh.limit_positions", lambda v: M.limit_positions(_CC_CUBE, v), (VERTS8,),
           empty=(0, 0), bad=BADV8),
     Entry("mesh.limit_positions[boundary]", lambda v: M.limit_positions(_CC_GRID, v),
@@ -250,4 +252,6 @@ EXEMPT: dict[str, str] = {
     "mesh.SubdivisionOperator": "result type (NamedTuple) of the operator builders, under "
                                 "contract through apply_operator and the builders' entries",
     "mesh.LimitFrames": "result type (NamedTuple) of limit_frames",
+    "mesh.StencilMatrix": "result type (NamedTuple) of the stencil builders, under contract "
+                          "through apply_stencils",
 }

@@ -20,7 +20,7 @@ from torchgeo_cg.mesh import (
     sample_limit_surface,
 )
 from torchgeo_cg.mesh.subdivision import CatmullClark
-from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
+from torchgeo_cg.mesh import apply_stencils
 
 RABBIT = Path(mesh_pkg.__file__).parent / "data" / "rabbit.obj"
 CUBE_V = [[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]

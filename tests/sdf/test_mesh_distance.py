@@ -516,7 +516,7 @@ def test_without_the_extra_auto_falls_back_to_torch():
 import sys, doctest, warnings
 sys.modules["warp"] = None  # import warp now fails, find_spec finds nothing
 import torch
-from torchgeo_cg.sdf import engine_warp, engines, mesh_sdf
+from torchgeo_cg.sdf import _engine_warp as engine_warp, engines, mesh_sdf
 assert engines.available_engines() == [] and engines.resolve_backend("auto") == "torch"
 v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
 f = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])

@@ -35,8 +35,10 @@ from torchgeo_cg.mesh.subdivision import (
     LoopSubdivision,
     SubdivisionOperator,
     SubdivisionTags,
+    StencilMatrix,
     SurfaceSamples,
     apply_operator,
+    apply_stencils,
     bilinear_operator,
     catmull_clark,
     catmull_clark_operator,
@@ -69,7 +71,7 @@ __all__ += ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 __all__ += ["SubdivisionTags", "INFINITELY_SHARP", "bilinear_operator"]
 __all__ += ["limit_frames", "LimitFrames"]
 __all__ += ["limit_surface", "limit_stencils", "sample_limit_surface", "LimitSurfaceSample",
-            "LimitStencils", "SurfaceSamples"]
+            "LimitStencils", "SurfaceSamples", "StencilMatrix", "apply_stencils"]
 __all__ += [
     "MeshEdges",
     "mesh_edges",

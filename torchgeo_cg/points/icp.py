@@ -1,7 +1,7 @@
 """Iterative closest point registration of point clouds, batched and ragged.
 
 Each iteration matches every valid source point, moved by the current transform, to
-its exact nearest target point (:mod:`~torchgeo_cg.points.search_grid`, with the
+its exact nearest target point (:mod:`~torchgeo_cg.points._search_grid`, with the
 target's grid built once per call and reused by every iteration), rejects matches
 farther than ``max_distance``, weighs the rest by a robust loss (IRLS) and solves for
 the transform: weighted Procrustes for ``"point_to_point"`` (closed form), one
@@ -49,7 +49,7 @@ from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
 from torchgeo_cg.points.icp_steps import apply_transform, point_to_plane_step, weighted_procrustes
 from torchgeo_cg.points.nearest_neighbors import check_lengths, search_scale
 from torchgeo_cg.points.normals import estimate_normals
-from torchgeo_cg.points.search_grid import build_grid, grid_knn_indices, grid_per_cell
+from torchgeo_cg.points._search_grid import build_grid, grid_knn_indices, grid_per_cell
 from torchgeo_cg.transforms.robust import LOSSES, robust_weights
 
 __all__ = ["ICPResult", "icp", "METHODS", "MODELS"]

@@ -1,9 +1,9 @@
 """k nearest neighbours between point clouds, batched, ragged and differentiable.
 
 The neighbours are *found* without gradients by an exact search: a uniform grid of
-sorted cells on the CPU for ``D <= 3`` (:mod:`torchgeo_cg.points.search_grid`, no
+sorted cells on the CPU for ``D <= 3`` (:mod:`torchgeo_cg.points._search_grid`, no
 quadratic distance matrix), or chunked brute force for small inputs, on CUDA and for
-``D > 3`` (:mod:`torchgeo_cg.points.search_brute`). The distances are then *computed*
+``D > 3`` (:mod:`torchgeo_cg.points._search_brute`). The distances are then *computed*
 from the found indices with differentiable torch ops, so gradients flow to both point
 sets (the neighbour assignment is piecewise constant, as in PyTorch3D's ``knn_points``).
 
@@ -32,8 +32,8 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, power_of_two_scale, working_dtype
-from torchgeo_cg.points.search_brute import brute_knn_indices
-from torchgeo_cg.points.search_grid import grid_knn_indices
+from torchgeo_cg.points._search_brute import brute_knn_indices
+from torchgeo_cg.points._search_grid import grid_knn_indices
 
 __all__ = ["KNNResult", "knn"]
 

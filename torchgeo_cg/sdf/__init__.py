@@ -13,11 +13,11 @@ Layout (one topic per file):
 - :mod:`~torchgeo_cg.sdf.gradients`: ``sdf_gradient``, ``sdf_normal``, ``eikonal_loss``.
 - :mod:`~torchgeo_cg.sdf.mesh_distance`: ``mesh_sdf``, ``MeshSDF`` (pseudo-normal and
   winding-number signs), exact evaluation on the closest face.
-- :mod:`~torchgeo_cg.sdf.mesh_search`: the torch backend's closest-face search.
+- :mod:`~torchgeo_cg.sdf._mesh_search`: the torch backend's closest-face search.
 - ``torchgeo_cg.sdf._triangle``: triangle geometry shared by the distance, the searches
   and the engine (``closest_point_on_triangle``, pseudo-normals, solid angles).
 - :mod:`~torchgeo_cg.sdf.engines`: backends (``"auto"``, ``"torch"``, ``"warp"`` from the
-  optional extra ``fast``), ``available_engines``; :mod:`~torchgeo_cg.sdf.engine_warp`.
+  optional extra ``fast``), ``available_engines``; :mod:`~torchgeo_cg.sdf._engine_warp`.
 - :mod:`~torchgeo_cg.sdf.sampler`: ``SDFSampler`` (DeepSDF distribution), ``.npz`` I/O.
 
 Convention: SDFs are negative inside; points are ``(*, N, 3)`` (or ``(*, N, 2)``).

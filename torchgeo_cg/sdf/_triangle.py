@@ -4,7 +4,7 @@ One place for the formulas on a single triangle and on a triangle mesh's feature
 
 - :func:`closest_point_on_triangle`: the exact closest point and its feature (face,
   edge or vertex), differentiable; the Warp kernel evaluates the same operations in
-  float64 (:mod:`~torchgeo_cg.sdf.engine_warp`);
+  float64 (:mod:`~torchgeo_cg.sdf._engine_warp`);
 - :func:`face_table` and :func:`pair_d2`: the same distance, squared, from per-face
   constants precomputed once (the float64 torch search and brute-force checks);
 - :func:`pseudo_normals`: the angle-weighted pseudo-normals of every feature

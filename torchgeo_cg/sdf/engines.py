@@ -4,9 +4,9 @@ A backend answers one question, "which face is closest to each point" (piecewise
 constant, no gradient); :func:`~torchgeo_cg.sdf.mesh_distance.mesh_sdf` evaluates the
 distance on that face in torch. Backends:
 
-- ``"torch"``: :mod:`~torchgeo_cg.sdf.mesh_search`, exact float64 search on the CPU
+- ``"torch"``: :mod:`~torchgeo_cg.sdf._mesh_search`, exact float64 search on the CPU
   (always installed).
-- ``"warp"``: :mod:`~torchgeo_cg.sdf.engine_warp`, NVIDIA Warp's BVH (float32) with a
+- ``"warp"``: :mod:`~torchgeo_cg.sdf._engine_warp`, NVIDIA Warp's BVH (float32) with a
   float64 check of the neighbouring faces; CPU or CUDA; the optional extra ``fast``.
 - ``"auto"``: the fastest installed engine (:data:`ENGINES` is ordered by speed), else
   ``"torch"``.
@@ -30,7 +30,7 @@ import torch
 
 from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import power_of_two_scale
-from torchgeo_cg.sdf.mesh_search import (
+from torchgeo_cg.sdf._mesh_search import (
     build_torch_search,
     pull_in_far_points,
     torch_closest_faces,
@@ -99,7 +99,7 @@ def new_cache_key(owner: object) -> int:
 def _scaled(verts_bv3: torch.Tensor, points_bn3: torch.Tensor):
     """Vertices and points divided by the mesh's power-of-two scale (exact); the points in
     float64, as every search reads them, with far ones pulled in
-    (:func:`~torchgeo_cg.sdf.mesh_search.pull_in_far_points`); non-finite points are
+    (:func:`~torchgeo_cg.sdf._mesh_search.pull_in_far_points`); non-finite points are
     searched at the origin (their distance comes out NaN anyway)."""
     if not bool(torch.isfinite(verts_bv3).all()):
         raise ValueError("verts: expected finite coordinates, got NaN or inf")
@@ -120,7 +120,7 @@ def build_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, backend: str) -
     if backend == "torch":
         tri = verts_bv3.detach().to("cpu", torch.float64)[:, tris_t3.cpu()]
         return build_torch_search(tri)
-    from torchgeo_cg.sdf.engine_warp import build_warp_search
+    from torchgeo_cg.sdf._engine_warp import build_warp_search
 
     return build_warp_search(verts_bv3, tris_t3)
 
@@ -131,7 +131,7 @@ def _query(structure, points_bn3: torch.Tensor, backend: str, mode: int, progres
         p = points_bn3.to("cpu", torch.float64)
         faces = torch_closest_faces(structure, p, progress=progress).to(points_bn3.device)
         return faces, _no_distances(points_bn3)
-    from torchgeo_cg.sdf.engine_warp import warp_closest_faces
+    from torchgeo_cg.sdf._engine_warp import warp_closest_faces
 
     answer = warp_closest_faces(structure, points_bn3, mode=mode, progress=progress)
     return answer.face_ids, answer.sdf if mode else _no_distances(points_bn3)

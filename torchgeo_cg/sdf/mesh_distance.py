@@ -12,7 +12,7 @@ then signs the distance with either
 
 Search and evaluation are split. The **search** (which face is closest) is piecewise
 constant and needs no gradient: the torch backend
-(:mod:`~torchgeo_cg.sdf.mesh_search`, float64, exhaustive) or a compiled engine
+(:mod:`~torchgeo_cg.sdf._mesh_search`, float64, exhaustive) or a compiled engine
 (:mod:`~torchgeo_cg.sdf.engines`, the optional extra ``fast``) answers it. The
 **evaluation** (the exact point-triangle distance, closest point and sign on that face)
 runs in torch in the input dtype and device, so it is differentiable w.r.t. points and
@@ -62,7 +62,7 @@ from torchgeo_cg.sdf.engines import (
     resolve_backend,
     search_faces,
 )
-from torchgeo_cg.sdf.mesh_search import far_radius, pull_in_far_points
+from torchgeo_cg.sdf._mesh_search import far_radius, pull_in_far_points
 
 __all__ = ["MeshSDFResult", "MeshSDF", "is_watertight", "winding_number", "mesh_sdf"]
 
@@ -367,7 +367,7 @@ def mesh_sdf(
 
 
 def _has_far_points(verts_bv3: torch.Tensor, points_bn3: torch.Tensor) -> bool:
-    """Points beyond :func:`~torchgeo_cg.sdf.mesh_search.far_radius` of the mesh (relative
+    """Points beyond :func:`~torchgeo_cg.sdf._mesh_search.far_radius` of the mesh (relative
     to its size): the search pulls them in, so the engine's kernel would measure from the
     pulled-in point; they take the torch evaluation, which measures from the point itself
     (rare; a cheap check)."""

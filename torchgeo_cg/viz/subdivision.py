@@ -76,7 +76,7 @@ def _cube_levels(path: Path) -> None:
     "mesh",
     "subdivision_rabbit_vs_loop.png",
     "The shipped rabbit: our Catmull-Clark vs trimesh's Loop",
-    "Top: torchgeo_cg.mesh.data/rabbit.obj (288 quads, made by make_rabbit.py) at "
+    "Top: torchgeo_cg.mesh.data/rabbit.obj (288 quads, made by _make_rabbit.py) at "
     "Catmull-Clark levels 0-3. Bottom: the same mesh fan-triangulated and refined by "
     "trimesh.remesh.subdivide_loop, a different (triangle) scheme, for comparison.",
 )

@@ -23,6 +23,7 @@ from torchgeo_cg.mesh.subdivision.face_varying import (
 from torchgeo_cg.mesh.subdivision.limit import LimitFrames, limit_frames, limit_positions
 from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator, apply_operator
+from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils
 from torchgeo_cg.mesh.subdivision.surface import (
     LimitStencils,
     LimitSurfaceSample,
@@ -54,6 +55,8 @@ __all__ = [
     "LimitSurfaceSample",
     "LimitStencils",
     "SurfaceSamples",
+    "StencilMatrix",
+    "apply_stencils",
     "FVAR_INTERPOLATIONS",
     "face_varying_operator",
     "FaceVaryingSubdivision",

@@ -27,9 +27,10 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchgeo_cg.core.check import check_float, check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
-__all__: list[str] = []
+__all__ = ["StencilMatrix", "apply_stencils"]
 
 _CHUNK_COLUMNS = 12  # dense columns per sparse matmul: keeps the gathered rows in cache
 
@@ -272,12 +273,19 @@ def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
     Returns:
         ``(*, R, D)``, same dtype and device as ``x``.
 
+    Raises:
+        ShapeError: ``x`` is not ``(*, C, D)`` with the stencils' ``C`` columns.
+        TypeError: ``x`` is not a floating tensor.
+
     Example:
         >>> s = stencil_matrix(torch.tensor([0, 0]), torch.tensor([0, 1]),
         ...                    torch.tensor([0.5, 0.5]), (1, 2))
         >>> apply_stencils(s, torch.tensor([[0., 2.], [4., 6.]]))
         tensor([[2., 4.]])
     """
+    check_tensor(x, "x")
+    check_shape(x, ["*", "C", "D"], "x", {"C": stencils.shape[1]})
+    check_float(x, "x")
     batch, (C, D) = x.shape[:-2], x.shape[-2:]
     dtype = working_dtype(x.dtype)
     parts = list(stencils)

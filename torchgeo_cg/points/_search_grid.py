@@ -25,7 +25,7 @@ k-th distance found so far (an upper bound on the true one) are skipped.
 
 Convention:
     - Squared Euclidean distances; ties broken by the smaller reference index, so the
-      result equals :func:`~torchgeo_cg.points.search_brute.brute_knn_indices`.
+      result equals :func:`~torchgeo_cg.points._search_brute.brute_knn_indices`.
     - Inputs must be finite (the caller masks non-finite rows).
 """
 

@@ -345,7 +345,7 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, mode: int =
     Args:
         search: :func:`build_warp_search` of the ``B`` meshes (same device as the points).
         points_bn3: ``(B, N, 3)`` scaled finite points, far ones pulled in
-            (:func:`~torchgeo_cg.sdf.mesh_search.pull_in_far_points`).
+            (:func:`~torchgeo_cg.sdf._mesh_search.pull_in_far_points`).
         mode: ``0`` faces only, ``1`` also the unsigned distance, ``2`` also the distance
             signed by the pseudo-normal of the closest feature (negative inside).
         block: points per launch (for the progress bar).

@@ -8,7 +8,7 @@ Convention:
       back from the last ``v`` (``vt``) read before its line, as the OBJ spec says.
     - Either every face has texture indices or none has; within a face every
       corner has the same form.
-    - ``t`` lines are OpenSubdiv's tags, see :mod:`torchgeo_cg.mesh.io_obj_tags`.
+    - ``t`` lines are OpenSubdiv's tags, see :mod:`torchgeo_cg.mesh.io._obj_tags`.
     - Known statements that do not describe polygons (``o g s usemtl mtllib l p``,
       free-form curves, ...) are skipped; an unknown statement is an error.
     - Comments start at ``#``; a line ending with ``\\`` continues on the next one.
@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from torchgeo_cg.mesh.io_obj_tags import ObjTags, format_tags, parse_tags
-from torchgeo_cg.mesh.io_text import (
+from torchgeo_cg.mesh.io._obj_tags import ObjTags, format_tags, parse_tags
+from torchgeo_cg.mesh.io._text import (
     TextLines,
     blank_comments,
     chars_at,
@@ -57,7 +57,7 @@ class ObjContent(NamedTuple):
         faces_fk: ``(F, K)`` int64 padded with ``-1``.
         uvs_t2: ``(T, 2)`` float64, or ``None`` without ``vt`` lines.
         uv_faces_fk: ``(F, K)`` int64 like ``faces_fk``, or ``None`` when faces have no ``vt``.
-        tags: :class:`~torchgeo_cg.mesh.io_obj_tags.ObjTags`.
+        tags: :class:`~torchgeo_cg.mesh.io._obj_tags.ObjTags`.
     """
 
     verts_v3: np.ndarray
@@ -279,7 +279,7 @@ def format_obj(content: ObjContent, precision: int, *, uv_precision: int | None 
             sharpness (default: ``precision``), so each keeps its own dtype's digits.
 
     Example:
-        >>> from torchgeo_cg.mesh.io_obj_tags import ObjTags
+        >>> from torchgeo_cg.mesh.io._obj_tags import ObjTags
         >>> c = ObjContent(np.eye(3), np.array([[0, 1, 2]]), None, None, ObjTags.empty())
         >>> print(format_obj(c, 9), end="")
         v 1 0 0

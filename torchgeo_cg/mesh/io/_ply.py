@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from torchgeo_cg.mesh.io_text import (
+from torchgeo_cg.mesh.io._text import (
     check_padding,
     file_error,
     first_chars,

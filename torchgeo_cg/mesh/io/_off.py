@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from torchgeo_cg.mesh.io_text import (
+from torchgeo_cg.mesh.io._text import (
     TextLines,
     blank_comments,
     check_padding,

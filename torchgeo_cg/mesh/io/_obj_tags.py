@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from torchgeo_cg.mesh.io_text import (  # read_text: doctests
+from torchgeo_cg.mesh.io._text import (  # read_text: doctests
     TextLines,
     file_error,
     gather_lines,

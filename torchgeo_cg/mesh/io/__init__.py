@@ -7,7 +7,7 @@ Convention:
       (same padding as ``faces``) are the OBJ texture coordinates, ``tags`` the
       OpenSubdiv ``t`` tags (:class:`~torchgeo_cg.mesh.SubdivisionTags`) and
       ``options`` the scheme options they set (``{"boundary": "edge_only", ...}``,
-      see :mod:`torchgeo_cg.mesh.io_obj_tags`).
+      see :mod:`torchgeo_cg.mesh.io._obj_tags`).
     - Indices are 0-based in memory; OBJ files are 1-based (negative OBJ indices,
       relative to the last vertex read, are resolved); tag indices are 0-based.
     - Faces keep their order and winding (counter-clockwise seen from outside);
@@ -29,10 +29,10 @@ import torch
 from torchgeo_cg.core.check import check_float, check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.faces import check_faces, pad_faces, triangulate_faces
-from torchgeo_cg.mesh.io_obj import ObjContent, format_obj, read_obj
-from torchgeo_cg.mesh.io_obj_tags import ObjTags, check_tags
-from torchgeo_cg.mesh.io_off import format_off, read_off
-from torchgeo_cg.mesh.io_ply import format_ply, read_ply
+from torchgeo_cg.mesh.io._obj import ObjContent, format_obj, read_obj
+from torchgeo_cg.mesh.io._obj_tags import ObjTags, check_tags
+from torchgeo_cg.mesh.io._off import format_off, read_off
+from torchgeo_cg.mesh.io._ply import format_ply, read_ply
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 __all__ = ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
@@ -251,11 +251,11 @@ def load_mesh(
     """Read an ``.obj``, ``.ply`` or ``.off`` polygon mesh, with its UVs and subdivision tags.
 
     Convention:
-        See the module docstring and :mod:`torchgeo_cg.mesh.io_obj`
+        See the module docstring and :mod:`torchgeo_cg.mesh.io._obj`
         (statements, ``vt``, negative indices, ``\\`` continuations, comments),
-        :mod:`torchgeo_cg.mesh.io_obj_tags` (OpenSubdiv ``t`` tags) and
-        :mod:`torchgeo_cg.mesh.io_ply` (header checks, ASCII and binary) and
-        :mod:`torchgeo_cg.mesh.io_off`. A BOM and
+        :mod:`torchgeo_cg.mesh.io._obj_tags` (OpenSubdiv ``t`` tags) and
+        :mod:`torchgeo_cg.mesh.io._ply` (header checks, ASCII and binary) and
+        :mod:`torchgeo_cg.mesh.io._off`. A BOM and
         CRLF line ends are accepted. No vertex is merged or dropped.
 
     Args:

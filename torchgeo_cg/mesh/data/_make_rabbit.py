@@ -1,6 +1,6 @@
 """Generate ``rabbit.obj``: the low-poly, all-quad, rabbit-like control mesh we ship.
 
-Run ``python -m torchgeo_cg.mesh.data.make_rabbit`` to rewrite the file. The mesh
+Run ``python -m torchgeo_cg.mesh.data._make_rabbit`` to rewrite the file. The mesh
 is made from scratch (no scanned data): a cube-sphere body, a head extruded from a
 2x2 patch, two ears extruded from the head, a tail and four feet. It is closed,
 manifold, consistently wound (outward), and made of quads only, so Catmull-Clark
@@ -123,7 +123,7 @@ def main(path: Path = HERE / "rabbit.obj") -> None:
     """Write :func:`make_rabbit` to ``path`` as a Wavefront OBJ (the shipped ``rabbit.obj``)."""
     verts, faces = make_rabbit()
     with open(path, "w") as fh:
-        fh.write("# torchgeo_cg low-poly rabbit control mesh (quads), made by make_rabbit.py\n")
+        fh.write("# torchgeo_cg low-poly rabbit control mesh (quads), made by _make_rabbit.py\n")
         fh.write("".join(f"v {x:.6f} {y:.6f} {z:.6f}\n" for x, y, z in verts))
         fh.write("".join("f " + " ".join(str(v + 1) for v in f) + "\n" for f in faces))
     print(f"wrote {path}: {len(verts)} vertices, {len(faces)} quads")
