@@ -283,7 +283,7 @@ def _sampler_case(quick: bool) -> Case:
     n = 100_000 if quick else 500_000
 
     def sample():
-        return SDFSampler((verts, tris), seed=0).sample(n)
+        return SDFSampler((verts, tris), generator=torch.Generator().manual_seed(0)).sample(n)
 
     def without():
         with _without_engines():

@@ -26,6 +26,7 @@ import io
 import torch
 
 from benchmarks.harness import Case
+from torchgeo_cg.mesh import apply_stencils
 from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
     apply_operator,
@@ -34,7 +35,6 @@ from torchgeo_cg.mesh.subdivision import (
     limit_stencils,
 )
 from torchgeo_cg.mesh.subdivision.loop import loop_operator
-from torchgeo_cg.mesh import apply_stencils
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 

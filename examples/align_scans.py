@@ -5,8 +5,8 @@
 
 import torch
 
+from torchgeo_cg.mesh.data import rabbit_scan_pairs
 from torchgeo_cg.points import estimate_normals, icp
-from torchgeo_cg.viz.scans import rabbit_scan_pairs
 
 pairs = rabbit_scan_pairs(1, 8000, seed=4, angles=(30.0, 40.0))
 normals = estimate_normals(pairs.target, 10)

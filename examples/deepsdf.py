@@ -69,7 +69,8 @@ def main(argv: list[str] | None = None) -> dict:
     start = time.perf_counter()
     verts, faces = normalized_control_mesh()
     clamp = 0.1
-    samples = SDFSampler((verts, faces), bounds=(-1.1, 1.1), clamp=clamp, seed=0).sample(
+    g = torch.Generator().manual_seed(0)
+    samples = SDFSampler((verts, faces), bounds=(-1.1, 1.1), clamp=clamp, generator=g).sample(
         args.samples)
     model = make_mlp()
     loss = train(model, samples.points, samples.sdf, args.steps, clamp)

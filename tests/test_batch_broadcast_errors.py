@@ -116,12 +116,16 @@ def test_implicit_circle_with_an_empty_batch_centre():
 from torchgeo_cg.sdf import SDFSampler, sphere  # noqa: E402
 
 
+def _gen(seed: int) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
+
 def test_sdf_sampler_callable_with_an_empty_batch_of_bounds():
     box = torch.tensor([[-1.0, -1, -1], [1, 1, 1]], dtype=F64)
     for bounds in (box.expand(0, 2, 3), box.expand(3, 2, 3)):
         with pytest.raises(ShapeError, match=re.escape("bounds: expected one box (2, 3)")):
-            SDFSampler(sphere, bounds=bounds, seed=0)
-    assert SDFSampler(sphere, bounds=box, seed=0).sample(10).points.shape == (10, 3)
+            SDFSampler(sphere, bounds=bounds, generator=_gen(0))
+    assert SDFSampler(sphere, bounds=box, generator=_gen(0)).sample(10).points.shape == (10, 3)
 
 
 def test_sdf_sampler_mesh_bounds_of_another_batch():
@@ -134,7 +138,7 @@ def test_sdf_sampler_mesh_bounds_of_another_batch():
                    "vertices (2)", "bounds (3)")
     with pytest.raises(ShapeError, match="bounds"):
         SDFSampler((verts, faces), bounds=box.expand(3, 2, 3))
-    out = SDFSampler((verts.expand(2, 6, 3), faces), bounds=box.expand(1, 2, 3), seed=0,
+    out = SDFSampler((verts.expand(2, 6, 3), faces), bounds=box.expand(1, 2, 3), generator=_gen(0),
                      backend="torch").sample(20)
     assert out.points.shape == (2, 20, 3)
 

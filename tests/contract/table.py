@@ -404,6 +404,7 @@ EXEMPT: dict[str, str] = {
     "core.check_module_dtype": "validation helper (tests/test_module_machinery.py)",
     "core.check_broadcastable": "validation helper (tests/core/test_check.py)",
     "core.check_choice": "validation helper (tests/core/test_check.py)",
+    "core.check_generator": "validation helper (tests/core/test_check.py)",
     "core.check_float": "validation helper (tests/core/test_check.py)",
     "core.check_shape": "validation helper (tests/core/test_check.py)",
     "core.check_tensor": "validation helper (tests/core/test_check.py)",

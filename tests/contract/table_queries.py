@@ -78,14 +78,15 @@ def _sampler(vertices, sigma):
     """Seeded samples of a mesh; the variances are lengths squared, so they come from a
     length argument (``sigma``) and scale with the mesh."""
     sampler = S.SDFSampler((vertices, OCTA), variances=tuple((sigma * sigma).tolist()),
-                           seed=0, backend="torch")
+                           generator=torch.Generator().manual_seed(0), backend="torch")
     return tuple(sampler.sample(12))
 
 
 def _balanced(vertices, sigma):
     """Balanced and clamped: ``clamp`` is a length too (from ``sigma``)."""
     sampler = S.SDFSampler((vertices, OCTA), variances=tuple((sigma * sigma).tolist()),
-                           balanced=True, clamp=float(3 * sigma[0]), seed=1, backend="torch")
+                           balanced=True, clamp=float(3 * sigma[0]), backend="torch",
+                           generator=torch.Generator().manual_seed(1))
     return tuple(sampler.sample(12))
 
 

@@ -79,3 +79,14 @@ def test_check_choice_names_the_argument_and_every_accepted_value():
     with pytest.raises(ValueError, match=r"model: expected one of 'a', 'b', got \['a'\]"):
         check_choice(["a"], {"b", "a"}, "model")  # unhashable value, sorted set
     assert check_choice("x", {"x": 1}, "key") == "x"
+
+
+def test_check_generator_names_the_argument_type_and_device():
+    from torchgeo_cg.core.check import check_generator
+
+    g = torch.Generator()
+    assert check_generator(g) is g
+    with pytest.raises(TypeError, match=r"^gen: expected a torch.Generator, got int$"):
+        check_generator(3, "gen")
+    with pytest.raises(ValueError, match=r"^generator: expected a generator on cuda, got one"):
+        check_generator(g, device="cuda")

@@ -11,6 +11,7 @@ import torchgeo_cg.mesh as mesh_pkg
 from tests.mesh._osd import run_osd
 from torchgeo_cg.mesh import (
     SubdivisionTags,
+    apply_stencils,
     catmull_clark_operator,
     limit_positions,
     limit_stencils,
@@ -20,7 +21,6 @@ from torchgeo_cg.mesh import (
     sample_limit_surface,
 )
 from torchgeo_cg.mesh.subdivision import CatmullClark
-from torchgeo_cg.mesh import apply_stencils
 
 RABBIT = Path(mesh_pkg.__file__).parent / "data" / "rabbit.obj"
 CUBE_V = [[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]

@@ -10,8 +10,8 @@ import pytest
 import torch
 
 from torchgeo_cg.core import ShapeError
+from torchgeo_cg.mesh.data import rabbit_scan_pairs
 from torchgeo_cg.points import estimate_normals, icp
-from torchgeo_cg.viz.scans import rabbit_scan_pairs
 
 
 def _rotation(angle, axis):

@@ -24,9 +24,12 @@ from torchgeo_cg.sdf.sampler import (
 )
 
 
+def _gen(seed: int) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
 def test_distribution_of_an_analytic_source():
     n = 20000
-    s = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=torch.float64).sample(n)
+    s = SDFSampler(lambda p: sphere(p, 0.5), generator=_gen(0), dtype=torch.float64).sample(n)
     assert s.points.shape == (n, 3) and s.sdf.dtype == torch.float64
     n_uni = round(0.06 * n)
     per = (n - n_uni) // 2
@@ -45,18 +48,18 @@ def test_distribution_of_an_analytic_source():
 
 def test_mesh_source_surface_and_values():
     m = trimesh.creation.icosphere(subdivisions=2)
-    sampler = SDFSampler(m, seed=1)
+    sampler = SDFSampler(m, generator=_gen(1))
     surf = sampler.surface_points(500)
     V, F = torch.tensor(m.vertices), torch.tensor(m.faces)
     assert mesh_sdf(V, F, surf).sdf.abs().max() < 1e-12
-    s = SDFSampler(m, seed=1).sample(400)
+    s = SDFSampler(m, generator=_gen(1)).sample(400)
     assert s.sdf.dtype == torch.float64
     assert_close(s.sdf, mesh_sdf(V, F, s.points).sdf)
     lo, hi = V.amin(0), V.amax(0)
     pad = 0.1 * (hi - lo)
     assert (s.points[-24:] >= lo - pad - 1e-12).all() and (s.points[-24:] <= hi + pad + 1e-12).all()
     # (vertices, faces) tuples work the same
-    s2 = SDFSampler((V, F), seed=1).sample(400)
+    s2 = SDFSampler((V, F), generator=_gen(1)).sample(400)
     assert_close(s2.points, s.points)
 
 
@@ -70,26 +73,26 @@ def test_surface_sampling_is_area_weighted():
 
 
 def test_analytic_surface_points_lie_on_the_surface():
-    s = SDFSampler(Torus(1.0, 0.25), bounds=(-1.5, 1.5), seed=2)
+    s = SDFSampler(Torus(1.0, 0.25), bounds=(-1.5, 1.5), generator=_gen(2))
     surf = s.surface_points(300)
     assert torus(surf, 1.0, 0.25).abs().max() < 1e-5
 
 
 def test_balanced_clamped_and_reproducible():
-    a = SDFSampler(torus, balanced=True, clamp=0.05, seed=7).sample(301)
+    a = SDFSampler(torus, balanced=True, clamp=0.05, generator=_gen(7)).sample(301)
     assert int((a.sdf < 0).sum()) == 150 and int((a.sdf >= 0).sum()) == 151
     assert float(a.sdf.abs().max()) <= 0.05 + 1e-7
-    b = SDFSampler(torus, balanced=True, clamp=0.05, seed=7).sample(301)
+    b = SDFSampler(torus, balanced=True, clamp=0.05, generator=_gen(7)).sample(301)
     assert torch.equal(a.points, b.points)
-    c = SDFSampler(torus, balanced=True, clamp=0.05, seed=8).sample(301)
+    c = SDFSampler(torus, balanced=True, clamp=0.05, generator=_gen(8)).sample(301)
     assert not torch.equal(a.points, c.points)
     # configurable fractions
-    only_uniform = SDFSampler(sphere, uniform_fraction=1.0, seed=0).sample(50)
+    only_uniform = SDFSampler(sphere, uniform_fraction=1.0, generator=_gen(0)).sample(50)
     assert (only_uniform.points.abs() <= 1).all()
 
 
 def test_save_load_round_trip(tmp_path):
-    s = SDFSampler(sphere, seed=3, dtype=torch.float64).sample(200)
+    s = SDFSampler(sphere, generator=_gen(3), dtype=torch.float64).sample(200)
     path = tmp_path / "samples.npz"
     SDFSampler(sphere).save(path, s)
     with np.load(path) as data:
@@ -120,7 +123,7 @@ def test_bad_input():
     with pytest.raises(RuntimeError, match="balance"):
         SDFSampler(lambda p: p[:, 0] * 0 + 1.0, balanced=True, uniform_fraction=1.0).sample(10)
     with pytest.raises(RuntimeError, match="surface points"):
-        SDFSampler(lambda p: sphere(p, 5.0), seed=0).sample(10)
+        SDFSampler(lambda p: sphere(p, 5.0), generator=_gen(0)).sample(10)
 
 
 # --- polygon meshes, batches, DataLoader workers, progress ------------------------------
@@ -135,7 +138,7 @@ def test_quad_control_mesh_is_triangulated():
 
     mesh = _control_mesh()
     assert mesh.faces.shape[1] == 4
-    sampler = SDFSampler(mesh, seed=0)
+    sampler = SDFSampler(mesh, generator=_gen(0))
     tris = triangulate_faces(mesh.faces)
     assert torch.equal(sampler.faces, tris)
     s = sampler.sample(500)
@@ -171,7 +174,7 @@ def test_surface_sampling_of_polygons_is_area_weighted():
 def test_batched_sampler_matches_per_mesh_values():
     mesh = _control_mesh()
     batch = torch.stack([mesh.verts, 0.5 * mesh.verts + 0.1])
-    s = SDFSampler((batch, mesh.faces), seed=3, balanced=True).sample(300)
+    s = SDFSampler((batch, mesh.faces), generator=_gen(3), balanced=True).sample(300)
     assert s.points.shape == (2, 300, 3) and s.sdf.shape == (2, 300)
     from torchgeo_cg.mesh import triangulate_faces
 
@@ -183,7 +186,7 @@ def test_batched_sampler_matches_per_mesh_values():
 
 class _SamplerDataset(torch.utils.data.Dataset):
     def __init__(self, seed):
-        self.sampler = SDFSampler(sphere, seed=seed, dtype=torch.float64)
+        self.sampler = SDFSampler(sphere, generator=_gen(seed), dtype=torch.float64)
 
     def __len__(self):
         return 4
@@ -197,6 +200,16 @@ def _worker_streams(seed):
     loader = torch.utils.data.DataLoader(_SamplerDataset(seed), batch_size=None, num_workers=2,
                                          multiprocessing_context="fork")
     return list(loader)
+
+
+def test_generator_is_used_and_advanced_and_checked():
+    g = _gen(5)
+    first = SDFSampler(sphere, generator=g).sample(20).points
+    second = SDFSampler(sphere, generator=g).sample(20).points  # g moved on
+    assert not torch.equal(first, second)
+    assert torch.equal(first, SDFSampler(sphere, generator=_gen(5)).sample(20).points)
+    with pytest.raises(TypeError, match="generator: expected a torch.Generator, got int"):
+        SDFSampler(sphere, generator=0)
 
 
 def test_dataloader_workers_get_independent_reproducible_streams():
@@ -217,9 +230,9 @@ def test_nan_variance_and_progress(capsys):
         SDFSampler(sphere, variances=(math.nan,))
     with pytest.raises(ValueError, match="variances"):
         SDFSampler(sphere, variances=(0.01, math.inf))
-    SDFSampler(sphere, seed=0).sample(100, progress=True)
+    SDFSampler(sphere, generator=_gen(0)).sample(100, progress=True)
     assert "SDFSampler" in capsys.readouterr().err
-    SDFSampler(sphere, seed=0).sample(100)
+    SDFSampler(sphere, generator=_gen(0)).sample(100)
     assert "SDFSampler" not in capsys.readouterr().err
 
 
@@ -231,10 +244,10 @@ def test_backend_is_passed_to_mesh_sdf(backend):
         pytest.skip(f"engine {backend!r} is not installed (extra 'fast')")
     m = trimesh.creation.icosphere(subdivisions=2)
     V, F = torch.tensor(m.vertices), torch.tensor(m.faces)
-    s = SDFSampler(m, seed=3, backend=backend).sample(300)
+    s = SDFSampler(m, generator=_gen(3), backend=backend).sample(300)
     assert_close(s.sdf, mesh_sdf(V, F, s.points, backend="torch").sdf)
     with pytest.raises(ValueError, match="backend"):
-        SDFSampler(m, seed=3, backend="no-such-engine")
+        SDFSampler(m, generator=_gen(3), backend="no-such-engine")
 
 
 # --- dtype policy and file validation -------------------------------------------------------
@@ -284,8 +297,8 @@ def test_sample_mesh_surface_low_precision_is_computed_in_float32(low):
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])
 def test_function_source_low_precision_is_computed_in_float32(low):
     # the Newton projection ran in bfloat16 and never met its tolerance (RuntimeError)
-    got = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=low).sample(40)
-    want = SDFSampler(lambda p: sphere(p, 0.5), seed=0, dtype=torch.float32).sample(40)
+    got = SDFSampler(lambda p: sphere(p, 0.5), generator=_gen(0), dtype=low).sample(40)
+    want = SDFSampler(lambda p: sphere(p, 0.5), generator=_gen(0), dtype=torch.float32).sample(40)
     assert got.points.dtype == low and got.sdf.dtype == low
     assert torch.equal(got.points, want.points.to(low))
     assert torch.equal(got.sdf, sphere(got.points.float(), 0.5).to(low))

@@ -136,7 +136,8 @@ def sdf_samples_for_mesh(path: Path, relative: str, points: int, seed: int) -> d
     scale = 1.0 / radius
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "not watertight, using winding numbers"
-        sampler = SDFSampler(((verts + offset) * scale, faces), seed=mesh_seed(seed, relative),
+        sampler = SDFSampler(((verts + offset) * scale, faces),
+                             generator=torch.Generator().manual_seed(mesh_seed(seed, relative)),
                              dtype=torch.float64)
         samples = sampler.sample(points)
     return {

@@ -6,6 +6,7 @@ from torchgeo_cg.core.check import (
     check_broadcastable,
     check_choice,
     check_float,
+    check_generator,
     check_shape,
     check_tensor,
 )
@@ -29,6 +30,7 @@ __all__ = [
     "cast_back",
     "check_broadcastable",
     "check_choice",
+    "check_generator",
     "check_float",
     "check_module_dtype",
     "check_same_dtype",

@@ -26,6 +26,7 @@ __all__ = [
     "check_tensor",
     "check_broadcastable",
     "check_choice",
+    "check_generator",
 ]
 
 
@@ -210,3 +211,35 @@ def check_choice(value: object, choices: Collection, name: str) -> object:
         listed = ", ".join(repr(c) for c in ordered)
         raise ValueError(f"{name}: expected one of {listed}, got {value!r}")
     return value
+
+
+def check_generator(generator: object, name: str = "generator", device: str | torch.device = "cpu"
+                    ) -> torch.Generator:
+    """Raise unless ``generator`` is a :class:`torch.Generator` on ``device``.
+
+    Args:
+        generator: the argument received.
+        name: the argument name used in the error message.
+        device: the device the draws are made on.
+
+    Returns:
+        ``generator``, unchanged.
+
+    Raises:
+        TypeError: ``generator`` is not a ``torch.Generator``.
+        ValueError: it lives on another device.
+
+    Example:
+        >>> check_generator(torch.Generator()).device
+        device(type='cpu')
+        >>> check_generator(0)
+        Traceback (most recent call last):
+        ...
+        TypeError: generator: expected a torch.Generator, got int
+    """
+    if not isinstance(generator, torch.Generator):
+        raise TypeError(f"{name}: expected a torch.Generator, got {type(generator).__name__}")
+    if generator.device.type != torch.device(device).type:
+        raise ValueError(f"{name}: expected a generator on {torch.device(device).type}, "
+                         f"got one on {generator.device}")
+    return generator

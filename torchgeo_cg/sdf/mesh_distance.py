@@ -50,6 +50,7 @@ from torchgeo_cg.core.check import (
 )
 from torchgeo_cg.core.numerics import cast_back, hypot, power_of_two_scale, working_dtype
 from torchgeo_cg.mesh.faces import check_mesh
+from torchgeo_cg.sdf._mesh_search import far_radius, pull_in_far_points
 from torchgeo_cg.sdf._triangle import (
     closest_point_on_triangle,
     dot3,
@@ -62,7 +63,6 @@ from torchgeo_cg.sdf.engines import (
     resolve_backend,
     search_faces,
 )
-from torchgeo_cg.sdf._mesh_search import far_radius, pull_in_far_points
 
 __all__ = ["MeshSDFResult", "MeshSDF", "is_watertight", "winding_number", "mesh_sdf"]
 

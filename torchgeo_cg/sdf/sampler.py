@@ -20,14 +20,16 @@ Convention:
     - Without balancing, the rows come in blocks: the surface points perturbed with
       ``variances[0]``, then with ``variances[1]`` (and so on), then the uniform ones.
     - ``variances`` are per-axis variances ``sigma^2`` of the Gaussian offsets.
-    - Randomness comes from one ``torch.Generator`` seeded with ``seed`` on the CPU, so a
-      seed reproduces the samples on every device.
+    - Randomness comes from one CPU ``torch.Generator`` (``generator=``, as every random
+      function here takes it; a fresh nondeterministic one when ``None``), so a seed
+      reproduces the samples on every device. The sampler draws from the given generator
+      and advances it.
     - DataLoader workers: a sampler created in a ``Dataset.__init__`` is copied into every
       worker with the same generator state, which would give every worker the same
       stream. The first draw inside a worker therefore reseeds the sampler's generator
-      from ``(seed, worker id)`` (``numpy.random.SeedSequence``), or from the worker's
-      own seed (``torch.utils.data.get_worker_info().seed``, derived by the DataLoader
-      from its base seed) when ``seed`` is ``None``: streams are independent across
+      from ``(generator.initial_seed(), worker id)`` (``numpy.random.SeedSequence``), or
+      from the worker's own seed (``torch.utils.data.get_worker_info().seed``, derived by
+      the DataLoader from its base seed) when no generator was given: streams are independent across
       workers and reproducible across runs, without any ``worker_init_fn``.
 """
 
@@ -41,7 +43,13 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import (
+    ShapeError,
+    check_broadcastable,
+    check_float,
+    check_generator,
+    check_shape,
+)
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.faces import check_mesh
@@ -197,7 +205,8 @@ class SDFSampler:
         uniform_fraction: share of uniform samples in ``[0, 1]`` (default 0.06).
         balanced: return as many negative as positive samples (``n // 2`` negatives).
         clamp: clamp the returned SDF to ``[-clamp, clamp]`` (DeepSDF uses 0.1).
-        seed: seed of the sampler's own generator (``None``: nondeterministic).
+        generator: a CPU ``torch.Generator`` the samples are drawn from (``None``: a
+            fresh, nondeterministically seeded one).
         sign: sign method passed to ``mesh_sdf`` for meshes.
         backend: search backend passed to ``mesh_sdf`` for meshes (``"auto"`` takes the
             compiled engine of the ``fast`` extra when installed, else ``"torch"``).
@@ -206,7 +215,7 @@ class SDFSampler:
 
     Example:
         >>> from torchgeo_cg.sdf.primitives import sphere
-        >>> s = SDFSampler(sphere, seed=0).sample(1000)
+        >>> s = SDFSampler(sphere, generator=torch.Generator().manual_seed(0)).sample(1000)
         >>> s.points.shape, s.sdf.shape
         (torch.Size([1000, 3]), torch.Size([1000]))
         >>> bool(torch.allclose(s.sdf, sphere(s.points)))
@@ -215,7 +224,8 @@ class SDFSampler:
 
     def __init__(self, source, bounds=None, variances: Sequence[float] = (0.005, 0.0005),
                  uniform_fraction: float = 0.06, balanced: bool = False,
-                 clamp: float | None = None, seed: int | None = None, sign: str = "auto",
+                 clamp: float | None = None, generator: torch.Generator | None = None,
+                 sign: str = "auto",
                  backend: str = "auto", device=None, dtype=None):
         self.verts: torch.Tensor | None = None
         self.faces: torch.Tensor | None = None
@@ -245,13 +255,12 @@ class SDFSampler:
         self.clamp = clamp
         self.sign = sign
         self.backend = resolve_backend(backend)  # checked now, not at the first sample
-        self.seed = seed
         self._worker: int | None = None
-        self.generator = torch.Generator()
-        if seed is None:
-            self.generator.seed()
-        else:
-            self.generator.manual_seed(int(seed))
+        self._seed = None if generator is None else check_generator(generator).initial_seed()
+        if generator is None:
+            generator = torch.Generator()
+            generator.seed()
+        self.generator = generator
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
@@ -271,7 +280,7 @@ class SDFSampler:
         info = get_worker_info()
         if info is not None and self._worker != info.id:
             self._worker = info.id
-            self.generator.manual_seed(worker_seed(self.seed))
+            self.generator.manual_seed(worker_seed(self._seed))
 
     # ----------------------------------------------------------------- pieces
     def _uniform(self, n: int) -> torch.Tensor:
@@ -400,7 +409,8 @@ class SDFSampler:
 
         Example:
             >>> from torchgeo_cg.sdf.primitives import sphere
-            >>> s = SDFSampler(sphere, balanced=True, clamp=0.1, seed=1).sample(100)
+            >>> g = torch.Generator().manual_seed(1)
+            >>> s = SDFSampler(sphere, balanced=True, clamp=0.1, generator=g).sample(100)
             >>> int((s.sdf < 0).sum()), round(float(s.sdf.abs().max()), 4)
             (50, 0.1)
         """

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import torch
 
+from torchgeo_cg.mesh.data import rabbit_scan_pairs
 from torchgeo_cg.points import estimate_normals, icp
 from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
-from torchgeo_cg.viz.scans import rabbit_scan_pairs
 
 __all__ = ["plot_icp"]
 

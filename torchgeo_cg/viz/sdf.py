@@ -141,7 +141,8 @@ def _slice(path: Path) -> None:
     "Right: the distribution of their signed distances.",
 )
 def _sampler(path: Path) -> None:
-    s = SDFSampler(lambda p: torus(p, _R, _r), bounds=_BOUNDS, seed=0).sample(60000)
+    g = torch.Generator().manual_seed(0)
+    s = SDFSampler(lambda p: torus(p, _R, _r), bounds=_BOUNDS, generator=g).sample(60000)
     p, d = s.points.numpy(), s.sdf.numpy()
     slab = np.abs(p[:, 2]) < 0.05
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), layout="constrained")

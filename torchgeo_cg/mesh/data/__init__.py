@@ -4,7 +4,9 @@
   ``_make_rabbit.py``), the subdivision and DeepSDF sample;
 - :func:`rabbit_path`: where that file is, for code that reads files (the command line);
 - :func:`mri_phantom`: an MRI-like uint16 volume with many exact ties, the marching-cubes
-  sample on which the ambiguity rules differ.
+  sample on which the ambiguity rules differ;
+- :func:`rabbit_scan_pairs` (with :func:`rabbit_surface`, :class:`ScanPairs`): scan pairs of
+  the rabbit with a known transform, the registration sample.
 
 The data lives in :mod:`torchgeo_cg.mesh` because both samples are mesh inputs (a mesh
 file, a volume to mesh) and mesh is the lowest layer that reads mesh files: ``viz``,
@@ -20,9 +22,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from torchgeo_cg.mesh.data._scans import ScanPairs, rabbit_scan_pairs, rabbit_surface
 from torchgeo_cg.mesh.io import Mesh, load_mesh
 
-__all__ = ["mri_phantom", "rabbit", "rabbit_path"]
+__all__ = ["mri_phantom", "rabbit", "rabbit_path", "ScanPairs", "rabbit_scan_pairs",
+           "rabbit_surface"]
 
 
 def rabbit_path() -> Path:

@@ -142,7 +142,7 @@ def _uv_arrays(uvs, uv_faces, faces_fk: torch.Tensor):
     return uvs_np, uv_fk.numpy()
 
 
-def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, n_verts: int,
+def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, num_vertices: int,
                 faces_fk: np.ndarray) -> ObjTags:
     """Checked numpy tags for writing."""
     if tags is None:
@@ -155,7 +155,7 @@ def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, n_verts: int
     out = ObjTags(creases.reshape(-1, 2).astype(np.int64), crease_s.astype(np.float64),
                   corners.reshape(-1).astype(np.int64), corner_s.astype(np.float64),
                   holes.reshape(-1).astype(np.int64), dict(options or {}))
-    check_tags(out, n_verts, faces_fk)  # write only what load_mesh reads back
+    check_tags(out, num_vertices, faces_fk)  # write only what load_mesh reads back
     return out
 
 

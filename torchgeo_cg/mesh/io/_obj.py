@@ -199,7 +199,7 @@ def _pad(values, degrees, k):
     return out
 
 
-def _faces(text, kinds, pos, n_verts, n_uvs):
+def _faces(text, kinds, pos, num_vertices, n_uvs):
     """``(faces_fk, uv_faces_fk or None)`` from the ``f`` lines."""
     lines = kinds["f"]
     text.buf[pos[lines]] = 32
@@ -222,7 +222,7 @@ def _faces(text, kinds, pos, n_verts, n_uvs):
         first = np.cumsum(n_numbers) - n_numbers
     else:
         first = slice(None)
-    vi = _resolve(text, lines, values[first], corners.line, kinds["v"], n_verts, "vertex",
+    vi = _resolve(text, lines, values[first], corners.line, kinds["v"], num_vertices, "vertex",
                   "vertices")
     longest = int(np.argmax(corners.counts))
     width = check_padding(text.name, text.numbers[lines[longest]], corners.counts, len(text.buf))

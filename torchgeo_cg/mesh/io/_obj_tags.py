@@ -172,27 +172,27 @@ def _check_items(error, items, limit, what, sharp=None):
         raise error(i, f"{what} {items[i].tolist()} tagged twice")
 
 
-def _check_edges(error, creases, faces_fk, n_verts):
+def _check_edges(error, creases, faces_fk, num_vertices):
     """Every crease must be an edge of the mesh (undirected)."""
     if creases.size == 0:
         return
     valid = faces_fk >= 0
     nxt = np.where(np.roll(valid, -1, axis=1), np.roll(faces_fk, -1, axis=1), faces_fk[:, :1])
     a, b = faces_fk[valid], nxt[valid]
-    edge_keys = np.minimum(a, b) * n_verts + np.maximum(a, b)
-    keys = creases.min(1) * n_verts + creases.max(1)
+    edge_keys = np.minimum(a, b) * num_vertices + np.maximum(a, b)
+    keys = creases.min(1) * num_vertices + creases.max(1)
     bad = ~np.isin(keys, edge_keys)
     if bad.any():
         i = int(np.argmax(bad))
         raise error(i, f"crease {creases[i].tolist()} is not an edge of the mesh")
 
 
-def check_tags(tags: ObjTags, n_verts: int, faces_fk: np.ndarray, error=None) -> None:
+def check_tags(tags: ObjTags, num_vertices: int, faces_fk: np.ndarray, error=None) -> None:
     """Check tags against a mesh as :func:`parse_tags` does (for writing what reads back).
 
     Args:
         tags: the tags.
-        n_verts: ``V``.
+        num_vertices: ``V``.
         faces_fk: ``(F, K)`` padded faces.
         error: ``error(kind, i, message) -> Exception``; default names ``tags.<kind>s``.
 
@@ -212,9 +212,9 @@ def check_tags(tags: ObjTags, n_verts: int, faces_fk: np.ndarray, error=None) ->
         def err(i, msg, kind=kind):
             return error(kind, i, msg)
 
-        _check_items(err, items, len(faces_fk) if kind == "hole" else n_verts, kind, sharp)
+        _check_items(err, items, len(faces_fk) if kind == "hole" else num_vertices, kind, sharp)
         if kind == "crease":
-            _check_edges(err, items, faces_fk, n_verts)
+            _check_edges(err, items, faces_fk, num_vertices)
 
 
 def _option(text, g: _Group, options: dict) -> None:
@@ -237,7 +237,8 @@ def _option(text, g: _Group, options: dict) -> None:
     options[key] = values[code]
 
 
-def parse_tags(text: TextLines, lines: np.ndarray, n_verts: int, faces_fk: np.ndarray) -> ObjTags:
+def parse_tags(text: TextLines, lines: np.ndarray, num_vertices: int, faces_fk: np.ndarray
+               ) -> ObjTags:
     r"""Tags of the ``t`` lines ``lines`` (their ``t`` already blanked), checked against the mesh.
 
     Example:
@@ -281,7 +282,7 @@ def parse_tags(text: TextLines, lines: np.ndarray, n_verts: int, faces_fk: np.nd
     def error(kind, i, msg):
         return file_error(text.name, text.numbers[out[kind][2][i]], msg)
 
-    check_tags(tags, n_verts, faces_fk, error)
+    check_tags(tags, num_vertices, faces_fk, error)
     return tags
 
 

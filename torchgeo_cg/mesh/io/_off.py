@@ -60,7 +60,7 @@ def _counts(text: TextLines, records: np.ndarray) -> tuple[int, int, int]:
     return int(counts[0]), int(counts[1]), at + 1
 
 
-def _faces(text, lines, n_verts):
+def _faces(text, lines, num_vertices):
     blob, segs = gather_lines(text, lines, text.starts[lines])
     tokens = line_tokens(blob, segs)
     values = parse_numbers(text, lines, blob, segs, tokens, np.float64)
@@ -85,13 +85,14 @@ def _faces(text, lines, n_verts):
     width = check_padding(text.name, longest, degrees, len(text.buf))
     valid = np.arange(width) < degrees[:, None]
     idx = np.where(valid, values[np.where(valid, first[:, None] + 1 + np.arange(width), 0)], -1)
-    bad_f = ((idx != np.floor(idx)) | (idx < -1) | (idx >= n_verts) | ((idx == -1) & valid)).any(1)
+    bad_f = ((idx != np.floor(idx)) | (idx < -1) | (idx >= num_vertices)
+             | ((idx == -1) & valid)).any(1)
     if bad_f.any():
         i = int(np.argmax(bad_f))
         row = idx[i][valid[i]]
-        wrong = row[(row != np.floor(row)) | (row < 0) | (row >= n_verts)][0]
+        wrong = row[(row != np.floor(row)) | (row < 0) | (row >= num_vertices)][0]
         raise file_error(text.name, text.numbers[lines[i]],
-                         f"vertex index {float(wrong):g} is not an integer in [0, {n_verts})")
+                         f"vertex index {float(wrong):g} is not an integer in [0, {num_vertices})")
     return idx.astype(np.int64)
 
 
@@ -108,16 +109,17 @@ def read_off(data: bytes, name: str) -> tuple[np.ndarray, np.ndarray]:
     if b"#" in data:
         blank_comments(text)
     records = np.flatnonzero(text.buf[first_chars(text)] != 10)
-    n_verts, n_faces, row = _counts(text, records)
+    num_vertices, n_faces, row = _counts(text, records)
     left = len(records) - row
-    if n_verts + n_faces > left:
+    if num_vertices + n_faces > left:
         raise file_error(text.name, text.numbers[records[row - 1]],
-                         f"the counts declare {n_verts} vertices and {n_faces} faces, but only "
+                         f"the counts declare {num_vertices} vertices and {n_faces} faces, "
+                         f"but only "
                          f"{left} non-blank lines follow")
-    if n_verts + n_faces < left:
-        raise file_error(text.name, text.numbers[records[row + n_verts + n_faces]],
-                         f"extra line after the {n_verts + n_faces} declared records")
-    lines = records[row : row + n_verts]
+    if num_vertices + n_faces < left:
+        raise file_error(text.name, text.numbers[records[row + num_vertices + n_faces]],
+                         f"extra line after the {num_vertices + n_faces} declared records")
+    lines = records[row : row + num_vertices]
     blob, segs = gather_lines(text, lines, text.starts[lines])
     tokens = line_tokens(blob, segs)
     bad = tokens.counts != 3
@@ -126,7 +128,7 @@ def read_off(data: bytes, name: str) -> tuple[np.ndarray, np.ndarray]:
         raise file_error(text.name, text.numbers[lines[i]],
                          f"a vertex needs 3 values, got {tokens.counts[i]}")
     verts = parse_numbers(text, lines, blob, segs, tokens, np.float64).reshape(-1, 3)
-    faces = _faces(text, records[row + n_verts :], n_verts)
+    faces = _faces(text, records[row + num_vertices :], num_vertices)
     return verts, faces if faces.shape[1] else faces.reshape(0, 3)
 
 

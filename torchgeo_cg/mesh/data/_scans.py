@@ -1,6 +1,6 @@
 """Synthetic scan pairs of the shipped rabbit for registration demos, tests and benchmarks.
 
-No matplotlib: benchmarks and tests import it. A scan is an area-uniform sample of
+A scan is an area-uniform sample of
 the rabbit's Catmull-Clark surface (two levels; :func:`trimesh.sample.sample_surface`),
 so two scans of the same surface share no point.
 """
@@ -16,7 +16,7 @@ import torch
 import trimesh
 
 from torchgeo_cg.mesh.io import load_mesh, to_trimesh
-from torchgeo_cg.mesh.subdivision import catmull_clark
+from torchgeo_cg.mesh.subdivision.catmark import catmull_clark
 
 __all__ = ["ScanPairs", "rabbit_surface", "rabbit_scan_pairs"]
 
@@ -70,6 +70,10 @@ def rabbit_scan_pairs(count: int, points: int = 8000, *, seed: int = 0, dropped:
     bounding box, and the source is moved by the inverse of a rotation by an angle
     in ``angles`` (degrees, random axis, about its centroid) and a shift of length
     ``shift`` x size.
+
+    ``seed`` names the data set, as trimesh's ``sample_surface(seed=)`` does: the same
+    seed gives the same pairs on every machine (numpy's and trimesh's generators are
+    seeded from it; no torch generator is involved).
 
     Example:
         >>> pairs = rabbit_scan_pairs(2, 1000)
