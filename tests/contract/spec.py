@@ -58,6 +58,9 @@ class Entry:
             (ValueError: the argument must be finite, e.g. strictly increasing knots).
         int_ok: integer tensors are valid for ``args[0]`` (e.g. grid indices).
         rtol: relative tolerance of the scale test in float64 (float32: 1e-4 x ``rtol32``).
+        cross: why the cross-argument cases (a leading batch on every argument, sizes
+            that do not broadcast, an empty batch in one argument) do not apply, e.g. a
+            ``call`` that turns a tensor into Python numbers; ``None``: they apply.
     """
 
     name: str
@@ -74,6 +77,7 @@ class Entry:
     int_ok: bool = False
     rtol: float = 1e-9
     rtol32: float = 1.0
+    cross: str | None = None
     extra: dict = field(default_factory=dict)
 
 

@@ -48,6 +48,11 @@ def _module_dtype(x: torch.Tensor) -> dict:
     return {"dtype": x.dtype, "device": x.device}
 
 
+def _on_x(r: torch.Tensor) -> torch.Tensor:
+    """The point ``(r, 0, 0)`` for each ``r`` (batched like ``r``)."""
+    return torch.stack([r, torch.zeros_like(r), torch.zeros_like(r)], -1)
+
+
 def _sample_grid(bounds: torch.Tensor):
     lo, hi = bounds[0], bounds[-1]
     return S.sample_grid(lambda p: S.sphere(p, 0.3 * (hi - lo).amin(), 0.5 * (lo + hi)), 5,
@@ -317,11 +322,11 @@ CORE_TABLE: list[Entry] = [
           (PTS3, Arg("factor", (2,), "positive", "unitless"), Arg("radius", (), "positive")),
           mixed=("follow", 0), bad=BAD3),
     Entry("sdf.Union", lambda p, r: S.Union(S.Sphere(r, **_module_dtype(r)),
-                                            S.Sphere(r / 2, [r, 0, 0], **_module_dtype(r)))(p),
+                                            S.Sphere(r / 2, _on_x(r), **_module_dtype(r)))(p),
           (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
     Entry("sdf.Intersection",
           lambda p, r: S.Intersection(S.Sphere(r, **_module_dtype(r)),
-                                      S.Sphere(r, [r, 0, 0], **_module_dtype(r)))(p),
+                                      S.Sphere(r, _on_x(r), **_module_dtype(r)))(p),
           (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
     Entry("sdf.Difference",
           lambda p, r: S.Difference(S.Sphere(r, **_module_dtype(r)),
@@ -329,24 +334,24 @@ CORE_TABLE: list[Entry] = [
           (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
     Entry("sdf.SmoothUnion",
           lambda p, r: S.SmoothUnion(S.Sphere(r, **_module_dtype(r)),
-                                     S.Sphere(r, [r, 0, 0], **_module_dtype(r)), k=r / 4,
+                                     S.Sphere(r, _on_x(r), **_module_dtype(r)), k=r / 4,
                                      **_module_dtype(r))(p),
           (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
     Entry("sdf.SmoothIntersection",
           lambda p, r: S.SmoothIntersection(S.Sphere(r, **_module_dtype(r)),
-                                            S.Sphere(r, [r, 0, 0], **_module_dtype(r)),
+                                            S.Sphere(r, _on_x(r), **_module_dtype(r)),
                                             k=r / 4, **_module_dtype(r))(p),
           (PTS3, Arg("radius", (), "positive")), mixed=None, bad=BAD3),
     Entry("sdf.Product",
           lambda p, r: S.Product(S.Sphere(r, **_module_dtype(r)),
-                                 S.Sphere(r, [r, 0, 0], **_module_dtype(r)))(p),
+                                 S.Sphere(r, _on_x(r), **_module_dtype(r)))(p),
           (PTS3, Arg("radius", (), "positive")), out="area", mixed=None, bad=BAD3),
     Entry("sdf.Translate",
           lambda p, off, r: S.Translate(S.Sphere(r, **_module_dtype(r)), off,
                                         **_module_dtype(r))(p),
           (PTS3, Arg("offset", (3,)), Arg("radius", (), "positive")), mixed=None, bad=BAD3),
     Entry("sdf.Rotate",
-          lambda p, rot, r: S.Rotate(S.Sphere(r, [r, 0, 0], **_module_dtype(r)), rot)(p),
+          lambda p, rot, r: S.Rotate(S.Sphere(r, _on_x(r), **_module_dtype(r)), rot)(p),
           (PTS3, Arg("world_from_local", (3, 3), "rotation", "unitless"),
            Arg("radius", (), "positive")), mixed=None, bad=((2, 6, 2), (3,))),
     Entry("sdf.Scale", lambda p, f, r: S.Scale(S.Sphere(r, **_module_dtype(r)), f,
@@ -378,7 +383,7 @@ CORE_TABLE: list[Entry] = [
           (Arg("volume", (2, 4, 5, 3)), Arg("origin", (3,)), Arg("spacing", (3,), "positive"),
            Arg("tol", (), "positive")),
           out=("length", "index", "index", "index"), empty=(0, 0), mixed=("follow", 0),
-          bad=((5, 3),), nan="raise"),
+          bad=((5, 3),), nan="raise", cross="tol is a Python number (float(tol) in the call)"),
     # --- sdf: gradients
     Entry("sdf.sdf_gradient", lambda p: S.sdf_gradient(S.sphere, p), (PTS3,), out="unitless",
           bad=((2, 6), ())),

@@ -89,7 +89,9 @@ ENTRIES: list[Entry] = [
            Arg("r2", (), "positive")),
           # mixed dtypes raise in the node modules (FixedTransform, Orbit entries), whose
           # message names their own state, not this entry's argument names
-          out=("matrix", "length"), empty=(0, 0), mixed=None, bad=((5, 2), ())),
+          out=("matrix", "length"), empty=(0, 0), mixed=None, bad=((5, 2), ()),
+          cross="the nodes' errors name their own arguments (matrix, theta), not this "
+                "entry's; the node modules' entries cover them"),
     # The report's system has fixed radii (2, 3, 1): no input carries a length.
     Entry("transforms.solar_system", _solar(), (THETA,),
           out="unitless", empty=(0, 0), mixed=None, bad=((5, 2),)),

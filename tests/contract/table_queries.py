@@ -141,10 +141,12 @@ ENTRIES: list[Entry] = [
     # vertices must be finite (documented ValueError); the empty input is an empty batch
     Entry("sdf.SDFSampler", _sampler, (VERTS, Arg("sigma", (2,), "small_positive")),
           out=("length", "length"), empty=(0, 0), bad=BAD_VERTS, nan="raise",
-          mixed=None),  # sigma becomes Python floats (the variances)
+          mixed=None,  # sigma becomes Python floats (the variances)
+          cross="sigma becomes Python floats (the variances)"),
     Entry("sdf.SDFSampler[balanced]", _balanced, (VERTS, Arg("sigma", (2,), "small_positive")),
           out=("length", "length"), empty=(0, 0), bad=BAD_VERTS, nan="raise",
-          mixed=None),  # sigma becomes Python floats (the variances, the clamp)
+          mixed=None,  # sigma becomes Python floats (the variances, the clamp)
+          cross="sigma becomes Python floats (the variances, the clamp)"),
     # vertices must be finite (documented ValueError: the area CDF is undefined)
     Entry("sdf.sample_mesh_surface", _surface, (VERTS,), empty=(0, 0), bad=BAD_VERTS,
           nan="raise"),

@@ -3,8 +3,9 @@
 Clauses: scale equivariance (s in 1e-6..1e6 in float64, 1e-3 and 1e3 in float32),
 NaN propagation, empty inputs, wrong shapes (``ShapeError`` naming the argument),
 integer input (``TypeError``), mixed dtypes, float16/bfloat16 per the policy,
-non-contiguous and expanded inputs (same result), no input mutated, and the
-completeness of the table over the public API.
+non-contiguous and expanded inputs (same result), no input mutated, batches across
+arguments (sizes that do not broadcast raise ``ShapeError``; an empty batch in any one
+argument gives empty out), and the completeness of the table over the public API.
 
 The examples per property come from ``CONTRACT_EXAMPLES`` (see ``conftest.py``):
 few under ``HYPOTHESIS_PROFILE=ci``, many under ``thorough``.
@@ -196,6 +197,74 @@ def test_low_precision_policy(name, low):
         assert torch.isfinite(o).all()
         top = float(r.abs().amax()) if r.numel() else 0.0
         torch.testing.assert_close(o.to(F32), r, rtol=3e-2, atol=3e-2 * top + 1e-3)
+
+
+# ----------------------------------------------------------------------------- batches
+
+
+CROSS = [n for n in NAMES if len(ENTRIES[n].args) > 1 and ENTRIES[n].cross is None]
+
+
+def _lead(x: torch.Tensor, size: int, ones: int) -> torch.Tensor:
+    """``x`` with new leading dims ``(size, 1, ..., 1)`` (``ones`` ones)."""
+    return x.reshape((1,) * (ones + 1) + x.shape).expand((size,) + (1,) * ones + x.shape)
+
+
+def _names_an_argument(entry, message: str) -> bool:
+    return any(a.name in message for a in entry.args)
+
+
+def _alignments(count: int):
+    """``(i, j, a, b)``: argument i gets leading ``(3, 1^a)``, argument j ``(2, 1^b)``.
+
+    The table does not say how many leading dims of each argument are batch dims, so
+    every relative offset up to 2 is tried: where the 3 and the 2 line up the batches
+    do not broadcast, elsewhere they do.
+    """
+    offsets = [(0, 0), (1, 0), (2, 0), (0, 1), (0, 2)]
+    return [(i, j, a, b) for i in range(count) for j in range(count) if i != j
+            for a, b in offsets]
+
+
+@pytest.mark.parametrize("name", CROSS)
+def test_batches_that_do_not_broadcast_raise_shape_error(name):
+    """Two arguments with batches of 3 and 2: a ShapeError naming an argument where they
+    line up (at least one offset), a result where they broadcast; never a raw error."""
+    entry = ENTRIES[name]
+    tensors = _inputs(entry, 7)
+    refused: dict[tuple[int, int], int] = {}
+    for i, j, a, b in _alignments(len(tensors)):
+        batched = list(tensors)
+        batched[i], batched[j] = _lead(tensors[i], 3, a), _lead(tensors[j], 2, b)
+        try:
+            out = _leaves(_run(entry, batched))
+        except ShapeError as err:
+            assert _names_an_argument(entry, str(err)), str(err)
+            refused[i, j] = refused.get((i, j), 0) + 1
+            continue
+        assert any(3 in x.shape and 2 in x.shape for x in out), [x.shape for x in out]
+    pairs = {(i, j) for i, j, _, _ in _alignments(len(tensors))}
+    assert set(refused) == pairs, f"accepted batches of 3 and 2 at every offset: " \
+                                  f"{sorted(pairs - set(refused))}"
+
+
+@pytest.mark.parametrize("name", CROSS)
+def test_an_empty_batch_in_any_argument(name):
+    """A leading empty dim on one argument: an empty result (the batches broadcast to an
+    empty one), or a ShapeError naming an argument (that argument takes no further
+    batch dim, or the 0 meets another argument's batch); never a raw error, never NaN."""
+    entry = ENTRIES[name]
+    tensors = _inputs(entry, 8)
+    for i in range(len(tensors)):
+        batched = list(tensors)
+        batched[i] = tensors[i].unsqueeze(0)[:0]
+        try:
+            out = _leaves(_run(entry, batched))
+        except ShapeError as err:
+            assert _names_an_argument(entry, str(err)), str(err)
+            continue
+        assert all(not torch.isnan(x).any() for x in out if x.is_floating_point())
+        assert any(x.numel() == 0 for x in out), f"argument {i} empty: {[x.shape for x in out]}"
 
 
 # ----------------------------------------------------------------------------- layouts

@@ -281,6 +281,8 @@ def hypot(*components: torch.Tensor) -> torch.Tensor:
                           for i, c in enumerate(components)})
     if len(components) == 1:
         return first.abs()
+    if any(c.shape != first.shape for c in components):
+        check_broadcastable({f"components[{i}]": c.shape for i, c in enumerate(components)})
     if torch.is_grad_enabled() and any(c.requires_grad for c in components):
         return _Hypot.apply(*components)
     return _hypot_value(components)  # no autograd needed: skip the Function's overhead

@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_norm, safe_sqrt
 from torchgeo_cg.curves.bernstein import check_degree
 from torchgeo_cg.curves.bspline import BSplineControls, prepare_bspline
@@ -131,6 +131,7 @@ def interpolate_bspline(x: torch.Tensor, points: torch.Tensor, degree: int = 3) 
     sizes = check_knots(x, "x")
     check_float(points, "points", low_precision=False)
     check_shape(points, ["*", sizes["K"], "D"], "points")
+    check_broadcastable({"x": x.shape[:-1], "points": points.shape[:-2]})
     if sizes["K"] < degree + 1:
         raise ShapeError(f"x: degree {degree} needs at least {degree + 1} sites, got shape "
                          f"{tuple(x.shape)}")

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.curves.bernstein import check_degree
 from torchgeo_cg.curves.bspline import BSplineControls, bspline, prepare_bspline
 
@@ -251,6 +251,8 @@ def bezier_to_bspline(control_points: torch.Tensor,
                                 device=control_points.device)
     check_float(breaks, "breaks", low_precision=False)
     check_shape(breaks, ["*", s + 1], "breaks")
+    check_broadcastable({"control_points": control_points.shape[:-3],
+                         "breaks": breaks.shape[:-1]})
     bad = ~(breaks[..., 1:] > breaks[..., :-1])
     if bool(bad.any()):
         raise ValueError(f"breaks: must be strictly increasing, got {breaks.tolist()}")

@@ -70,6 +70,7 @@ def circle(t: torch.Tensor, center=(0.0, 0.0), radius=1.0) -> torch.Tensor:
     center = _param(center, t, "center")
     check_shape(center, ["*", "2"], "center")
     radius = _param(radius, t, "radius")
+    check_broadcastable({"t": t.shape[:-1], "center": center.shape[:-1], "radius": radius.shape})
     unit = torch.stack([torch.cos(t), torch.sin(t)], dim=-1)  # (*, T, 2)
     return center[..., None, :] + radius[..., None, None] * unit
 
@@ -130,7 +131,9 @@ def cycloid(t: torch.Tensor, radius=1.0) -> torch.Tensor:
                 [6.2832, 4.0000]])
     """
     _check_t(t)
-    radius = _param(radius, t, "radius")[..., None]
+    radius = _param(radius, t, "radius")
+    check_broadcastable({"t": t.shape[:-1], "radius": radius.shape})
+    radius = radius[..., None]
     return torch.stack([radius * (t - torch.sin(t)), radius * (1 - torch.cos(t))], dim=-1)
 
 
@@ -208,7 +211,9 @@ def figure_eight_parametric(t: torch.Tensor, radius=5.0) -> torch.Tensor:
                 [ 2.,  0.]])
     """
     _check_t(t)
-    radius = _param(radius, t, "radius")[..., None]
+    radius = _param(radius, t, "radius")
+    check_broadcastable({"t": t.shape[:-1], "radius": radius.shape})
+    radius = radius[..., None]
     phase = torch.remainder(t, 4 * math.pi)
     on_left = phase < 2 * math.pi
     # Left: (-r, 0) + r (cos t, sin t). Right: (r, 0) + r (cos(pi - s), sin(pi - s)), s = t - 2 pi.

@@ -115,8 +115,8 @@ def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: tor
     M = reference_bmd.shape[1]
     q_valid = (torch.arange(N, device=ql_b.device) < ql_b[:, None])[..., None]
     r_valid = (torch.arange(M, device=rl_b.device) < rl_b[:, None])[..., None]
-    big = torch.cat([query_bnd.abs().masked_fill(~q_valid, 0).reshape(B, -1),
-                     reference_bmd.abs().masked_fill(~r_valid, 0).reshape(B, -1),
+    big = torch.cat([query_bnd.abs().masked_fill(~q_valid, 0).flatten(1),
+                     reference_bmd.abs().masked_fill(~r_valid, 0).flatten(1),
                      query_bnd.new_zeros(B, 1)], dim=1).amax(1)
     return power_of_two_scale(big)[:, None, None]
 
@@ -192,7 +192,7 @@ def knn(
     found_bnk = idx_bnk >= 0
     if M == 0:  # nothing to gather from: every neighbour is padding
         r_bmd = r_bmd.new_zeros(r_bmd.shape[0], 1, D)
-    near_bnkd = torch.gather(r_bmd, 1, idx_bnk.clamp_min(0).reshape(r_bmd.shape[0], -1, 1)
+    near_bnkd = torch.gather(r_bmd, 1, idx_bnk.clamp_min(0).flatten(1)[..., None]
                              .expand(-1, -1, D)).reshape(*idx_bnk.shape, D)
     d2_bnk = (q_bnd[:, :, None, :] - near_bnkd).square().sum(-1)
     d2_bnk = torch.where(found_bnk, d2_bnk, torch.zeros_like(d2_bnk))

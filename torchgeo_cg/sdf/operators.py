@@ -131,8 +131,9 @@ def difference(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return torch.maximum(a, -b)
 
 
-def _check_k(k, like: torch.Tensor) -> torch.Tensor:
-    k = as_tensor_like(k, like, "k", cast=True)
+def _check_k(k, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    k = as_tensor_like(k, a, "k", cast=True)
+    check_broadcastable({"sdf[0]": a.shape, "sdf[1]": b.shape, "k": k.shape})
     if bool((k <= 0).any()):  # NaN passes (NaN in, NaN out)
         raise ValueError(f"k: expected a positive blend radius, got {k.min().item()}")
     return k
@@ -162,7 +163,7 @@ def smooth_union(a: torch.Tensor, b: torch.Tensor, k: torch.Tensor | float = 0.1
     dtype = a.dtype
     work = working_dtype(dtype)
     a, b = a.to(work), b.to(work)
-    k = _check_k(k, a)
+    k = _check_k(k, a, b)
     h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0)
     return cast_back(b * (1.0 - h) + a * h - k * h * (1.0 - h), dtype)
 
@@ -247,6 +248,7 @@ def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
     def moved(points: torch.Tensor) -> torch.Tensor:
         check_float(points, "points")
         check_shape(points, ["*", "N", offset.shape[-1]], "points")
+        check_broadcastable({"points": points.shape[:-2], "offset": offset.shape[:-1]})
         return sdf_fn(points - shift.to(dtype=points.dtype, device=points.device))
 
     return moved
@@ -280,6 +282,8 @@ def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
     def rotated(points: torch.Tensor) -> torch.Tensor:
         check_float(points, "points")
         check_shape(points, ["*", "N", world_from_local.shape[-1]], "points")
+        check_broadcastable({"points": points.shape[:-2],
+                             "world_from_local": world_from_local.shape[:-2]})
         work = points.to(working_dtype(points.dtype))
         rotation = world_from_local.to(dtype=work.dtype, device=work.device)
         # row form of q = R^T p: q^T = p^T R
@@ -313,6 +317,7 @@ def scale(sdf_fn: SDF, factor: torch.Tensor | float) -> SDF:
     def scaled(points: torch.Tensor) -> torch.Tensor:
         check_float(points, "points")
         check_shape(points, ["*", "N", "D"], "points")
+        check_broadcastable({"points": points.shape[:-2], "factor": factor.shape})
         s = factor.to(dtype=points.dtype, device=points.device)
         return s.unsqueeze(-1) * sdf_fn(points / s.unsqueeze(-1).unsqueeze(-1))
 
@@ -374,8 +379,16 @@ class Difference(nn.Module):
         return difference(self.a(points), self.b(points))
 
 
+def _per_shape(k: torch.Tensor) -> torch.Tensor:
+    """A module's ``(*)`` width, one per shape, against ``(*, N)`` values."""
+    return k.unsqueeze(-1) if k.dim() > 0 else k
+
+
 class SmoothUnion(nn.Module):
     """:func:`smooth_union` of two SDF modules with a learnable width ``k``.
+
+    ``k`` is a number or a ``(*)`` tensor, one width per shape of a batch (as the
+    primitives' parameters are).
 
     Example:
         >>> from torchgeo_cg.sdf.primitives import Sphere
@@ -387,11 +400,12 @@ class SmoothUnion(nn.Module):
     def __init__(self, a: nn.Module, b: nn.Module, k: float = 0.1, device=None, dtype=None):
         super().__init__()
         self.a, self.b = a, b
-        self.k = nn.Parameter(torch.tensor(float(k), device=device, dtype=dtype))
+        self.k = nn.Parameter(torch.as_tensor(k, device=device, dtype=dtype or
+                                              torch.get_default_dtype()).clone())
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         check_module_dtype(self, points, "points")
-        return smooth_union(self.a(points), self.b(points), self.k)
+        return smooth_union(self.a(points), self.b(points), _per_shape(self.k))
 
 
 class SmoothIntersection(SmoothUnion):
@@ -406,7 +420,7 @@ class SmoothIntersection(SmoothUnion):
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         check_module_dtype(self, points, "points")
-        return smooth_intersection(self.a(points), self.b(points), self.k)
+        return smooth_intersection(self.a(points), self.b(points), _per_shape(self.k))
 
 
 class Product(Union):
@@ -477,7 +491,8 @@ class Scale(nn.Module):
     def __init__(self, shape: nn.Module, factor: float = 1.0, device=None, dtype=None):
         super().__init__()
         self.shape = shape
-        self.factor = nn.Parameter(torch.tensor(float(factor), device=device, dtype=dtype))
+        self.factor = nn.Parameter(torch.as_tensor(factor, device=device, dtype=dtype or
+                                                   torch.get_default_dtype()).clone())
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         check_module_dtype(self, points, "points")

@@ -29,7 +29,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, hypot, safe_div, working_dtype
 
@@ -93,6 +93,19 @@ def _vector(x: torch.Tensor | None, name: str, like: torch.Tensor, default=0.0) 
     return x if x.dim() == 1 else x.unsqueeze(-2)
 
 
+def _batches(work: torch.Tensor, scalars: dict[str, torch.Tensor],
+             vectors: dict[str, torch.Tensor] | None = None) -> None:
+    """Check that the parameters' batch dims broadcast with the points' ``(*)``.
+
+    ``scalars`` are as :func:`_scalar` returns them (``(*, 1)`` or ``()``), ``vectors`` as
+    :func:`_vector` does (``(*, 1, D)`` or ``(D,)``).
+    """
+    batches = {"points": work.shape[:-2]}
+    batches.update({n: x.shape[:-1] for n, x in scalars.items()})
+    batches.update({n: x.shape[:-2] for n, x in (vectors or {}).items()})
+    check_broadcastable(batches)
+
+
 def sphere(
     points: torch.Tensor, radius: torch.Tensor | Number = 1.0, center: torch.Tensor | None = None
 ) -> torch.Tensor:
@@ -116,6 +129,7 @@ def sphere(
     work = _points(points)
     r = _scalar(radius, "radius", work)
     c = _vector(center, "center", work)
+    _batches(work, {"radius": r}, {"center": c})
     return cast_back(_norm(work - c) - r, points.dtype)
 
 
@@ -176,6 +190,7 @@ def box(
     b = _vector(half_size, "half_size", work, default=1.0)
     r = _scalar(radius, "radius", work)
     c = _vector(center, "center", work)
+    _batches(work, {"radius": r}, {"half_size": b, "center": c})
     q = (work - c).abs() - b + r.unsqueeze(-1)
     outside = _norm(q.clamp_min(0.0))
     inside = q.amax(dim=-1).clamp_max(0.0)
@@ -243,6 +258,7 @@ def capsule(
         end[-1] = 1.0
     b = _vector(end, "end", work)
     r = _scalar(radius, "radius", work)
+    _batches(work, {"radius": r}, {"start": a, "end": b})
     pa, ba = work - a, b - a
     # t = (pa . ba) / |ba|^2 as (pa . u) / |ba| with u = ba / |ba|: no |ba|^2 to overflow
     length = _norm(ba).unsqueeze(-1)
@@ -279,10 +295,11 @@ def plane(
         normal = work.new_zeros(dim)
         normal[-1] = 1.0
     n = _vector(normal, "normal", work)
+    d = _scalar(offset, "offset", work)
+    _batches(work, {"offset": d}, {"normal": n})
     length = _norm(n).unsqueeze(-1)
     if bool((length == 0).any()):
         raise ValueError("normal: expected a nonzero vector, got a zero normal")
-    d = _scalar(offset, "offset", work)
     return cast_back((work * (n / length)).sum(-1) - d, points.dtype)
 
 
@@ -319,6 +336,7 @@ def torus(
     work = _points(points, (3,))
     big = _scalar(major_radius, "major_radius", work)
     small = _scalar(minor_radius, "minor_radius", work)
+    _batches(work, {"major_radius": big, "minor_radius": small})
     x, y, z = work.unbind(-1)
     rho = hypot(x, y) - big
     s = hypot(rho, z)
@@ -353,6 +371,7 @@ def annulus(
     work = _points(points, (2,))
     big = _scalar(major_radius, "major_radius", work)
     small = _scalar(minor_radius, "minor_radius", work)
+    _batches(work, {"major_radius": big, "minor_radius": small})
     return cast_back((_norm(work) - big).abs() - small, points.dtype)
 
 
@@ -384,9 +403,10 @@ def gyroid(
     """
     work = _points(points, (3,))
     s = _scalar(scale, "scale", work)
+    t = _scalar(thickness, "thickness", work)
+    _batches(work, {"scale": s, "thickness": t})
     if bool((s <= 0).any()):  # NaN passes (NaN in, NaN out)
         raise ValueError(f"scale: expected a positive spatial frequency, got {s.min().item()}")
-    t = _scalar(thickness, "thickness", work)
     q = work * s.unsqueeze(-1)
     x, y, z = q.unbind(-1)
     g = torch.sin(x) * torch.cos(y) + torch.sin(y) * torch.cos(z) + torch.sin(z) * torch.cos(x)

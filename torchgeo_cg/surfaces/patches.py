@@ -230,6 +230,8 @@ def _prepare(control_grid, u, v, degree, knots_u, knots_v, weights=None):
         check_shape(weights, ["*", rows, cols], "weights")
         check_weights(weights.flatten(-2), grid.flatten(-3, -2))
         weights = weights.to(dtype)
+        check_broadcastable({"control_grid": grid.shape[:-3], "weights": weights.shape[:-2],
+                             "u": u.shape[:-1], "v": v.shape[:-1]})
         batch = torch.broadcast_shapes(grid.shape[:-3], weights.shape[:-2])
         grid = grid.expand(*batch, *grid.shape[-3:])
         weights = weights.expand(*batch, rows, cols)[..., None]

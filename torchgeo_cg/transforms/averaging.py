@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms._correspondences import pow2_normalize
 from torchgeo_cg.transforms._horn import horn_solve
@@ -49,6 +49,7 @@ def rotation_mean(rotations: torch.Tensor, weights: torch.Tensor | None = None) 
     else:
         check_shape(weights, ["*", "M"], "weights", sizes={"M": sizes["M"]})
         check_float(weights, "weights")
+        check_broadcastable({"rotations": rotations.shape[:-3], "weights": weights.shape[:-1]})
         w = pow2_normalize(weights.to(r.dtype), -1)
         w = torch.where(w.sum(-1, keepdim=True) == 0, torch.ones_like(w), w)
     total = (r * w[..., None, None]).sum(-3)  # (*, 3, 3)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.transforms._correspondences import (
@@ -67,6 +67,7 @@ def hartley_normalize(points: torch.Tensor, weights: torch.Tensor | None = None)
     if weights is not None:
         check_shape(weights, ["*", "N"], "weights", sizes={"N": points.shape[-2]})
         check_float(weights, "weights")
+        check_broadcastable({"points": points.shape[:-2], "weights": weights.shape[:-1]})
         weights = weights.to(points.dtype)  # weights follow the points, as in check_pair
     low = points.dtype
     points, weights = to_working(points, weights)

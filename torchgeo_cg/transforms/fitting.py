@@ -29,7 +29,13 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from torchgeo_cg.core.check import check_choice, check_float, check_shape
+from torchgeo_cg.core.check import (
+    ShapeError,
+    check_broadcastable,
+    check_choice,
+    check_float,
+    check_shape,
+)
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms._correspondences import (
     check_pair,
@@ -192,6 +198,9 @@ def fit_transform(
     if init is not None:
         check_shape(init, ["*", "3", "3"], "init")
         check_float(init, "init")
+        if check_broadcastable({"src": batch, "init": init.shape[:-2]}) != tuple(batch):
+            raise ShapeError(f"init: expected (3, 3) or batch dims that broadcast to src's "
+                             f"{tuple(batch)}, got {tuple(init.shape)}")
         init = init.to(src).expand(*batch, 3, 3).reshape(-1, 3, 3)
         init_n = prob.t_dst @ init @ inverse(prob.t_src)
         theta = matrix_to_parameters(init_n, model, parametrization).detach()

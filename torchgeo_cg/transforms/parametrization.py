@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import check_choice, check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.homogeneous import transform_points
@@ -121,6 +121,7 @@ def parameters_to_matrix(
     check_float(params, "params")
     if base is not None:
         check_shape(base, ["*", "3", "3"], "base")
+        check_broadcastable({"params": params.shape[:-1], "base": base.shape[:-2]})
         check_same_dtype({"params": params, "base": check_float(base, "base")})
     work = working_dtype(params.dtype)  # float16/bfloat16: computed in float32
     out = _parameters_to_matrix(params.to(work), model, parametrization,

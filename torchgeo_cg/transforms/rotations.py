@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.transforms._so3 import (
     canonical,
@@ -463,6 +463,7 @@ def quaternion_slerp(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor | float
     a, b = _pair(q0, q1, 4, ("q0", "q1"))
     t = torch.as_tensor(t, dtype=a.dtype, device=a.device)
     check_float(t, "t")
+    check_broadcastable({"q0": a.shape[:-1], "q1": b.shape[:-1], "t": t.shape})
     b = torch.where(((a * b).sum(-1, keepdim=True) < 0), -b, b)
     theta = 2 * torch.atan2(safe_norm(a - b, keepdim=True), safe_norm(a + b, keepdim=True))
     t = t.to(a.dtype)[..., None]

@@ -34,6 +34,7 @@ from torchgeo_cg.mesh.io._obj_tags import ObjTags, check_tags
 from torchgeo_cg.mesh.io._off import format_off, read_off
 from torchgeo_cg.mesh.io._ply import format_ply, read_ply
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
+from torchgeo_cg.mesh.subdivision.tags import check_tags as check_tensor_tags
 
 __all__ = ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
 
@@ -149,9 +150,7 @@ def _tag_arrays(tags: SubdivisionTags | None, options: dict | None, num_vertices
         return ObjTags.empty()._replace(options=dict(options or {}))
     if not isinstance(tags, SubdivisionTags):
         raise TypeError(f"tags: expected a SubdivisionTags, got {type(tags).__name__}")
-    creases, crease_s, corners, corner_s, holes = (_numpy(t) for t in tags)
-    if creases.reshape(-1, 2).shape[0] != crease_s.size or corners.size != corner_s.size:
-        raise ValueError("tags: one sharpness per crease and per corner expected")
+    creases, crease_s, corners, corner_s, holes = (_numpy(t) for t in check_tensor_tags(tags))
     out = ObjTags(creases.reshape(-1, 2).astype(np.int64), crease_s.astype(np.float64),
                   corners.reshape(-1).astype(np.int64), corner_s.astype(np.float64),
                   holes.reshape(-1).astype(np.int64), dict(options or {}))

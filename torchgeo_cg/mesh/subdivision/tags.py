@@ -86,5 +86,9 @@ def check_tags(tags: SubdivisionTags) -> SubdivisionTags:
         values = check_tensor(getattr(tags, name), f"tags.{name}")
         if values.is_complex() or values.dtype == torch.bool:
             raise TypeError(f"tags.{name}: expected a real tensor, got dtype {values.dtype}")
-    check_shape(tags.creases, ["E", 2], "tags.creases")
+    sizes = check_shape(tags.creases, ["E", 2], "tags.creases")
+    check_shape(tags.crease_sharpness, ["E"], "tags.crease_sharpness", sizes)
+    sizes = check_shape(tags.corners, ["C"], "tags.corners")
+    check_shape(tags.corner_sharpness, ["C"], "tags.corner_sharpness", sizes)
+    check_shape(tags.holes, ["H"], "tags.holes")
     return tags
