@@ -409,8 +409,10 @@ def test_mixed_polygons_with_uvs_round_trip(tmp_path):
     save_mesh(tmp_path / "m.obj", v, MIXED, uvs=uvs, uv_faces=uv_faces)
     mesh = load_mesh(tmp_path / "m.obj", dtype=torch.float64)
     assert unpad_faces(mesh.uv_faces) == uv_faces and unpad_faces(mesh.faces) == MIXED
-    with pytest.raises(ValueError, match="uv_faces: expected the padding of faces"):
+    with pytest.raises(ValueError, match="uv_faces: face 0 has texture indices on some corners"):
         save_mesh(tmp_path / "m.obj", v, MIXED, uvs=uvs, uv_faces=[[1, 2, 3]] * 3)
+    with pytest.raises(ValueError, match="uv_faces: expected the padding of faces"):
+        save_mesh(tmp_path / "m.obj", v, MIXED, uvs=uvs, uv_faces=[[1, 2, 3, 4, 5]] * 3)
     with pytest.raises(ValueError, match="uv_faces: face 0 has index 10, out of range"):
         save_mesh(tmp_path / "m.obj", v, MIXED, uvs=uvs, uv_faces=[[10, 8, 7, 6], [5, 4, 3],
                                                                    [2, 1, 0, 9, 8]])

@@ -4,7 +4,8 @@ Convention:
     - A mesh is ``Mesh(verts, faces, uvs, uv_faces, tags, options)``: ``verts``
       ``(V, 3)`` float, ``faces`` ``(F, K)`` long padded with ``-1`` (see
       :mod:`torchgeo_cg.mesh.faces`); ``uvs`` ``(T, 2)`` and ``uv_faces`` ``(F, K)``
-      (same padding as ``faces``) are the OBJ texture coordinates, ``tags`` the
+      (same padding as ``faces``; ``-1`` on every corner of a face without texture
+      indices) are the OBJ texture coordinates, ``tags`` the
       OpenSubdiv ``t`` tags (:class:`~torchgeo_cg.mesh.SubdivisionTags`) and
       ``options`` the scheme options they set (``{"boundary": "edge_only", ...}``,
       see :mod:`torchgeo_cg.mesh.io._obj_tags`).
@@ -15,12 +16,18 @@ Convention:
     - Every malformed file raises ``ValueError("<file>, line <n>: ...")`` (binary
       PLY: ``"<file>: element 'face' record <i>: ..."``); nothing is read silently
       wrong. Faces need at least 3 vertices, on load and on save.
+    - What real exporters write outside the format but cannot change positions or
+      faces (an unknown OBJ statement, non-UTF-8 bytes in an OBJ comment or name,
+      non-ASCII bytes in a PLY ``comment``/``obj_info`` line) is skipped with one
+      :class:`~torchgeo_cg.mesh.io._text.MeshFileWarning` (a ``UserWarning``) per
+      file, naming the file, the first line skipped and how many were.
     - trimesh holds triangles only: :func:`to_trimesh` fan-triangulates polygons.
 """
 
 from __future__ import annotations
 
 import os
+import warnings
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -33,6 +40,7 @@ from torchgeo_cg.mesh.io._obj import ObjContent, format_obj, read_obj
 from torchgeo_cg.mesh.io._obj_tags import ObjTags, check_tags
 from torchgeo_cg.mesh.io._off import format_off, read_off
 from torchgeo_cg.mesh.io._ply import format_ply, read_ply
+from torchgeo_cg.mesh.io._text import MeshFileWarning
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 from torchgeo_cg.mesh.subdivision.tags import check_tags as check_tensor_tags
 
@@ -47,6 +55,9 @@ class Mesh(NamedTuple):
         faces: ``(F, K)`` long vertex indices, padded with ``-1``.
         uvs: ``(T, 2)`` float texture coordinates, or ``None``.
         uv_faces: ``(F, K)`` long indices into ``uvs``, padded like ``faces``, or ``None``.
+            A face without texture coordinates has ``-1`` on every corner (an OBJ
+            whose objects do not all have UVs); tell it from padding by ``faces``,
+            which is ``-1`` only where it pads.
         tags: :class:`~torchgeo_cg.mesh.SubdivisionTags`, or ``None``.
         options: ``dict`` of subdivision scheme options, or ``None``.
 
@@ -135,10 +146,19 @@ def _uv_arrays(uvs, uv_faces, faces_fk: torch.Tensor):
     if uv_fk.shape[1] < width:
         uv_fk = torch.cat([uv_fk, uv_fk.new_full((uv_fk.shape[0], width - uv_fk.shape[1]), -1)], 1)
     same = uv_fk.shape[0] == faces_fk.shape[0] and not (uv_fk[:, width:] >= 0).any()
-    if not same or not torch.equal(uv_fk[:, :width] >= 0, faces_fk >= 0):
+    if same:
+        uv_fk = uv_fk[:, :width]
+        used_fk, has_f = uv_fk >= 0, (uv_fk >= 0).any(1)
+        same = not (used_fk & (faces_fk < 0)).any()
+    if not same:
         raise ValueError(f"uv_faces: expected the padding of faces {tuple(faces_fk.shape)}, "
                          f"got shape {tuple(uv_fk.shape)} with other face sizes")
-    uv_fk = check_faces(uv_fk[:, : faces_fk.shape[1]], uvs.shape[0], name="uv_faces",
+    part = torch.nonzero(has_f & (used_fk != (faces_fk >= 0)).any(1)).flatten()
+    if part.numel():
+        f = int(part[0])
+        raise ValueError(f"uv_faces: face {f} has texture indices on some corners only "
+                         f"({uv_fk[f].tolist()}); give every corner one, or -1 on every corner")
+    uv_fk = check_faces(uv_fk, uvs.shape[0], name="uv_faces",
                         allow_duplicates=True, allow_degenerate=True)
     return uvs_np, uv_fk.numpy()
 
@@ -189,13 +209,15 @@ def save_mesh(
             has at least 3 vertices.
         binary: PLY only; ignored for OBJ.
         uvs: ``(T, 2)`` float texture coordinates (OBJ).
-        uv_faces: ``(F, K)`` long indices into ``uvs``, padded like ``faces`` (OBJ).
+        uv_faces: ``(F, K)`` long indices into ``uvs``, padded like ``faces`` (OBJ);
+            ``-1`` on every corner of a face without texture coordinates.
         tags: :class:`~torchgeo_cg.mesh.SubdivisionTags` (OBJ).
         options: scheme options, e.g. ``{"boundary": "edge_only"}`` (OBJ).
 
     Raises:
         ValueError: unknown suffix, faces of fewer than 3 vertices, indices out of
-            range, or UVs/tags for a PLY or OFF file.
+            range, a face with texture indices on some corners only, or UVs/tags for a
+            PLY or OFF file.
 
     Example:
         >>> import tempfile, os
@@ -255,7 +277,9 @@ def load_mesh(
         :mod:`torchgeo_cg.mesh.io._obj_tags` (OpenSubdiv ``t`` tags) and
         :mod:`torchgeo_cg.mesh.io._ply` (header checks, ASCII and binary) and
         :mod:`torchgeo_cg.mesh.io._off`. A BOM and
-        CRLF line ends are accepted. No vertex is merged or dropped.
+        CRLF line ends are accepted. No vertex is merged or dropped. What cannot
+        change positions or faces but the format does not allow is skipped with
+        one warning (module docstring).
 
     Args:
         path: an ``.obj``, ``.ply`` or ``.off`` file.
@@ -267,11 +291,15 @@ def load_mesh(
     Returns:
         :class:`Mesh`: ``verts`` ``(V, 3)``, ``faces`` ``(F, K)`` padded with ``-1``;
         ``uvs`` ``(T, 2)`` when the OBJ has ``vt`` lines and ``uv_faces`` ``(F, K)``
-        when its faces use them (else ``None``); ``tags`` (empty without ``t``
+        when its faces use them (else ``None``; ``-1`` on every corner of a face
+        without them, e.g. ``f 1//1 2//1 3//1``); ``tags`` (empty without ``t``
         lines, and for PLY/OFF) and ``options`` (``{}`` without option tags).
 
     Raises:
         ValueError: unknown suffix, or a malformed file (naming the file and line).
+
+    Warns:
+        MeshFileWarning: (a ``UserWarning``) once per file, when lines were skipped.
 
     Example:
         >>> import tempfile, os
@@ -291,11 +319,15 @@ def load_mesh(
         data = fh.read()
     name = os.fspath(path)
     dtype = _resolve_dtype(dtype)
-    if suffix in (".ply", ".off"):
-        verts_v3, faces_fk = (read_ply if suffix == ".ply" else read_off)(data, name)
-        content = ObjContent(verts_v3, faces_fk, None, None, ObjTags.empty())
+    if suffix == ".ply":
+        verts_v3, faces_fk, skipped = read_ply(data, name)
+        content = ObjContent(verts_v3, faces_fk, None, None, ObjTags.empty(), skipped)
+    elif suffix == ".off":
+        content = ObjContent(*read_off(data, name), None, None, ObjTags.empty())
     else:
         content = read_obj(data, name)
+    if content.skipped:
+        warnings.warn(content.skipped, MeshFileWarning, stacklevel=2)
 
     def real(a):  # saturating: a value beyond a half type's range reads as its largest
         return None if a is None else cast_back(torch.from_numpy(a), dtype).to(device)

@@ -6,11 +6,22 @@ Convention:
       skipped; ``f`` corners are ``v``, ``v/vt``, ``v/vt/vn`` or ``v//vn``.
     - Indices are 1-based in the file, 0-based in memory; a negative index counts
       back from the last ``v`` (``vt``) read before its line, as the OBJ spec says.
-    - Either every face has texture indices or none has; within a face every
-      corner has the same form.
+    - Within a face, texture indices are on every corner or on none (``v`` and
+      ``v//vn`` corners have none); faces may differ, as when one object has UVs
+      and another has not. A face without them has ``-1`` on every corner of
+      ``uv_faces``, where ``faces`` has its real indices; padding is where
+      ``faces`` is ``-1``. ``uv_faces`` is ``None`` when no face has them.
     - ``t`` lines are OpenSubdiv's tags, see :mod:`torchgeo_cg.mesh.io._obj_tags`.
     - Known statements that do not describe polygons (``o g s usemtl mtllib l p``,
-      free-form curves, ...) are skipped; an unknown statement is an error.
+      free-form curves, ...) and comments are skipped silently.
+    - What the format does not allow but cannot change positions or faces is
+      skipped with one :class:`~torchgeo_cg.mesh.io._text.MeshFileWarning` per file,
+      naming the first such line and how many there are: an unknown statement
+      (``vx``, ``newmtl``, ``call`` and ``csh``, which are not run), and bytes that
+      are not UTF-8 (latin-1, say) in a comment or in a name (``g``, ``o``,
+      ``usemtl``, ...). Such bytes on a ``v vt vn f t`` line, and an unknown
+      statement that is ``v vt f t`` glued to a number (``v1 2 3``: skipping it
+      would lose a vertex), raise instead.
     - Comments start at ``#``; a line ending with ``\\`` continues on the next one.
 """
 
@@ -35,6 +46,7 @@ from torchgeo_cg.mesh.io._text import (
     line_tokens,
     parse_numbers,
     read_text,
+    skipped_message,
 )
 
 __all__: list[str] = []
@@ -47,6 +59,8 @@ OBJ_STATEMENTS = frozenset(
 """The OBJ statements read or knowingly skipped (``t``: OpenSubdiv's tags)."""
 
 _KW = 16  # longest keyword we look at
+_KNOWN = np.array(sorted(OBJ_STATEMENTS), dtype=f"S{_KW}")
+_READ = ("v", "vt", "vn", "f", "t")  # the statements whose numbers are parsed
 
 
 class ObjContent(NamedTuple):
@@ -58,6 +72,7 @@ class ObjContent(NamedTuple):
         uvs_t2: ``(T, 2)`` float64, or ``None`` without ``vt`` lines.
         uv_faces_fk: ``(F, K)`` int64 like ``faces_fk``, or ``None`` when faces have no ``vt``.
         tags: :class:`~torchgeo_cg.mesh.io._obj_tags.ObjTags`.
+        skipped: the warning for what was skipped (see the module docstring), or ``None``.
     """
 
     verts_v3: np.ndarray
@@ -65,10 +80,11 @@ class ObjContent(NamedTuple):
     uvs_t2: np.ndarray | None
     uv_faces_fk: np.ndarray | None
     tags: ObjTags
+    skipped: str | None = None
 
 
-def _classify(text: TextLines) -> tuple[dict, np.ndarray]:
-    """Line indices of each statement kind; refuse unknown statements."""
+def _classify(text: TextLines) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray]:
+    """Line indices of each statement kind, then ``(pos, unknown lines, their keywords)``."""
     pos = first_chars(text)
     last = len(text.buf) - 1
     c0, c1, c2 = (text.buf[np.minimum(pos + k, last)] for k in range(3))
@@ -81,15 +97,56 @@ def _classify(text: TextLines) -> tuple[dict, np.ndarray]:
     for mask in kinds.values():
         known |= mask
     other = np.flatnonzero(~known)
-    if other.size:
-        word = chars_at(text, pos[other], _KW)
-        names, first = np.unique(word.view(f"S{_KW}").ravel(), return_index=True)
-        for name, at in zip(names.tolist(), first.tolist()):  # loop over distinct keywords
-            if name not in OBJ_STATEMENTS:
-                shown = name.decode("utf-8", errors="replace")
-                line = text.numbers[other[at]]
-                raise file_error(text.name, line, f"unknown OBJ statement {shown!r}")
-    return {k: np.flatnonzero(m) for k, m in kinds.items()}, pos
+    word = chars_at(text, pos[other], _KW).view(f"S{_KW}").ravel()
+    unknown = ~np.isin(word, _KNOWN)
+    _refuse_glued(text, other[unknown], word[unknown])
+    return {k: np.flatnonzero(m) for k, m in kinds.items()}, pos, other[unknown], word[unknown]
+
+
+def _refuse_glued(text: TextLines, lines: np.ndarray, words: np.ndarray) -> None:
+    """Raise for ``v``, ``vt``, ``f`` or ``t`` glued to a number (``v1 2 3``), a lost record."""
+    if lines.size == 0:
+        return
+    w = words.view(np.uint8).reshape(len(words), _KW)
+    numeric = (((w >= 48) & (w <= 57)) | (w == 43) | (w == 45) | (w == 46))
+    one = ((w[:, 0] == 118) | (w[:, 0] == 102) | (w[:, 0] == 116)) & numeric[:, 1]
+    glued = one | ((w[:, 0] == 118) & (w[:, 1] == 116) & numeric[:, 2])
+    if glued.any():
+        i = int(np.argmax(glued))
+        shown = words[i].decode("utf-8", errors="replace")
+        kw = shown[:2] if one[i] == 0 else shown[:1]
+        raise file_error(text.name, text.numbers[lines[i]],
+                         f"unknown OBJ statement {shown!r} (a {kw!r} glued to its first number; "
+                         "skipping it would lose a record)")
+
+
+def _skipped(text: TextLines, kinds: dict, unknown: np.ndarray, words: np.ndarray
+             ) -> str | None:
+    """The warning for unknown statements and non-UTF-8 bytes where nothing is read.
+
+    Call after the comments are blanked: a non-UTF-8 byte still standing on a line
+    whose numbers are read raises, naming the line.
+    """
+    bad = text.invalid
+    lines = unknown
+    if bad is not None and bad.size:
+        line = np.searchsorted(text.ends, bad)
+        read = np.zeros(len(text.ends), dtype=bool)
+        for kind in _READ:  # loop over the five statement kinds
+            read[kinds[kind]] = True
+        hit = read[line] & (text.buf[bad] != 32)  # not blanked as a comment
+        if hit.any():
+            at = int(np.argmax(hit))
+            raise file_error(text.name, text.numbers[line[at]],
+                             f"not valid UTF-8 text (byte 0x{int(text.buf[bad[at]]):02x})")
+        lines = np.union1d(unknown, line)
+    if lines.size == 0:
+        return None
+    if unknown.size and unknown[0] == lines[0]:
+        first = f"unknown OBJ statement {words[0].decode('utf-8', errors='replace')!r}"
+    else:
+        first = "bytes that are not UTF-8 in a comment or a name"
+    return skipped_message(text.name, text.numbers[lines], first)
 
 
 def _numbers_block(text, lines, pos, skip, allowed, what):
@@ -147,8 +204,8 @@ def _corner_forms(text, lines, blob, tokens):
     return np.where(n_slash == 0, 0, np.where(n_slash == 1, 1, np.where(n_double == 1, 3, 2)))
 
 
-def _check_uniform_forms(text, lines, forms, starts_f):
-    """Texture indices on every corner of every face, or on none."""
+def _face_has_vt(text, lines, forms, starts_f):
+    """``(F,)`` bool: the faces with texture indices, on every corner (else an error)."""
     vt_before = np.concatenate([[0], np.cumsum((forms == 1) | (forms == 2))])
     n_vt_f = np.diff(np.append(vt_before[starts_f], vt_before[-1]))
     has_vt = n_vt_f > 0
@@ -157,13 +214,7 @@ def _check_uniform_forms(text, lines, forms, starts_f):
         i = int(np.argmax(mixed))
         raise file_error(text.name, text.numbers[lines[i]],
                          "face has texture indices on some corners only")
-    if has_vt.any() and not has_vt.all():
-        i = int(np.argmax(has_vt != has_vt[0]))
-        raise file_error(text.name, text.numbers[lines[i]],
-                         "face without texture indices where other faces have them"
-                         if has_vt[0] else
-                         "face with texture indices where other faces have none")
-    return bool(has_vt.any())
+    return has_vt
 
 
 def _resolve(text, lines, idx, corner_line, kind_lines, total, what, plural):
@@ -214,7 +265,7 @@ def _faces(text, kinds, pos, num_vertices, n_uvs):
         return np.zeros((0, 3), np.int64), None
     forms = _corner_forms(text, lines, blob, corners)
     starts_f = np.cumsum(corners.counts) - corners.counts
-    has_vt = _check_uniform_forms(text, lines, forms, starts_f)
+    has_vt = _face_has_vt(text, lines, forms, starts_f)
     numbers = line_tokens(blob, segs) if forms.any() else corners
     values = parse_numbers(text, lines, blob, segs, numbers, np.int64)
     if forms.any():
@@ -227,11 +278,23 @@ def _faces(text, kinds, pos, num_vertices, n_uvs):
     longest = int(np.argmax(corners.counts))
     width = check_padding(text.name, text.numbers[lines[longest]], corners.counts, len(text.buf))
     faces = _pad(vi, corners.counts, width)
-    if not has_vt:
+    if not has_vt.any():
         return faces, None
-    ti = _resolve(text, lines, values[first + 1], corners.line, kinds["vt"], n_uvs,
-                  "texture coordinate", "texture coordinates")
-    return faces, _pad(ti, corners.counts, width)
+    return faces, _uv_faces(text, lines, kinds, values, first, forms, corners, n_uvs, width)
+
+
+def _uv_faces(text, lines, kinds, values, first, forms, corners, n_uvs, width):
+    """``(F, K)`` texture indices: ``-1`` on the corners without them, and as padding."""
+    with_vt = (forms == 1) | (forms == 2)
+    if with_vt.all():
+        ti = _resolve(text, lines, values[first + 1], corners.line, kinds["vt"], n_uvs,
+                      "texture coordinate", "texture coordinates")
+        return _pad(ti, corners.counts, width)
+    ti = np.full(len(forms), -1, np.int64)
+    ti[with_vt] = _resolve(text, lines, values[first[with_vt] + 1],
+                           lambda: corners.line()[with_vt], kinds["vt"], n_uvs,
+                           "texture coordinate", "texture coordinates")
+    return _pad(ti, corners.counts, width)
 
 
 def read_obj(data: bytes, name: str) -> ObjContent:
@@ -252,10 +315,11 @@ def read_obj(data: bytes, name: str) -> ObjContent:
         >>> c.faces_fk.tolist(), c.uv_faces_fk.tolist(), c.uvs_t2.shape
         ([[0, 1, 2]], [[0, 0, 0]], (1, 2))
     """
-    text = read_text(data, name, continuations=True)
+    text = read_text(data, name, continuations=True, strict=False)
     if b"#" in data:
         blank_comments(text)
-    kinds, pos = _classify(text)
+    kinds, pos, unknown, words = _classify(text)
+    skipped = _skipped(text, kinds, unknown, words)
     values, counts = _numbers_block(text, kinds["v"], pos, 1, (3, 4, 6, 7), "'v'")
     verts = _columns(values, counts, 3)
     uvs = None
@@ -265,7 +329,7 @@ def read_obj(data: bytes, name: str) -> ObjContent:
     faces, uv_faces = _faces(text, kinds, pos, len(verts), 0 if uvs is None else len(uvs))
     text.buf[pos[kinds["t"]]] = 32
     tags = parse_tags(text, kinds["t"], len(verts), faces)
-    return ObjContent(verts, faces, uvs, uv_faces, tags)
+    return ObjContent(verts, faces, uvs, uv_faces, tags, skipped)
 
 
 def format_obj(content: ObjContent, precision: int, *, uv_precision: int | None = None,

@@ -4,8 +4,11 @@ Convention:
     - The header is read line by line and must be exactly PLY's: ``ply``, one
       ``format ascii|binary_little_endian|binary_big_endian 1.0``, ``element``,
       ``property`` (scalar or ``list``), ``comment``/``obj_info`` lines, and a line
-      reading ``end_header``. Scalar types: ``char uchar short ushort int uint float
-      double`` and their ``int8 .. float64`` aliases.
+      reading ``end_header``. The header is ASCII, except that ``comment`` and
+      ``obj_info`` lines with other bytes (UTF-8, latin-1, ...) are skipped with one
+      :class:`~torchgeo_cg.mesh.io._text.MeshFileWarning` naming the first. Scalar
+      types: ``char uchar short ushort int uint float double`` and their
+      ``int8 .. float64`` aliases.
     - A ``vertex`` element with ``x, y, z`` is required; ``face`` needs one integer
       list named ``vertex_indices`` (or ``vertex_index``); other elements and
       properties are read, checked and dropped. An element may hold one list.
@@ -32,6 +35,7 @@ from torchgeo_cg.mesh.io._text import (
     line_tokens,
     parse_numbers,
     read_text,
+    skipped_message,
 )
 
 __all__: list[str] = []
@@ -63,12 +67,14 @@ class PlyElement(NamedTuple):
 
 
 class PlyHeader(NamedTuple):
-    """``format`` (``ascii``, ``binary_*``), the elements, the body's byte offset and first line."""
+    """``format`` (``ascii``, ``binary_*``), the elements, the body's byte offset and first
+    line, and the warning for the non-ASCII comments skipped (or ``None``)."""
 
     format: str
     elements: list
     body: int
     body_line: int
+    skipped: str | None = None
 
 
 def _header_property(name, line, words, elements):
@@ -128,21 +134,26 @@ def read_ply_header(data: bytes, name: str) -> PlyHeader:
     """
     if not (data.startswith(b"ply\n") or data.startswith(b"ply\r\n")):
         raise file_error(name, 1, "not a PLY file (the first line must read 'ply')")
-    fmt, elements, pos, line = None, [], data.index(b"\n") + 1, 1
+    fmt, elements, pos, line, skipped = None, [], data.index(b"\n") + 1, 1, []
     while True:  # loop over header lines
         end = data.find(b"\n", pos)
         if end < 0:
             raise file_error(name, None, "no 'end_header' line")
         raw, pos, line = data[pos:end], end + 1, line + 1
         if not raw.isascii():
-            raise file_error(name, line, "the header is not ASCII text")
+            if raw.split(None, 1)[:1] not in ([b"comment"], [b"obj_info"]):
+                raise file_error(name, line, "the header is not ASCII text")
+            skipped.append(line)  # a comment cannot change positions or faces
+            continue
         words = raw.decode("ascii").split()
         if words == ["end_header"]:
             break
         fmt = _header_line(name, line, words, fmt, elements)
     if fmt is None:
         raise file_error(name, line, "no 'format' line before 'end_header'")
-    return PlyHeader(fmt, elements, pos, line + 1)
+    note = skipped_message(name, np.array(skipped, np.int64),
+                           "a 'comment' or 'obj_info' line that is not ASCII")
+    return PlyHeader(fmt, elements, pos, line + 1, note)
 
 
 class _Records(NamedTuple):
@@ -377,11 +388,12 @@ def _mesh_of(name, header, records) -> tuple[np.ndarray, np.ndarray]:
     return verts, faces
 
 
-def read_ply(data: bytes, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(verts (V, 3) float64, faces (F, K) int64 padded with -1)`` of a PLY file.
+def read_ply(data: bytes, name: str) -> tuple[np.ndarray, np.ndarray, str | None]:
+    """``(verts (V, 3) float64, faces (F, K) int64 padded with -1, warning or None)`` of a
+    PLY file (the warning: :attr:`PlyHeader.skipped`).
 
     Example:
-        >>> v, f = read_ply(b"ply\\nformat ascii 1.0\\nelement vertex 3\\nproperty float x\\n"
+        >>> v, f, _ = read_ply(b"ply\\nformat ascii 1.0\\nelement vertex 3\\nproperty float x\\n"
         ...                 b"property float y\\nproperty float z\\nelement face 1\\n"
         ...                 b"property list uchar int vertex_indices\\nend_header\\n"
         ...                 b"0 0 0\\n1 0 0\\n0 1 0\\n3 0 1 2\\n", "m.ply")
@@ -393,7 +405,7 @@ def read_ply(data: bytes, name: str) -> tuple[np.ndarray, np.ndarray]:
         records = _read_ascii(data, name, header)
     else:
         records = _read_binary(data, name, header)
-    return _mesh_of(name, header, records)
+    return (*_mesh_of(name, header, records), header.skipped)
 
 
 def format_ply(verts_v3: np.ndarray, faces_fk: np.ndarray, binary: bool, precision: int) -> bytes:

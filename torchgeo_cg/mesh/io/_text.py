@@ -12,8 +12,12 @@ Convention:
       the lines after it keep theirs.
     - A UTF-8 byte-order mark is skipped; ``\\r\\n`` and a lone ``\\r`` end a line.
     - Bytes below 0x20 other than tab, ``\\n``, ``\\r``, ``\\v`` and ``\\f`` mean
-      binary data, and non-ASCII bytes must be valid UTF-8: both raise.
-    - Every error is a ``ValueError`` reading ``"<file>, line <n>: <what>"``.
+      binary data and raise. Non-ASCII bytes must be valid UTF-8 (else an error),
+      unless the reader asks for the offsets of the invalid ones (``strict=False``,
+      OBJ) to decide line by line: they may stand only where nothing is read.
+    - Every error is a ``ValueError`` reading ``"<file>, line <n>: <what>"``; what is
+      skipped because it cannot change positions or faces is reported by one
+      :class:`MeshFileWarning` per file (:func:`skipped_message`).
 """
 
 from __future__ import annotations
@@ -26,6 +30,34 @@ __all__: list[str] = []
 
 _BOM = b"\xef\xbb\xbf"
 _INT64 = np.iinfo(np.int64)
+
+
+class MeshFileWarning(UserWarning):
+    """A mesh file held lines (or parts of lines) that cannot change positions or faces
+    and that the format does not allow, and they were skipped."""
+
+
+def skipped_message(name: str, numbers: np.ndarray, first: str) -> str | None:
+    """The one warning text for the physical lines ``numbers`` skipped in file ``name``.
+
+    Args:
+        name: the file name.
+        numbers: ``(S,)`` physical line numbers, increasing (``S = 0``: nothing skipped).
+        first: what was skipped on the first of them.
+
+    Returns:
+        The message, or ``None`` when nothing was skipped.
+
+    Example:
+        >>> print(skipped_message("m.obj", np.array([4, 9]), "unknown OBJ statement 'vx'"))
+        m.obj: skipped what cannot change positions or faces on 2 lines; the first, line 4: \
+unknown OBJ statement 'vx'
+    """
+    if numbers.size == 0:
+        return None
+    count = f"{numbers.size} line{'s' if numbers.size > 1 else ''}"
+    return (f"{name}: skipped what cannot change positions or faces on {count}; the first, "
+            f"line {int(numbers[0])}: {first}")
 
 
 def file_error(name: str, line: int | None, message: str) -> ValueError:
@@ -49,6 +81,8 @@ class TextLines(NamedTuple):
         starts: ``(L,)`` int64, offset of each line's first byte.
         ends: ``(L,)`` int64, offset of each line's ``\\n``.
         numbers: ``(L,)`` int64, the physical line number of each line (1-based).
+        invalid: ``(B,)`` int64 offsets in ``buf`` of the bytes that are not valid
+            UTF-8 (``read_text(strict=False)`` only; else ``None``).
     """
 
     name: str
@@ -56,6 +90,7 @@ class TextLines(NamedTuple):
     starts: np.ndarray
     ends: np.ndarray
     numbers: np.ndarray
+    invalid: np.ndarray | None = None
 
     def line_number_at(self, offset: int) -> int:
         """The physical line number holding byte ``offset`` of ``buf``."""
@@ -63,19 +98,44 @@ class TextLines(NamedTuple):
         return int(self.numbers[min(line, len(self.numbers) - 1)])
 
 
-def _check_bytes(buf: np.ndarray, raw: bytes, name: str, first_line: int) -> None:
-    """Refuse binary data (control bytes) and invalid UTF-8, naming the line."""
+def invalid_utf8(raw: bytes) -> np.ndarray:
+    """``(B,)`` int64 byte offsets of the bytes of ``raw`` that are not valid UTF-8.
+
+    Python's decoder decides: each byte it cannot decode becomes one escaped code
+    point (U+DC80..U+DCFF, which valid UTF-8 never yields), so one decode, one
+    UTF-32 view and one cumulative sum of the code points' UTF-8 sizes find them all.
+
+    Example:
+        >>> invalid_utf8("é-".encode() + b"caf\\xe9 \\xff").tolist()
+        [6, 8]
+    """
+    code = np.frombuffer(raw.decode("utf-8", "surrogateescape").encode(
+        "utf-32-le", "surrogatepass"), np.uint32)
+    escaped = (code >= 0xDC80) & (code <= 0xDCFF)
+    size = 1 + (code >= 0x80).astype(np.int64) + (code >= 0x800) + (code >= 0x10000)
+    size[escaped] = 1
+    return (np.cumsum(size) - size)[escaped]
+
+
+def _check_bytes(buf: np.ndarray, raw: bytes, name: str, first_line: int, strict: bool = True
+                 ) -> np.ndarray | None:
+    """Refuse binary data (control bytes) and, if ``strict``, invalid UTF-8, naming the line;
+    else return the offsets of the bytes that are not valid UTF-8."""
     control = (buf < 9) | ((buf > 13) & (buf < 32))
     if control.any():
         at = int(np.argmax(control))
         line = first_line + int(np.count_nonzero(buf[:at] == 10))
         raise file_error(name, line, f"binary data (byte 0x{int(buf[at]):02x}), not a text file")
-    if not raw.isascii():
-        try:
-            raw.decode("utf-8")
-        except UnicodeDecodeError as err:
-            line = first_line + raw.count(b"\n", 0, err.start)
-            raise file_error(name, line, f"not valid UTF-8 text ({err.reason})") from None
+    if raw.isascii():
+        return None if strict else np.zeros(0, np.int64)
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        if not strict:
+            return invalid_utf8(raw)
+        line = first_line + raw.count(b"\n", 0, err.start)
+        raise file_error(name, line, f"not valid UTF-8 text ({err.reason})") from None
+    return None if strict else np.zeros(0, np.int64)
 
 
 def _join_continuations(buf: np.ndarray) -> np.ndarray:
@@ -93,7 +153,8 @@ def _join_continuations(buf: np.ndarray) -> np.ndarray:
 
 
 def read_text(
-    data: bytes, name: str, offset: int = 0, first_line: int = 1, continuations: bool = False
+    data: bytes, name: str, offset: int = 0, first_line: int = 1, continuations: bool = False,
+    strict: bool = True,
 ) -> TextLines:
     """Split ``data[offset:]`` into lines after checking that it is text.
 
@@ -103,12 +164,14 @@ def read_text(
         offset: where the text starts (a PLY body); a BOM there is skipped.
         first_line: the physical line number of the first line.
         continuations: join a line ending with ``\\`` to the next (OBJ).
+        strict: refuse bytes that are not valid UTF-8; ``False``: keep them and give
+            their offsets in ``TextLines.invalid`` (the caller checks where they stand).
 
     Returns:
         :class:`TextLines`.
 
     Raises:
-        ValueError: binary data or invalid UTF-8, naming the line.
+        ValueError: binary data or (``strict``) invalid UTF-8, naming the line.
 
     Example:
         >>> raw = b"\\xef\\xbb\\xbfv 1 2 3\\r\\nf 1 \\\\\\n 2 3"
@@ -120,7 +183,7 @@ def read_text(
         offset += len(_BOM)
     raw = data[offset:]
     buf = np.frombuffer(raw, dtype=np.uint8)
-    _check_bytes(buf, raw, name, first_line)
+    invalid = _check_bytes(buf, raw, name, first_line, strict)
     buf = np.concatenate([buf, np.full(1 if not raw.endswith(b"\n") else 0, 10, np.uint8)])
     joined = np.zeros(0, dtype=np.int64)
     if continuations and b"\\" in raw:
@@ -133,7 +196,7 @@ def read_text(
     ends = np.flatnonzero(buf == 10)
     starts = np.concatenate([[0], ends[:-1] + 1])
     numbers = first_line + np.arange(len(ends)) + np.searchsorted(joined, starts)
-    return TextLines(name, buf, starts, ends, numbers)
+    return TextLines(name, buf, starts, ends, numbers, invalid)
 
 
 def blank_comments(text: TextLines, marker: int = 35) -> None:
@@ -345,26 +408,34 @@ def format_faces(prefix: str, faces_fk: np.ndarray, offset: int, uv_faces_fk=Non
         prefix: ``"f"`` (OBJ) or ``""``.
         faces_fk: ``(F, K)`` int, padded with ``-1``.
         offset: added to every index (1 for OBJ).
-        uv_faces_fk: ``(F, K)`` int padded like ``faces_fk``: corners written ``v/vt``.
+        uv_faces_fk: ``(F, K)`` int padded like ``faces_fk``: corners written ``v/vt``;
+            a face with ``-1`` on every corner is written with ``v`` corners.
         count: write the face size first (PLY, OFF).
 
     Example:
-        >>> print(format_faces("f", np.array([[0, 1, 2, 3], [1, 4, 2, -1]]), 1), end="")
-        f 1 2 3 4
+        >>> print(format_faces("f", np.array([[0, 1, 2, 3], [1, 4, 2, -1]]), 1,
+        ...                    np.array([[0, 1, 2, 3], [-1, -1, -1, -1]])), end="")
+        f 1/1 2/2 3/3 4/4
         f 2 5 3
     """
     if len(faces_fk) == 0:
         return ""
     valid_fk = faces_fk >= 0
     sizes_f = valid_fk.sum(1)
-    corner = " %d" if uv_faces_fk is None else " %d/%d"
     head = [prefix + (" " if prefix and count else "") + (str(k) if count else "")
             for k in range(faces_fk.shape[1] + 1)]  # one template per face size
-    templates = np.array([h + corner * k + "\n" for k, h in enumerate(head)], dtype=object)
+    templates = [h + " %d" * k + "\n" for k, h in enumerate(head)]
     values = faces_fk[valid_fk] + offset
+    pick = sizes_f
     if uv_faces_fk is not None:
-        values = np.stack([values, uv_faces_fk[valid_fk] + offset], axis=1)
-    return "".join(templates[sizes_f].tolist()) % tuple(values.ravel().tolist())
+        templates += [h + " %d/%d" * k + "\n" for k, h in enumerate(head)]
+        uv_f = (uv_faces_fk >= 0).any(1)
+        pick = sizes_f + uv_f * len(head)
+        pairs = np.stack([values, uv_faces_fk[valid_fk] + offset], axis=1)
+        keep = np.stack([np.ones(len(values), bool), np.repeat(uv_f, sizes_f)], axis=1)
+        values = pairs[keep]
+    templates = np.array(templates, dtype=object)
+    return "".join(templates[pick].tolist()) % tuple(values.ravel().tolist())
 
 
 def check_padding(name: str, line: int | None, degrees: np.ndarray, file_bytes: int) -> int:

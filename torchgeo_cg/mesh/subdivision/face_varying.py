@@ -275,8 +275,11 @@ def _check_uv_faces(faces_fk: torch.Tensor, uv_faces, num_uvs: int) -> torch.Ten
     bad = torch.nonzero(((uv_fk >= 0) != (faces_fk >= 0)).any(1)).flatten()
     if bad.numel():
         f = int(bad[0])
+        none = "" if (uv_fk[f] >= 0).any() else (
+            " (-1 on every corner: a face without texture coordinates, as load_mesh reads "
+            "from an OBJ whose faces do not all have them; every face needs values here)")
         raise ValueError(f"uv_faces: face {f} has {int((uv_fk[f] >= 0).sum())} values but "
-                         f"faces[{f}] has {int((faces_fk[f] >= 0).sum())} vertices")
+                         f"faces[{f}] has {int((faces_fk[f] >= 0).sum())} vertices{none}")
     return uv_fk
 
 
