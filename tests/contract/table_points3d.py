@@ -15,7 +15,7 @@ import torch
 import torchgeo_cg.points as P
 from tests.contract.spec import Arg, Entry
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 _C, _S = math.cos(0.05), math.sin(0.05)
 _ROT = torch.tensor([[_C, -_S, 0.0], [_S, _C, 0.0], [0.0, 0.0, 1.0]], dtype=torch.float64)
@@ -52,8 +52,6 @@ ENTRIES: list[Entry] = [
                                   ("point_to_point", "similarity", "cauchy"),
                                   ("point_to_plane", "euclidean", "huber"))],
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "points.ICPResult": "NamedTuple result type",

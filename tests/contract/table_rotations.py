@@ -1,6 +1,6 @@
 """Contract entries of transforms in 3D: rotations, 3D estimation, joints and robust losses.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
+``ENTRIES`` join ``table.TABLE``;
 ``EXEMPT`` names have no geometry (result types). Rotations are scale-free
 (law ``"unitless"``); translations and points scale by ``s``.
 """
@@ -58,7 +58,7 @@ QUAT = Arg("quaternion", (4, 4), _quat, "unitless")
 RV = Arg("omega", (4, 3), _rotvec, "unitless")
 FIT3 = ("matrix", "index", "unitless")
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 SQ = Arg("squared_residuals", (3, 7), "positive", "area")
 SCALE = Arg("scale", (3, 1), "positive", "length")
@@ -176,8 +176,6 @@ ENTRIES: list[Entry] = [
             out="area", empty=(0, -1), mixed="promote", bad=())
       for loss in ("huber", "cauchy", "tukey")],
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "transforms.TransformFit": "NamedTuple result of the closed-form estimators",

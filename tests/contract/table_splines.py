@@ -1,6 +1,6 @@
 """Contract entries of B-spline and NURBS curves: evaluation, knot operations, fits.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
+``ENTRIES`` join ``table.TABLE``;
 ``EXEMPT`` names have no geometry (result types, validators, knot factories).
 """
 
@@ -11,7 +11,7 @@ import torch
 import torchgeo_cg.curves as C
 from tests.contract.spec import Arg, Entry
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 
 def _sorted(shape, g, dtype):
@@ -77,8 +77,6 @@ ENTRIES: list[Entry] = [
           (Arg("t", (2, 9), "t01", "unitless"), KNOTS), out="unitless", empty=(0, -1),
           low="reject", mixed="promote", bad=((),)),
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "curves.BSplineBasis": "NamedTuple result type",

@@ -1,6 +1,6 @@
 """Contract entries of tensor-product patches, their fits and grid meshes.
 
-``ENTRIES`` join ``table.TABLE``; ``PENDING`` names are not yet under contract;
+``ENTRIES`` join ``table.TABLE``;
 ``EXEMPT`` names have no geometry (result types).
 """
 
@@ -11,7 +11,7 @@ import torch
 import torchgeo_cg.surfaces as S
 from tests.contract.spec import Arg, Entry
 
-__all__ = ["ENTRIES", "PENDING", "EXEMPT"]
+__all__ = ["ENTRIES", "EXEMPT"]
 
 
 def _weights(shape, g, dtype):
@@ -59,8 +59,6 @@ ENTRIES: list[Entry] = [
         g, 2, learnable=False), (4, 3))), (GRID,), out=("length", "index"), empty=(0, 0),
           mixed=None, low="reject", bad=BAD),
 ]
-
-PENDING: dict[str, tuple[str, str]] = {}
 
 EXEMPT: dict[str, str] = {
     "surfaces.SurfaceDerivatives": "NamedTuple result type",
