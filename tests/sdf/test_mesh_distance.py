@@ -654,3 +654,24 @@ def test_closest_point_of_a_far_point_above_a_face(dtype, far):
     eps = torch.finfo(dtype).eps
     assert_close(r.closest_points, want, atol=16 * eps, rtol=0)  # to the mesh size
     assert_close(r.sdf, torch.tensor([far], dtype=dtype), rtol=4 * eps, atol=0)
+
+
+@pytest.mark.parametrize("s", [1.0, 1e3, 1e-3, 2.0**40])
+@pytest.mark.parametrize("offset", [1e-4, 2e-4, 1e-3])
+def test_closest_point_near_a_corner_is_on_the_edge_in_float32(offset, s):
+    """The foot on edge v2v0 lies ``offset`` from v0; the corner (the clamped candidate of
+    edge v0v1) is farther by only ``offset^2``, below float32's rounding of the squared
+    distances. The clamp tests decide, not the distances: the edge point comes back."""
+    from torchgeo_cg.sdf import closest_point_on_triangle
+
+    v0, v1, v2 = (torch.tensor(v, dtype=torch.float32) * s
+                  for v in ([0.0, 0, 0], [1.0, 0, 0], [0.0, 1, 0]))
+    p = torch.tensor([-1.0, offset, 0.3], dtype=torch.float32) * s
+    out = closest_point_on_triangle(p, v0, v1, v2)
+    assert int(out.feature) == 3  # the edge v2v0, not the corner v0 (4)
+    want = torch.tensor([0.0, offset, 0.0]) * s
+    assert float((out.points - want).abs().max()) <= 2e-7 * s
+    # the projection inside the face wins over an edge that rounding ties with it
+    inside = closest_point_on_triangle(torch.tensor([offset, 0.5, 1.0]) * s, v0, v1, v2)
+    assert int(inside.feature) == 0
+    assert float((inside.points - torch.tensor([offset, 0.5, 0.0]) * s).abs().max()) <= 2e-7 * s

@@ -149,9 +149,10 @@ def closest_point_on_triangle(
         code = torch.zeros(best_d2.shape, dtype=torch.long, device=best_d2.device)
         t_best = torch.zeros_like(best_d2)
     # the nearest candidate wins: face first, then edges v0v1, v1v2, v2v0 on ties
-    for k, (u, v) in enumerate(((a, b), (b, c), (c, a)), start=1):
-        q_k, t_k, d2_k = closest_on_segment(p, u, v)
-        better = d2_k < best_d2
+    edges = [closest_on_segment(p, u, v) for u, v in ((a, b), (b, c), (c, a))]
+    vertex_only = _defer_vertices([t.detach() for _, t, _ in edges])
+    for k, ((q_k, t_k, d2_k), defer) in enumerate(zip(edges, vertex_only), start=1):
+        better = (d2_k < best_d2) & ~inside & ~defer
         best_d2 = torch.where(better, d2_k, best_d2)
         code = torch.where(better, k, code)
         t_best = torch.where(better, t_k.detach(), t_best)
@@ -168,6 +169,23 @@ def closest_point_on_triangle(
         nan = nan | x.isnan().any(-1)
     q = torch.where(nan[..., None], math.nan, q)
     return TriangleClosestPoint(cast_back(q.expand(shape), dtype), feature)
+
+
+def _defer_vertices(t: list[torch.Tensor]) -> list[torch.Tensor]:
+    """Per edge (v0v1, v1v2, v2v0), where its candidate is clamped to a corner that the
+    other edge at that corner does not clamp to.
+
+    The distances alone cannot choose there: the other edge's candidate is at least as
+    near (the corner lies on it) and nearer by only the square of their gap, which
+    rounding hides, so picking by distance would move the point by up to
+    ``sqrt(eps) x distance``. Such a candidate defers to the other edge; the clamps are
+    first-order tests. Likewise the face, where the projection is inside, beats every
+    edge. (A degenerate triangle can make every edge defer; then none does.)
+    """
+    start, end = [x <= 0 for x in t], [x >= 1 for x in t]
+    defer = [(start[k] & ~end[k - 1]) | (end[k] & ~start[(k + 1) % 3]) for k in range(3)]
+    every = defer[0] & defer[1] & defer[2]
+    return [d & ~every for d in defer]
 
 
 def unit_normals(tri: torch.Tensor) -> torch.Tensor:
