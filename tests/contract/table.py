@@ -366,7 +366,7 @@ CORE_TABLE: list[Entry] = [
           bad=((3, 3),)),
     Entry("sdf.sample_grid", _sample_grid, (Arg("bounds", (2, 3), "bounds"),),
           out=("length", "length", "length"), empty=None, mixed=None, nan="raise",
-          bad=((3, 3),)),
+          bad=((3, 3),), cross="bounds take no batch, and the call reads its rows"),
     Entry("core.index_to_world", core.index_to_world,
           (Arg("indices", (2, 5, 3), "index", "unitless"), Arg("origin", (3,)),
            Arg("spacing", (3,), "positive")), int_ok=True, mixed=("follow", 1),

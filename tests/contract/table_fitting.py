@@ -116,7 +116,8 @@ ENTRIES: list[Entry] = [
     Entry("curves.fit_bezier[lengths]",
           lambda p: _fit(C.fit_bezier(p, 2, "centripetal", lengths=torch.tensor([6, 4])[
               :p.shape[0]])),
-          (STROKES,), out=FIT, empty=(0, 0), mixed=None, bad=((6,),)),
+          (STROKES,), out=FIT, empty=(0, 0), mixed=None, bad=((6,),),
+          cross="the call makes lengths for the unbatched strokes"),
     Entry("curves.fit_bezier[corrected]",
           lambda p: _fit(C.fit_bezier(p, 2, correct_parameters=True, tol=0.0,
                                       max_iterations=3)),

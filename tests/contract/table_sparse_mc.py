@@ -25,14 +25,15 @@ def _sparse(**kw):
 OUT = ("length", "index", "unitless", "unitless", "index", "index")
 BOUNDS = Arg("bounds", (2, 3), "bounds")
 BAD = ((3, 3), (2, 4), (2, 3, 1))
+NO_BATCH = "bounds take no batch, and the call reads its rows"
 
 ENTRIES: list[Entry] = [
     Entry("mesh.sparse_marching_cubes", _sparse(), (BOUNDS,), out=OUT, empty=None, bad=BAD,
-          mixed=None, low="reject", nan="raise"),
+          mixed=None, low="reject", nan="raise", cross=NO_BATCH),
     Entry("mesh.sparse_marching_cubes[band]", _sparse(lipschitz=None, band=1), (BOUNDS,),
-          out=OUT, empty=None, bad=BAD, mixed=None, low="reject", nan="raise"),
+          out=OUT, empty=None, bad=BAD, mixed=None, low="reject", nan="raise", cross=NO_BATCH),
     Entry("mesh.sparse_marching_cubes[separate]", _sparse(ambiguity="separate"), (BOUNDS,),
-          out=OUT, empty=None, bad=BAD, mixed=None, low="reject", nan="raise"),
+          out=OUT, empty=None, bad=BAD, mixed=None, low="reject", nan="raise", cross=NO_BATCH),
 ]
 
 EXEMPT: dict[str, str] = {

@@ -38,7 +38,7 @@ def _pca_normals(p_bnd, idx_bnk):
     B, N, D = p_bnd.shape
     k = idx_bnk.shape[-1]
     found_bnk = idx_bnk >= 0
-    nb = torch.gather(p_bnd, 1, idx_bnk.clamp_min(0).reshape(B, -1, 1).expand(-1, -1, D))
+    nb = torch.gather(p_bnd, 1, idx_bnk.clamp_min(0).flatten(1)[..., None].expand(-1, -1, D))
     nb_bnkd = nb.reshape(B, N, k, D).double()
     w_bnk1 = found_bnk[..., None].double()
     count = w_bnk1.sum(2, keepdim=True).clamp_min(1)
