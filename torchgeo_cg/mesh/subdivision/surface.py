@@ -38,7 +38,14 @@ import torch
 from torchgeo_cg.core.check import check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.subdivision._creasing import effective_sharpness
-from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils
+from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils, loop_limit_stencils
+from torchgeo_cg.mesh.subdivision._loop_patches import (
+    box_spline_weights,
+    fold_phantoms,
+    phantom_rules,
+    regular_triangles,
+    triangle_slots,
+)
 from torchgeo_cg.mesh.subdivision._normals import unit_normals
 from torchgeo_cg.mesh.subdivision._patches import (
     patch_grids,
@@ -48,6 +55,7 @@ from torchgeo_cg.mesh.subdivision._patches import (
 )
 from torchgeo_cg.mesh.subdivision._topology import check_verts, mesh_topology
 from torchgeo_cg.mesh.subdivision.catmark import catmull_clark_operator
+from torchgeo_cg.mesh.subdivision.loop import loop_operator
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
 from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, stencil_matrix
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
@@ -62,6 +70,9 @@ _CHUNK = 1 << 16  # points per batched product (bounds the gathered per-face mat
 # child quad p of a quad: its local (s', t') = A_p (s, t) + b_p (module docstring's layout)
 _CHILD_A = ((2, 0, 0, 2), (0, 2, -2, 0), (-2, 0, 0, -2), (0, -2, 2, 0))
 _CHILD_B = ((0, 0), (0, 2), (2, 2), (2, 0))
+# child triangle p of a triangle (Loop's child order: corners 0, 1, 2, then the middle)
+_TRI_A = ((2, 0, 0, 2), (0, 2, -2, -2), (-2, -2, 2, 0), (2, 2, -2, 0))
+_TRI_B = ((0, 0), (0, 2), (2, 0), (-1, 1))
 
 
 class LimitSurfaceSample(NamedTuple):
@@ -168,23 +179,31 @@ def _chain_rule(ws, wt, jac):
     return ws * a + wt * b, ws * c + wt * d
 
 
-def _to_child(s, t, jac):
-    """Child quad ``p (n,)`` holding local ``(s, t)``, and the point's coordinates and
-    Jacobian in it."""
+def _to_child(s, t, jac, scheme="catmark"):
+    """Child quad (Loop: triangle) ``p (n,)`` holding local ``(s, t)``, and the point's
+    coordinates and Jacobian in it."""
     hi_s, hi_t = s >= 0.5, t >= 0.5
-    p = torch.where(hi_t, torch.where(hi_s, 2, 3), torch.where(hi_s, 1, 0))
-    A = torch.tensor(_CHILD_A, dtype=s.dtype, device=s.device).reshape(4, 2, 2)[p]
-    b = torch.tensor(_CHILD_B, dtype=s.dtype, device=s.device)[p]
+    if scheme == "catmark":
+        p = torch.where(hi_t, torch.where(hi_s, 2, 3), torch.where(hi_s, 1, 0))
+        table_a, table_b = _CHILD_A, _CHILD_B
+    else:
+        p = torch.where(hi_s, 1, torch.where(hi_t, 2, torch.where(s + t <= 0.5, 0, 3)))
+        table_a, table_b = _TRI_A, _TRI_B
+    A = torch.tensor(table_a, dtype=s.dtype, device=s.device).reshape(4, 2, 2)[p]
+    b = torch.tensor(table_b, dtype=s.dtype, device=s.device)[p]
     st = torch.einsum("nij,nj->ni", A, torch.stack([s, t], -1)) + b
     return p, st[:, 0].clamp(0, 1), st[:, 1].clamp(0, 1), A @ jac
 
 
 def _ptex_to_level_one(operator, face_ids, uv, dtype):
-    """``(face (n,), s, t, jac (n, 2, 2))`` of each ptex point in the operator's child quads."""
+    """``(face (n,), s, t, jac (n, 2, 2))`` of each ptex point in the operator's child quads
+    (Loop: triangles)."""
     V0, F0 = operator.num_vertices_in, operator.num_faces_in
     child = operator.faces if operator.child_faces is None else operator.child_faces
-    parent = child[:, 2] - V0  # the face point of a child quad is its parent's
-    size = torch.bincount(parent, minlength=F0)
+    if operator.scheme == "loop":  # a triangle is one ptex face
+        size = torch.full((F0,), 4, dtype=torch.long, device=child.device)
+    else:
+        size = torch.bincount(child[:, 2] - V0, minlength=F0)  # a child quad's face point
     first_child = torch.cumsum(size, 0) - size
     count = torch.where(size == 4, 1, size)
     ptex_end = torch.cumsum(count, 0)
@@ -197,6 +216,9 @@ def _ptex_to_level_one(operator, face_ids, uv, dtype):
     f = torch.searchsorted(ptex_end, face_ids, right=True)
     u, v = uv[:, 0].to(dtype), uv[:, 1].to(dtype)
     eye = torch.eye(2, dtype=dtype, device=uv.device).expand(face_ids.numel(), 2, 2)
+    if operator.scheme == "loop":  # 4 child triangles per face
+        p, s, t, jac = _to_child(u, v, eye, "loop")
+        return first_child[f] + p, s, t, jac
     p, s, t, jac = _to_child(u, v, eye)
     quad = size[f] == 4
     sub = face_ids - (ptex_end[f] - count[f])
@@ -243,8 +265,9 @@ def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, 
     fmap = torch.full((faces.shape[0],), -1, dtype=torch.long, device=faces.device)
     fmap[keep_f] = torch.arange(keep_f.numel(), device=faces.device)
     tags = _sub_tags(level.tags, vmap, fmap, sub_faces)
-    op = catmull_clark_operator(sub_faces, keep_v.numel(), boundary, dtype=dtype, tags=tags,
-                                crease_method=crease_method)
+    build = loop_operator if faces.shape[1] == 3 else catmull_clark_operator
+    op = build(sub_faces, keep_v.numel(), boundary, dtype=dtype, tags=tags,
+               crease_method=crease_method)
     st = op.stencils
     rows = torch.repeat_interleave(torch.arange(op.num_vertices_out, device=faces.device),
                                    st.crow[1:] - st.crow[:-1])
@@ -274,18 +297,36 @@ def _emit_patches(out, level, topo, twin, sharp_e, sample, face, s, t, jac, num_
     _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
 
 
-def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
-    """Triplets of the points ``sample`` in irregular quads at the last level: the bilinear
-    patch through the exact limit positions of the quad's corners."""
+def _emit_triangles(out, level, topo, twin, sharp_e, sample, face, s, t, jac, num_cols):
+    """Triplets of the points ``sample`` in regular triangles ``face`` of ``level``."""
     fu, face_local = torch.unique(face, return_inverse=True)
-    limit = catmark_limit_stencils(level.faces, level.num_vertices, boundary, s.dtype,
-                                   _sharp_tags(level.tags))
+    slots, present, _, _ = triangle_slots(topo, twin, sharp_e >= INFINITELY_SHARP, fu)
+    rule, _ = phantom_rules(present)
+    slots = torch.where(present, slots, slots[:, :1])  # phantoms: weight 0 after folding
+    C, cols = _face_matrices(slots, (level.chain,), num_cols, s.dtype)
+    rule, present = rule[face_local], present[face_local]
+    w, ws, wt = (fold_phantoms(x, rule, present) for x in box_spline_weights(s, t))
+    wu, wv = _chain_rule(ws, wt, jac)
+    _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
+
+
+def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
+    """Triplets of the points ``sample`` in irregular faces at the last level: the bilinear
+    (Loop: linear) patch through the exact limit positions of the face's corners."""
+    fu, face_local = torch.unique(face, return_inverse=True)
+    masks = catmark_limit_stencils if level.faces.shape[1] == 4 else loop_limit_stencils
+    limit = masks(level.faces, level.num_vertices, boundary, s.dtype, _sharp_tags(level.tags))
     C, cols = _face_matrices(level.faces[fu], ((limit.crow, limit.col, limit.weights),
                                                level.chain), num_cols, s.dtype)
     a, b = 1 - s, 1 - t
-    w = torch.stack([a * b, s * b, s * t, a * t], -1)
-    ws = torch.stack([-b, b, t, -t], -1)
-    wt = torch.stack([-a, -s, s, a], -1)
+    if level.faces.shape[1] == 3:
+        w = torch.stack([1 - s - t, s, t], -1)
+        ws = torch.stack([-torch.ones_like(s), torch.ones_like(s), torch.zeros_like(s)], -1)
+        wt = torch.stack([-torch.ones_like(s), torch.zeros_like(s), torch.ones_like(s)], -1)
+    else:
+        w = torch.stack([a * b, s * b, s * t, a * t], -1)
+        ws = torch.stack([-b, b, t, -t], -1)
+        wt = torch.stack([-a, -s, s, a], -1)
     wu, wv = _chain_rule(ws, wt, jac)
     _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
 
@@ -297,9 +338,9 @@ def _check_level(max_level) -> int:
 
 
 def _check_points(operator, face_ids, uv):
-    if operator.scheme != "catmark":
-        raise ValueError(f"operator: the limit surface needs a 'catmark' operator, got one of "
-                         f"scheme {operator.scheme!r}")
+    if operator.scheme not in ("catmark", "loop"):
+        raise ValueError(f"operator: the limit surface needs a 'catmark' or 'loop' operator, "
+                         f"got one of scheme {operator.scheme!r}")
     check_tensor(face_ids, "face_ids")
     check_tensor(uv, "uv")
     if face_ids.dtype.is_floating_point or face_ids.dtype.is_complex or face_ids.dtype == \
@@ -314,6 +355,12 @@ def _check_points(operator, face_ids, uv):
         i = int(torch.nonzero(outside.reshape(-1, 2).any(1))[0])
         raise ValueError(f"uv: expected coordinates in [0, 1], got "
                          f"{uv.reshape(-1, 2)[i].tolist()} at point {i}")
+    if operator.scheme == "loop":
+        beyond = uv.sum(-1) > 1 + 2 * torch.finfo(uv.dtype).eps  # rounding of 1 - u
+        if bool(beyond.any()):
+            i = int(torch.nonzero(beyond.flatten())[0])
+            raise ValueError(f"uv: expected u + v <= 1 on Loop's triangles, got "
+                             f"{uv.reshape(-1, 2)[i].tolist()} at point {i}")
 
 
 def limit_stencils(
@@ -370,6 +417,7 @@ def _build(operator, face_ids, uv, crease_method, max_level):
     level = _Level(faces, operator.num_vertices_out, tags, (st.crow, st.col, st.weights))
     face, s, t, jac = _ptex_to_level_one(operator, face_ids.to(faces.device), uv, dtype)
     sample = torch.arange(face.numel(), device=faces.device)
+    loop = operator.scheme == "loop"
     out = []
     for depth in range(1, max_level + 1):  # a loop over levels
         if sample.numel() == 0:
@@ -380,11 +428,15 @@ def _build(operator, face_ids, uv, crease_method, max_level):
         if bool(hole_f[face].any()):
             i = int(sample[hole_f[face]][0])
             raise ValueError(f"face_ids: point {i} (ptex face {int(face_ids[i])}) is on a hole")
-        regular = regular_quads(topo, level.faces, sharp_e, sharp_v, hole_f)[face]
         twin = quad_twins(topo)
+        if loop:
+            regular = regular_triangles(topo, level.faces, sharp_e, sharp_v, hole_f, twin)[face]
+        else:
+            regular = regular_quads(topo, level.faces, sharp_e, sharp_v, hole_f)[face]
         points = (sample, face, s, t, jac)
         if bool(regular.any()):
-            _emit_patches(out, level, topo, twin, sharp_e, *(x[regular] for x in points), V0)
+            emit = _emit_triangles if loop else _emit_patches
+            emit(out, level, topo, twin, sharp_e, *(x[regular] for x in points), V0)
         rest = ~regular
         if depth == max_level:
             if bool(rest.any()):
@@ -395,7 +447,7 @@ def _build(operator, face_ids, uv, crease_method, max_level):
             break
         level, fmap = _refine_around(level, torch.unique(face), boundary, dtype, crease_method,
                                      V0)
-        p, s, t, jac = _to_child(s, t, jac)
+        p, s, t, jac = _to_child(s, t, jac, operator.scheme)
         face = 4 * fmap[face] + p
     return _assemble(out, face_ids.numel(), V0, dtype, faces.device)
 
