@@ -1,25 +1,29 @@
-"""The Catmark limit surface at any point of any control face, as sparse stencils.
+"""The Catmark and Loop limit surfaces at any point of any control face, as sparse stencils.
 
 Convention:
     - Points are ``(face_ids, uv)`` in OpenSubdiv's ptex numbering (``Far::PtexIndices``)
-      of the operator's input mesh: faces in order, a quad is one ptex face, any other
-      ``k``-gon is ``k`` of them (sub-face ``j`` is the quad at corner ``j``). A quad's
-      corners 0-3 sit at ``uv`` (0,0), (1,0), (1,1), (0,1); sub-face ``j`` of a ``k``-gon
-      has (0,0) at corner ``j``, (1,0) at the middle of edge ``j -> j+1`` and (1,1) at
-      the face's centre. ``du``, ``dv`` are the derivatives in that parametrisation, and
+      of the operator's input mesh: faces in order, a quad (Catmark) or a triangle (Loop)
+      is one ptex face, any other ``k``-gon is ``k`` of them (sub-face ``j`` is the quad
+      at corner ``j``). A quad's corners 0-3 sit at ``uv`` (0,0), (1,0), (1,1), (0,1); a
+      triangle's corners 0-2 at (0,0), (1,0), (0,1) (``u + v <= 1``); sub-face ``j`` of
+      a ``k``-gon has (0,0) at corner ``j``, (1,0) at the middle of edge ``j -> j+1`` and
+      (1,1) at the face's centre. ``du``, ``dv`` are the derivatives in that parametrisation, and
       ``normals = normalize(du x dv)`` point outward for counter-clockwise faces.
-    - Evaluation is OpenSubdiv's feature-adaptive scheme: the point's quad after one
-      level (the operator) is refined around the point until its patch is regular
+    - Evaluation is OpenSubdiv's feature-adaptive scheme: the point's quad (triangle)
+      after one level (the operator) is refined around the point until its patch is
+      regular, and there it is the bicubic B-spline patch
       (:mod:`~torchgeo_cg.mesh.subdivision._patches`: smooth valence-4 corners,
-      boundary and infinitely sharp crease corners, corners of valence 2), and there it
-      is the bicubic B-spline patch, exact to rounding. Infinitely sharp creases are
-      patch boundaries (OpenSubdiv's ``useInfSharpPatch``). Points still in an irregular
-      quad at level ``max_level`` (within ``2**-max_level`` of the face size of an
-      extraordinary or irregular-boundary vertex, a dart, a corner of another valence,
-      a hole's vertex, or a semi-sharp feature sharper than ``max_level``) take a
-      bilinear end cap through the exact limit positions of that quad's corners: so
-      at every vertex the result equals :func:`limit_positions`, and positions stay
-      continuous across every edge.
+      boundary and infinitely sharp crease corners, corners of valence 2) or Loop's
+      quartic box-spline patch (:mod:`~torchgeo_cg.mesh.subdivision._loop_patches`:
+      smooth valence-6 corners, crease and boundary corners with 3 faces on their side),
+      exact to rounding. Infinitely sharp creases are patch boundaries (OpenSubdiv's
+      ``useInfSharpPatch``). Points still in an irregular face at level ``max_level``
+      (within ``2**-max_level`` of the face size of an extraordinary or
+      irregular-boundary vertex, a dart, a corner of another valence, a hole's vertex,
+      or a semi-sharp feature sharper than ``max_level``) take a bilinear (Loop: linear)
+      end cap through the exact limit positions of that face's corners: so at every
+      vertex the result equals :func:`limit_positions`, and positions stay continuous
+      across every edge.
     - Tags, holes and ``boundary`` are those the operator was built with; pass the same
       ``crease_method`` (the operator does not record it). Points on holes raise.
     - The result is linear in the control points: :func:`limit_stencils` builds sparse
@@ -371,16 +375,17 @@ def limit_stencils(
     crease_method: str = "uniform",
     max_level: int = 8,
 ) -> LimitStencils:
-    """Sparse ``(N, V0)`` stencils of the Catmark limit surface at ptex points.
+    """Sparse ``(N, V0)`` stencils of the Catmark or Loop limit surface at ptex points.
 
     Convention:
         See the module docstring (ptex numbering and ``uv``, feature-adaptive evaluation,
         exact farther than ``2**-max_level`` from irregular features).
 
     Args:
-        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        operator: a ``"catmark"`` or ``"loop"`` :class:`SubdivisionOperator` of the
+            control mesh.
         face_ids: ``(*, N)`` integer ptex face ids; the rows are the flattened points.
-        uv: ``(*, N, 2)`` float in ``[0, 1]``.
+        uv: ``(*, N, 2)`` float in ``[0, 1]`` (Loop: ``u + v <= 1``).
         crease_method: the ``crease_method`` the operator was built with.
         max_level: refinement levels at most (``>= 1``; 8 by default).
 
@@ -389,8 +394,9 @@ def limit_stencils(
         operator's weights dtype.
 
     Raises:
-        ValueError: a non-Catmark operator, ``face_ids`` out of range, ``uv`` outside
-            ``[0, 1]``, a point on a hole, or a bad ``max_level``.
+        ValueError: an operator of another scheme, ``face_ids`` out of range, ``uv``
+            outside ``[0, 1]`` (Loop: or ``u + v > 1``), a point on a hole, or a bad
+            ``max_level``.
 
     Example:
         >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
@@ -487,7 +493,7 @@ def limit_surface(
     crease_method: str = "uniform",
     max_level: int = 8,
 ) -> LimitSurfaceSample:
-    """Positions, derivatives and normals of the Catmark limit surface at ptex points.
+    """Positions, derivatives and normals of the Catmark or Loop limit surface at ptex points.
 
     Convention:
         See the module docstring. Builds :func:`limit_stencils` and applies them; to
@@ -495,10 +501,11 @@ def limit_surface(
         use :func:`~torchgeo_cg.mesh.subdivision.stencils.apply_stencils`.
 
     Args:
-        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        operator: a ``"catmark"`` or ``"loop"`` :class:`SubdivisionOperator` of the
+            control mesh.
         verts: ``(*B, V0, D)`` float control points (shapes sharing the topology).
         face_ids: ``(*P, N)`` integer ptex face ids.
-        uv: ``(*P, N, 2)`` float in ``[0, 1]``.
+        uv: ``(*P, N, 2)`` float in ``[0, 1]`` (Loop: ``u + v <= 1``).
         crease_method: the ``crease_method`` the operator was built with.
         max_level: refinement levels at most (``>= 1``).
 
@@ -518,6 +525,15 @@ def limit_surface(
         tensor([[0.0802, 0.5000, 0.5000]], dtype=torch.float64)
         >>> out.normals.round(decimals=12) + 0.0
         tensor([[-1.,  0.,  0.]], dtype=torch.float64)
+        >>> from torchgeo_cg.mesh.subdivision import loop_operator
+        >>> octa_v = torch.tensor([[0., 0, 1], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0],
+        ...                        [0, 0, -1]], dtype=torch.float64)
+        >>> octa_f = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1], [5, 2, 1], [5, 3, 2],
+        ...           [5, 4, 3], [5, 1, 4]]
+        >>> centre = torch.tensor([[1 / 3, 1 / 3]], dtype=torch.float64)  # of triangle 0
+        >>> limit_surface(loop_operator(octa_f, 6, dtype=torch.float64), octa_v,
+        ...               torch.tensor([0]), centre).positions
+        tensor([[0.2352, 0.2352, 0.2352]], dtype=torch.float64)
     """
     check_verts(verts, operator.num_vertices_in)
     st = limit_stencils(operator, face_ids, uv, crease_method=crease_method,
@@ -531,6 +547,8 @@ def limit_surface(
 
 
 def _num_ptex_faces(operator) -> int:
+    if operator.scheme == "loop":
+        return operator.num_faces_in
     child = operator.faces if operator.child_faces is None else operator.child_faces
     size = torch.bincount(child[:, 2] - operator.num_vertices_in,
                           minlength=operator.num_faces_in)
@@ -546,18 +564,20 @@ def sample_limit_surface(
     crease_method: str = "uniform",
     max_level: int = 8,
 ) -> SurfaceSamples:
-    """Points uniformly distributed by area on the Catmark limit surface, with normals.
+    """Points uniformly distributed by area on the Catmark or Loop limit surface, with normals.
 
     Convention:
         Each ptex face gets an area bound from ``|du x dv|`` on a 5 x 5 grid (times 1.5,
-        a margin for the interior maximum); candidates are drawn by that bound, uniform
-        in ``uv``, and kept with probability ``|du x dv| / bound`` (rejection sampling,
-        a loop over rounds, not faces). With several shapes ``(*B, V0, D)``, the area is
+        a margin for the interior maximum; Loop: its 15 points with ``u + v <= 1``);
+        candidates are drawn by that bound, uniform in ``uv`` (on the triangle for
+        Loop), and kept with probability ``|du x dv| / bound`` (rejection sampling, a
+        loop over rounds, not faces). With several shapes ``(*B, V0, D)``, the area is
         the first shape's, and the same ``(face_ids, uv)`` are evaluated on all of them.
         Differentiable in ``verts`` (the choice of points is not).
 
     Args:
-        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        operator: a ``"catmark"`` or ``"loop"`` :class:`SubdivisionOperator` of the
+            control mesh.
         verts: ``(*B, V0, 3)`` float control points.
         num_samples: ``N >= 0``.
         generator: the ``torch.Generator`` for the draws (``None``: the global one).
@@ -585,6 +605,9 @@ def sample_limit_surface(
     P = _num_ptex_faces(operator)
     grid = torch.linspace(0, 1, 5, dtype=dtype, device=device)
     uv_g = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
+    loop = operator.scheme == "loop"
+    if loop:  # Loop's ptex faces are the triangles u + v <= 1
+        uv_g = uv_g[uv_g.sum(-1) <= 1]
     faces_g = torch.arange(P, device=device).repeat_interleave(uv_g.shape[0])
     probe = limit_surface(operator, first, faces_g, uv_g.repeat(P, 1),
                           crease_method=crease_method, max_level=max_level)
@@ -595,6 +618,8 @@ def sample_limit_surface(
         n = 2 * (num_samples - have) + 16
         f = torch.multinomial(bound, n, replacement=True, generator=generator)
         uv = torch.rand(n, 2, dtype=dtype, device=device, generator=generator)
+        if loop:  # uniform on the triangle: fold the square's upper half onto the lower
+            uv = torch.where(uv.sum(-1, keepdim=True) > 1, 1 - uv, uv)
         at = limit_surface(operator, first, f, uv, crease_method=crease_method,
                            max_level=max_level)
         area = torch.linalg.cross(at.du, at.dv).norm(dim=-1)
