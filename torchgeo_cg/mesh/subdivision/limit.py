@@ -74,7 +74,9 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
     check_verts(verts, operator.num_vertices_in)
     wdtype = operator.stencils.weights.dtype
     faces = operator.faces if operator.child_faces is None else operator.child_faces
-    args = (faces, operator.num_vertices_out, operator.boundary, wdtype, operator.child_tags)
+    edge_tags = None if operator.child_faces is None else operator.child_edge_tags
+    args = (faces, operator.num_vertices_out, operator.boundary, wdtype, operator.child_tags,
+            edge_tags)
     if operator.scheme == "catmark":
         limit = catmark_limit_stencils(*args)
     elif operator.scheme == "loop":
@@ -186,7 +188,8 @@ def limit_frames(operator: SubdivisionOperator, verts: torch.Tensor) -> LimitFra
 
 
 def _tangent_stencils(faces, V, operator, dtype) -> tuple[StencilMatrix, StencilMatrix]:
-    topo = mesh_topology(faces, V, operator.boundary)
+    edge_tags = None if operator.child_faces is None else operator.child_edge_tags
+    topo = mesh_topology(faces, V, operator.boundary, edge_tags)
     rule_v, sharp_e = limit_rules(topo, V, faces.shape[0], operator.child_tags,
                                   operator.boundary, dtype)
     rank, faces_v, is_open, out_nbr, in_nbr = _fan_order(topo, V, _first_corners(operator))

@@ -131,6 +131,7 @@ class _Level(NamedTuple):
     num_vertices: int
     tags: SubdivisionTags
     chain: tuple  # CSR (crow, col, weights) of this level's vertices in control vertices
+    edge_tags: torch.Tensor | None  # (C,) per corner: sides kept apart (_parallel_edges)
 
 
 def _expand(rows, cols, vals, csr):
@@ -264,6 +265,8 @@ def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, 
         mark_f = mark_v[faces].any(1)
     keep_f = torch.nonzero(mark_f).flatten()
     keep_v, sub_faces = torch.unique(faces[keep_f], return_inverse=True)
+    sub_edge_tags = None if level.edge_tags is None else (
+        level.edge_tags.reshape(faces.shape)[keep_f].flatten())
     vmap = torch.full((V,), -1, dtype=torch.long, device=faces.device)
     vmap[keep_v] = torch.arange(keep_v.numel(), device=faces.device)
     fmap = torch.full((faces.shape[0],), -1, dtype=torch.long, device=faces.device)
@@ -271,7 +274,7 @@ def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, 
     tags = _sub_tags(level.tags, vmap, fmap, sub_faces)
     build = loop_operator if faces.shape[1] == 3 else catmull_clark_operator
     op = build(sub_faces, keep_v.numel(), boundary, dtype=dtype, tags=tags,
-               crease_method=crease_method)
+               crease_method=crease_method, edge_tags=sub_edge_tags)
     st = op.stencils
     rows = torch.repeat_interleave(torch.arange(op.num_vertices_out, device=faces.device),
                                    st.crow[1:] - st.crow[:-1])
@@ -280,7 +283,7 @@ def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, 
     child_tags = op.child_tags if op.child_tags is not None else SubdivisionTags.empty(
         dtype, faces.device)
     nxt = _Level(op.child_faces, op.num_vertices_out, child_tags,
-                 (chain.crow, chain.col, chain.weights))
+                 (chain.crow, chain.col, chain.weights), op.child_edge_tags)
     return nxt, fmap
 
 
@@ -319,7 +322,8 @@ def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
     (Loop: linear) patch through the exact limit positions of the face's corners."""
     fu, face_local = torch.unique(face, return_inverse=True)
     masks = catmark_limit_stencils if level.faces.shape[1] == 4 else loop_limit_stencils
-    limit = masks(level.faces, level.num_vertices, boundary, s.dtype, _sharp_tags(level.tags))
+    limit = masks(level.faces, level.num_vertices, boundary, s.dtype, _sharp_tags(level.tags),
+                  level.edge_tags)
     C, cols = _face_matrices(level.faces[fu], ((limit.crow, limit.col, limit.weights),
                                                level.chain), num_cols, s.dtype)
     a, b = 1 - s, 1 - t
@@ -420,7 +424,9 @@ def _build(operator, face_ids, uv, crease_method, max_level):
     faces = operator.faces if operator.child_faces is None else operator.child_faces
     tags = operator.child_tags if operator.child_tags is not None else SubdivisionTags.empty(
         dtype, faces.device)
-    level = _Level(faces, operator.num_vertices_out, tags, (st.crow, st.col, st.weights))
+    edge_tags = None if operator.child_faces is None else operator.child_edge_tags
+    level = _Level(faces, operator.num_vertices_out, tags, (st.crow, st.col, st.weights),
+                   edge_tags)
     face, s, t, jac = _ptex_to_level_one(operator, face_ids.to(faces.device), uv, dtype)
     sample = torch.arange(face.numel(), device=faces.device)
     loop = operator.scheme == "loop"
@@ -428,7 +434,7 @@ def _build(operator, face_ids, uv, crease_method, max_level):
     for depth in range(1, max_level + 1):  # a loop over levels
         if sample.numel() == 0:
             break
-        topo = mesh_topology(level.faces, level.num_vertices, boundary)
+        topo = mesh_topology(level.faces, level.num_vertices, boundary, level.edge_tags)
         sharp_e, sharp_v, hole_f = effective_sharpness(
             topo, level.tags, level.num_vertices, level.faces.shape[0], boundary, dtype)
         if bool(hole_f[face].any()):
