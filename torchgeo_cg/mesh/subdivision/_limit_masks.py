@@ -41,7 +41,8 @@ def catmark_limit_stencils(
         m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
         rule_v, sharp_e = limit_rules(topo, V1, faces_q4.shape[0], tags, boundary, wdtype)
         kind_v = rule_v + 1  # 1 smooth, 2 crease, 3 corner
-        smooth_v, crease_v = kind_v == 1, kind_v == 2
+        kind_v = torch.where((kind_v == 1) & (topo.num_faces_v == 2), 3, kind_v)  # OpenSubdiv:
+        smooth_v, crease_v = kind_v == 1, kind_v == 2  # a smooth 2-face vertex takes V
         self_v = torch.where(smooth_v, n_v / (n_v + 5), 1.0 - crease_v.to(wdtype) / 3.0)
         v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
         nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
