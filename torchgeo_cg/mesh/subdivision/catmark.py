@@ -114,9 +114,12 @@ def catmull_clark_operator(
         ``(V0, V1)``, ``faces`` ``(F1, 4)`` and the sizes.
 
     Raises:
-        ValueError: bad ``boundary``; indices out of range, faces with fewer than
-            3 distinct vertices, repeated vertices or repeated faces (the message
-            names the face index).
+        ValueError: bad ``boundary``; indices out of range or negative other than
+            trailing ``-1`` padding (the message names the face index). Faces that
+            repeat a vertex (degenerate quads as poles) and repeated faces
+            (back-to-back, duplicated) are refined as OpenSubdiv refines them: a
+            degenerate side is an edge of its own, a face's second side on the same
+            pair is split off and, with the first, non-manifold (sharp).
         TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
         TypeError: ``dtype`` is not a floating-point dtype.
 

@@ -84,7 +84,9 @@ def loop_operator(
 
     Raises:
         ShapeError: faces are not triangles.
-        ValueError: bad ``boundary`` or invalid faces (the message names the face).
+        ValueError: bad ``boundary`` or indices out of range or negative (the message
+            names the face). Repeated vertices and repeated faces are refined as
+            OpenSubdiv refines them (as :func:`catmull_clark_operator` does).
         TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
         TypeError: ``dtype`` is not a floating-point dtype.
 
