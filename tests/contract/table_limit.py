@@ -11,7 +11,16 @@ import torch
 
 import torchgeo_cg.mesh as M
 from tests.contract.spec import Arg, Entry
-from tests.contract.table_subdivision import CUBE_F, CUBE_V, GRID_F, GRID_V, NGON_F, NGON_V
+from tests.contract.table_subdivision import (
+    CUBE_F,
+    CUBE_V,
+    GRID_F,
+    GRID_V,
+    NGON_F,
+    NGON_V,
+    OCTA_F,
+    OCTA_V,
+)
 from torchgeo_cg.core.numerics import working_dtype
 
 __all__ = ["ENTRIES", "EXEMPT"]
@@ -40,6 +49,15 @@ def _surface(faces, num_vertices, ids, boundary="edge_only"):
     return call
 
 
+_TRI_UV = torch.tensor([[1 / 3, 1 / 3], [0.0, 0.0], [0.3, 0.6], [1.0, 0.0], [0.01, 0.6]])
+
+
+def _loop_surface(v):
+    op = M.loop_operator(OCTA_F, 6, **_wdtype(v))
+    uv = _TRI_UV.to(op.stencils.weights.dtype)
+    return _sample(M.limit_surface(op, v, torch.tensor([0, 1, 2, 5, 7]), uv, max_level=5))
+
+
 ENTRIES: list[Entry] = [
     Entry("mesh.limit_surface", _surface(CUBE_F, 8, _CUBE_IDS),
           (Arg("verts", (2, 8, 3), CUBE_V),), out=OUT4, empty=(0, 0), bad=((2, 7, 3), (3,))),
@@ -48,6 +66,8 @@ ENTRIES: list[Entry] = [
           (Arg("verts", (2, 9, 3), GRID_V),), out=OUT4, empty=(0, 0), bad=((2, 8, 3),)),
     Entry("mesh.limit_surface[ngon]", _surface(NGON_F, 7, _NGON_IDS),
           (Arg("verts", (2, 7, 3), NGON_V),), out=OUT4, empty=(0, 0), bad=((2, 6, 3),)),
+    Entry("mesh.limit_surface[loop]", _loop_surface,
+          (Arg("verts", (2, 6, 3), OCTA_V),), out=OUT4, empty=(0, 0), bad=((2, 5, 3),)),
 ]
 
 EXEMPT: dict[str, str] = {

@@ -12,12 +12,12 @@ from tests.mesh._osd import run_osd
 from torchgeo_cg.mesh import (
     SubdivisionTags,
     apply_stencils,
+    bilinear_operator,
     catmull_clark_operator,
     limit_positions,
     limit_stencils,
     limit_surface,
     load_mesh,
-    loop_operator,
     sample_limit_surface,
 )
 from torchgeo_cg.mesh.subdivision import CatmullClark
@@ -260,8 +260,8 @@ def test_bad_input_raises():
         limit_surface(op, v, torch.tensor([0]), uv + 1)
     with pytest.raises(TypeError, match="face_ids"):
         limit_surface(op, v, torch.tensor([0.0]), uv)
-    with pytest.raises(ValueError, match="'catmark' operator"):
-        limit_stencils(loop_operator([[0, 1, 2]], 3), torch.tensor([0]), uv)
+    with pytest.raises(ValueError, match="'catmark' or 'loop' operator"):
+        limit_stencils(bilinear_operator(CUBE_F, 8), torch.tensor([0]), uv)
     holed = catmull_clark_operator(CUBE_F, 8, dtype=F64, tags=cube_tags())
     with pytest.raises(ValueError, match="on a hole"):
         limit_surface(holed, v, torch.tensor([3]), uv)

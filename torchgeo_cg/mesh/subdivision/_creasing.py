@@ -152,6 +152,8 @@ def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
     inconsistent_e = (count_e == 2) & (forward_e != 1)
     boundary_e = count_e == 1
     nonmanifold_e = (count_e > 2) | inconsistent_e
+    if topo.repeat_e is not None:  # a face using one pair twice (a 2-gon, [a, a, b])
+        nonmanifold_e = nonmanifold_e | topo.repeat_e
     tag_e = torch.zeros(E, dtype=dtype, device=dev)
     tag_v = torch.zeros(V, dtype=dtype, device=dev)
     hole_f = torch.zeros(num_faces, dtype=torch.bool, device=dev)

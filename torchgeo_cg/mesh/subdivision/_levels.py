@@ -22,7 +22,7 @@ class SubdivisionModule(nn.Module):
 
     @staticmethod
     def _build_operator(faces, num_vertices, boundary, dtype=None, tags=None,
-                        crease_method="uniform") -> SubdivisionOperator:
+                        crease_method="uniform", edge_tags=None) -> SubdivisionOperator:
         raise NotImplementedError
 
     def __init__(
@@ -44,21 +44,24 @@ class SubdivisionModule(nn.Module):
         check_crease_method(crease_method)
         self.levels, self.boundary, self.crease_method = levels, boundary, crease_method
         self.num_vertices_in = num_vertices
-        faces_fk = check_faces(faces, num_vertices)
+        faces_fk = check_faces(faces, num_vertices, allow_duplicates=True, allow_degenerate=True)
         if device is not None:
             faces_fk = faces_fk.to(device)
         self.register_buffer("faces_0", faces_fk, persistent=False)
         count = num_vertices
         self.sizes: list[tuple[int, int, int, int]] = []  # (V_in, V_out, F_in, E_in)
         self._child_tag_levels: list[bool] = []
-        level_boundary = boundary
+        level_boundary, edge_tags = boundary, None
         for level in range(levels):  # loop over levels only
             op = self._build_operator(faces_fk, count, level_boundary, dtype=dtype, tags=tags,
-                                      crease_method=crease_method, **options)
+                                      crease_method=crease_method, edge_tags=edge_tags,
+                                      **options)
             for field, tensor in zip(StencilMatrix._fields, op.stencils):
                 self.register_buffer(f"{field}_{level}", tensor, persistent=False)
             self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
             self.register_buffer(f"child_faces_{level + 1}", op.child_faces, persistent=False)
+            self.register_buffer(f"child_edge_tags_{level + 1}", op.child_edge_tags,
+                                 persistent=False)
             self._child_tag_levels.append(op.child_tags is not None)
             if op.child_tags is not None:
                 for field, tensor in zip(SubdivisionTags._fields, op.child_tags):
@@ -67,6 +70,7 @@ class SubdivisionModule(nn.Module):
                 (op.num_vertices_in, op.num_vertices_out, op.num_faces_in, op.num_edges_in)
             )
             faces_fk, count, tags = op.child_faces, op.num_vertices_out, op.child_tags
+            edge_tags = op.child_edge_tags
             # OpenSubdiv applies boundary "none" (boundary faces become holes) at the base
             # level only; the children of those holes are holes of the next levels
             level_boundary = "edge_only" if boundary == "none" else boundary
@@ -93,6 +97,7 @@ class SubdivisionModule(nn.Module):
             self._stencils(level), getattr(self, f"faces_{level + 1}"),
             v_in, v_out, f_in, e_in, boundary, self.scheme,
             getattr(self, f"child_faces_{level + 1}"), tags,
+            getattr(self, f"child_edge_tags_{level + 1}"),
         )
 
     def _stencils(self, level: int) -> StencilMatrix:

@@ -24,6 +24,7 @@ def catmark_limit_stencils(
     boundary: str,
     dtype: torch.dtype,
     tags: SubdivisionTags | None = None,
+    edge_tags: torch.Tensor | None = None,
 ) -> StencilMatrix:
     """``(V, V)`` Catmark limit masks of an all-quad mesh (see :func:`limit_positions`).
 
@@ -34,13 +35,14 @@ def catmark_limit_stencils(
     """
     V1 = num_vertices
     with torch.no_grad():
-        topo = mesh_topology(faces_q4, V1, boundary)
+        topo = mesh_topology(faces_q4, V1, boundary, edge_tags)
         dev, wdtype = faces_q4.device, dtype
         n_v = topo.valence_v.to(wdtype).clamp(min=1)
         m_v = topo.num_faces_v.to(wdtype).clamp(min=1)
         rule_v, sharp_e = limit_rules(topo, V1, faces_q4.shape[0], tags, boundary, wdtype)
         kind_v = rule_v + 1  # 1 smooth, 2 crease, 3 corner
-        smooth_v, crease_v = kind_v == 1, kind_v == 2
+        kind_v = torch.where((kind_v == 1) & (topo.num_faces_v == 2), 3, kind_v)  # OpenSubdiv:
+        smooth_v, crease_v = kind_v == 1, kind_v == 2  # a smooth 2-face vertex takes V
         self_v = torch.where(smooth_v, n_v / (n_v + 5), 1.0 - crease_v.to(wdtype) / 3.0)
         v_side = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
         nbr_side = torch.cat([topo.edge_hi_e, topo.edge_lo_e])
@@ -88,6 +90,7 @@ def loop_limit_stencils(
     boundary: str,
     dtype: torch.dtype,
     tags: SubdivisionTags | None = None,
+    edge_tags: torch.Tensor | None = None,
 ) -> StencilMatrix:
     """``(V, V)`` Loop limit masks of a triangle mesh (OpenSubdiv's Loop limit masks).
 
@@ -102,7 +105,7 @@ def loop_limit_stencils(
     """
     V = num_vertices
     with torch.no_grad():
-        topo = mesh_topology(faces_f3, V, boundary)
+        topo = mesh_topology(faces_f3, V, boundary, edge_tags)
         n_v = topo.valence_v.to(dtype).clamp(min=1)
         chi_v = 1.0 / (n_v + 3.0 / (8.0 * loop_beta(n_v)))
         rule_v, sharp_e = limit_rules(topo, V, faces_f3.shape[0], tags, boundary, dtype)

@@ -32,6 +32,7 @@ class Topology(NamedTuple):
     valence_v: torch.Tensor  # (V,) number of edges
     num_faces_v: torch.Tensor  # (V,) number of incident faces
     kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
+    repeat_e: torch.Tensor | None = None  # (E,) bool: a face uses its pair twice (None: none)
 
 
 def check_crease_method(crease_method: str) -> str:
@@ -48,9 +49,46 @@ def check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> 
     check_float(verts, name)
 
 
-def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "edge_only"
-                  ) -> Topology:
+def _edges(lo_c, hi_c, face_c, V, edge_tag_c, repeats: bool):
+    """``(edge_c, edge_lo_e, edge_hi_e, repeat_e)``: sides grouped by vertex pair, then
+    split by tag; a degenerate side, and (where a face ``repeats`` a vertex) a face's
+    later sides on a pair it already used, get a tag of their own (their corner), and
+    the edges of such a pair are non-manifold (``repeat_e``, OpenSubdiv's rule)."""
+    C = lo_c.numel()
+    pair, edge_c = torch.unique(lo_c * max(V, 1) + hi_c, return_inverse=True)
+    own = lo_c == hi_c
+    if repeats:  # rare: the first side of a face on a pair keeps the shared edge
+        within = torch.unique(edge_c * (int(face_c.max()) + 1) + face_c, return_inverse=True)[1]
+        order = torch.sort(within, stable=True).indices
+        first = torch.ones(C, dtype=torch.bool, device=lo_c.device)
+        first[order[1:]] = within[order[1:]] != within[order[:-1]]
+        own = own | ~first
+        twice_c = torch.zeros(C, dtype=torch.bool, device=lo_c.device)
+        twice_c[order[1:]] = ~first[order[1:]]
+        twice_c[order[:-1]] |= ~first[order[1:]]  # the first side of a repeated pair too
+    if bool(own.any()) or (edge_tag_c is not None and bool((edge_tag_c != 0).any())):
+        tag_c = torch.zeros_like(lo_c) if edge_tag_c is None else edge_tag_c.to(lo_c.device)
+        offset = int(tag_c.max()) + 1 if C else 1
+        tag_c = torch.where(own, offset + torch.arange(C, device=lo_c.device), tag_c)
+        key, edge_c = torch.unique(edge_c * (offset + C) + tag_c, return_inverse=True)
+        pair = pair[key // (offset + C)]
+    repeat_e = None
+    if repeats:
+        repeat_e = torch.zeros(pair.numel(), dtype=torch.bool, device=lo_c.device)
+        repeat_e[edge_c[twice_c]] = True
+    return edge_c, pair // max(V, 1), pair % max(V, 1), repeat_e
+
+
+def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "edge_only",
+                  edge_tag_c: torch.Tensor | None = None) -> Topology:
     """Corner, edge and vertex tables of ``(F, K)`` padded faces (sort/unique/bincount).
+
+    Edges are the faces' sides identified by their two vertices, as OpenSubdiv's
+    ``Vtr`` identifies them, except a degenerate side (both ends the same vertex, from a
+    face that repeats a vertex), which is an edge of its own, and sides whose corners
+    carry different ``edge_tag_c`` (``(C,)`` long, ``0`` by default): a refined level's
+    sides between the same two vertices that OpenSubdiv keeps apart (the two halves of
+    a degenerate edge, the inner edges of back-to-back triangles).
 
     Example:
         >>> topo = mesh_topology(torch.tensor([[0, 1, 2]]), 3)
@@ -72,9 +110,11 @@ def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "ed
     next_c = faces_fk[face_c, (pos_c + 1) % size_c]
     prev_corner_c = start_c + (pos_c - 1) % size_c
     lo_c, hi_c = torch.minimum(vert_c, next_c), torch.maximum(vert_c, next_c)
-    key_e, edge_c = torch.unique(lo_c * max(V, 1) + hi_c, return_inverse=True)
-    E = key_e.numel()
-    edge_lo_e, edge_hi_e = key_e // max(V, 1), key_e % max(V, 1)
+    ordered = torch.sort(faces_fk, dim=1).values
+    repeats = bool(((ordered[:, 1:] == ordered[:, :-1]) & (ordered[:, 1:] >= 0)).any()
+                   | (size_f < 3).any())  # a 2-gon uses its pair twice
+    edge_c, edge_lo_e, edge_hi_e, repeat_e = _edges(lo_c, hi_c, face_c, V, edge_tag_c, repeats)
+    E = edge_lo_e.numel()
     sharp_e = torch.bincount(edge_c, minlength=E) != 2
     ends = torch.cat([edge_lo_e, edge_hi_e])
     valence_v = torch.bincount(ends, minlength=V)
@@ -88,5 +128,5 @@ def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "ed
     kind_v[valence_v == 0] = 0
     return Topology(
         face_c, pos_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
-        sharp_e, valence_v, num_faces_v, kind_v,
+        sharp_e, valence_v, num_faces_v, kind_v, repeat_e,
     )

@@ -54,6 +54,7 @@ from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.subdivision._creasing import child_tags, subdivision_rules
 from torchgeo_cg.mesh.subdivision._levels import SubdivisionModule
+from torchgeo_cg.mesh.subdivision._parallel_edges import catmark_child_edge_tags
 from torchgeo_cg.mesh.subdivision._topology import (
     check_boundary,
     check_crease_method,
@@ -81,6 +82,7 @@ def catmull_clark_operator(
     tags: SubdivisionTags | None = None,
     crease_method: str = "uniform",
     triangle_rule: str = "catmark",
+    edge_tags: torch.Tensor | None = None,
 ) -> SubdivisionOperator:
     """Build one level of Catmull-Clark subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -104,15 +106,20 @@ def catmull_clark_operator(
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
         triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (OpenSubdiv's
             ``TRI_SUB_SMOOTH`` edge weights next to triangles).
+        edge_tags: ``(C,)`` long per corner of ``faces`` or ``None``: the previous
+            operator's ``child_edge_tags`` when ``faces`` is its ``child_faces``.
 
     Returns:
         :class:`SubdivisionOperator` with ``matrix`` ``(V1, V0)``, ``matrix_t``
         ``(V0, V1)``, ``faces`` ``(F1, 4)`` and the sizes.
 
     Raises:
-        ValueError: bad ``boundary``; indices out of range, faces with fewer than
-            3 distinct vertices, repeated vertices or repeated faces (the message
-            names the face index).
+        ValueError: bad ``boundary``; indices out of range or negative other than
+            trailing ``-1`` padding (the message names the face index). Faces that
+            repeat a vertex (degenerate quads as poles) and repeated faces
+            (back-to-back, duplicated) are refined as OpenSubdiv refines them: a
+            degenerate side is an edge of its own, a face's second side on the same
+            pair is split off and, with the first, non-manifold (sharp).
         TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
         TypeError: ``dtype`` is not a floating-point dtype.
 
@@ -134,12 +141,12 @@ def catmull_clark_operator(
     check_crease_method(crease_method)
     _check_triangle_rule(triangle_rule)
     with torch.no_grad():
-        faces_fk = check_faces(faces, num_vertices)
+        faces_fk = check_faces(faces, num_vertices, allow_duplicates=True, allow_degenerate=True)
         if device is not None:
             faces_fk = faces_fk.to(device)
         wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_fk.shape[0]
-        topo = mesh_topology(faces_fk, V0, boundary)
+        topo = mesh_topology(faces_fk, V0, boundary, edge_tags)
         rules = subdivision_rules(topo, V0, F0, tags, boundary, crease_method, wdtype)
         E0 = topo.edge_lo_e.numel()
         V1 = V0 + F0 + E0
@@ -165,7 +172,8 @@ def catmull_clark_operator(
         tags_1 = child_tags(rules, topo.edge_lo_e, topo.edge_hi_e, edge_point_e, hole_child, tags)
     visible = faces_q4 if tags_1 is None or tags_1.holes.numel() == 0 else faces_q4[~hole_child]
     return SubdivisionOperator(
-        stencils, visible, V0, V1, F0, E0, boundary, "catmark", faces_q4, tags_1
+        stencils, visible, V0, V1, F0, E0, boundary, "catmark", faces_q4, tags_1,
+        catmark_child_edge_tags(topo),
     )
 
 

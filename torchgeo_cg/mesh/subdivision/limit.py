@@ -4,11 +4,15 @@ Convention:
     Masks are OpenSubdiv's (``Sdc::Scheme::assign*LimitTangentMasks``), applied to the
     refined mesh of an operator exactly as :func:`~torchgeo_cg.mesh.subdivision.
     limit_positions` applies the position masks. Edges and faces around a vertex are
-    ordered counter-clockwise (seen from outside, faces wound counter-clockwise),
-    starting at the leading boundary edge of an open fan or, in a closed fan, at the
-    out-edge of the vertex's corner in its lowest-numbered face (so the direction of
-    ``tangent_u`` at interior vertices follows this library's face order). ``tangent_u``
-    follows edge 0 (along the crease for crease vertices), ``tangent_v`` is rotated
+    ordered counter-clockwise (seen from outside, faces wound counter-clockwise) from
+    the start OpenSubdiv's refiner gives them when the operator's input mesh is its
+    base mesh: an open fan starts at its leading boundary edge; a closed fan of a
+    vertex point or a face point at the out-edge of its corner in its lowest-numbered
+    child face; a closed fan of an edge point at its out-edge towards the far end of
+    the edge in the edge's lowest-numbered parent face. So ``(tangent_u, tangent_v)``
+    equal OpenSubdiv's ``(du, dv)`` from ``Far::PrimvarRefiner::Limit`` after one
+    level of refinement of the operator's input mesh. ``tangent_u`` follows edge 0
+    (along the crease for crease vertices), ``tangent_v`` is rotated
     counter-clockwise from it, and ``normals = normalize(tangent_u x tangent_v)`` points
     outward. Tangent magnitudes are OpenSubdiv's (not unit, not parametric derivatives).
 """
@@ -70,7 +74,9 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
     check_verts(verts, operator.num_vertices_in)
     wdtype = operator.stencils.weights.dtype
     faces = operator.faces if operator.child_faces is None else operator.child_faces
-    args = (faces, operator.num_vertices_out, operator.boundary, wdtype, operator.child_tags)
+    edge_tags = None if operator.child_faces is None else operator.child_edge_tags
+    args = (faces, operator.num_vertices_out, operator.boundary, wdtype, operator.child_tags,
+            edge_tags)
     if operator.scheme == "catmark":
         limit = catmark_limit_stencils(*args)
     elif operator.scheme == "loop":
@@ -99,9 +105,11 @@ class LimitFrames(NamedTuple):
     normals: torch.Tensor | None
 
 
-def _fan_order(topo, V):
+def _fan_order(topo, V, first_c=None):
     """Rank of each corner in its vertex's counter-clockwise fan, the fan's size, and
-    the corner's out-/in-neighbour (list ranking by pointer jumping: loop over rounds)."""
+    the corner's out-/in-neighbour (list ranking by pointer jumping: loop over rounds).
+    A closed fan starts at its corner flagged in ``first_c`` (``(C,)`` bool), else at
+    its smallest corner."""
     C = topo.vert_c.numel()
     dev = topo.vert_c.device
     arange_c = torch.arange(C, device=dev)
@@ -122,7 +130,12 @@ def _fan_order(topo, V):
     label = component_labels(C, src, dst)  # fan label: the smallest corner of the fan
     open_label = torch.zeros(C, dtype=torch.bool, device=dev)
     open_label[label[twin < 0]] = True
-    start = (twin < 0) | (~open_label[label] & (label == arange_c))
+    lead_c = label == arange_c
+    if first_c is not None:
+        has_first = torch.zeros(C, dtype=torch.bool, device=dev)
+        has_first[label[first_c]] = True
+        lead_c = first_c | (~has_first[label] & lead_c)
+    start = (twin < 0) | (~open_label[label] & lead_c)
     pred = torch.where(start, -1, pred)
     rank = (pred >= 0).long()
     p = pred
@@ -175,10 +188,11 @@ def limit_frames(operator: SubdivisionOperator, verts: torch.Tensor) -> LimitFra
 
 
 def _tangent_stencils(faces, V, operator, dtype) -> tuple[StencilMatrix, StencilMatrix]:
-    topo = mesh_topology(faces, V, operator.boundary)
+    edge_tags = None if operator.child_faces is None else operator.child_edge_tags
+    topo = mesh_topology(faces, V, operator.boundary, edge_tags)
     rule_v, sharp_e = limit_rules(topo, V, faces.shape[0], operator.child_tags,
                                   operator.boundary, dtype)
-    rank, faces_v, is_open, out_nbr, in_nbr = _fan_order(topo, V)
+    rank, faces_v, is_open, out_nbr, in_nbr = _fan_order(topo, V, _first_corners(operator))
     v_c = topo.vert_c
     n_c = faces_v[v_c].to(dtype)
     i_c = rank.to(dtype)
@@ -212,6 +226,30 @@ def _tangent_stencils(faces, V, operator, dtype) -> tuple[StencilMatrix, Stencil
     r, c = torch.cat(rows), torch.cat(cols)
     return (stencil_matrix(r, c, torch.cat(wu), (V, V)),
             stencil_matrix(r, c, torch.cat(wv), (V, V)))
+
+
+def _first_corners(operator) -> torch.Tensor:
+    """``(C,)`` bool: the corner where OpenSubdiv's refiner starts the fan of each edge
+    point (``Vtr::QuadRefinement``/``TriRefinement`` order an edge point's faces from the
+    child at the far end of the edge in its first face, the parent edge's lowest-numbered
+    face): Catmark, the corner at position 3 of the lowest such child quad; Loop, at
+    position 2 of a corner triangle. Vertex and face points keep the default start (their
+    lowest-numbered face, which is the child of the parent's lowest one)."""
+    faces = operator.child_faces
+    F1, K = faces.shape
+    pos = 3 if operator.scheme == "catmark" else 2
+    edge_point = operator.num_vertices_out - operator.num_edges_in
+    vert = faces[:, pos]
+    ok = vert >= edge_point
+    if operator.scheme == "loop":
+        ok &= torch.arange(F1, device=faces.device) % 4 != 3
+    big = torch.iinfo(torch.long).max
+    face_ids = torch.arange(F1, device=faces.device)
+    lowest = torch.full((operator.num_vertices_out,), big, dtype=torch.long,
+                        device=faces.device).scatter_reduce(0, vert[ok], face_ids[ok], "amin")
+    first = torch.zeros(F1, K, dtype=torch.bool, device=faces.device)
+    first[:, pos] = ok & (lowest[vert] == face_ids)
+    return first.flatten()
 
 
 def _corner_entries(add, topo, rule_v, faces_v, rank, is_open, out_nbr, in_nbr, catmark,
@@ -295,7 +333,7 @@ def _crease_edge_weights(j, k, catmark, dtype):
     root3 = math.sqrt(3.0)
     theta = math.pi / (k + 1)
     end2 = torch.where(k == 2, -root3 / 2, torch.where(k > 2, -3 * torch.sin(theta),
-                       torch.where(k == 1, 0.0, 3.0)))
+                       torch.where(k == 1, 0.0, torch.full_like(k, 3.0))))
     inner = torch.where(k == 2, root3, torch.where(
         k > 2, -3 * (2 * torch.cos(theta) - 2) * torch.sin(jf * theta), 3.0))
     return torch.full_like(jf, 1.5), end2, inner
@@ -318,5 +356,5 @@ def _crease_vertex_weight(k, catmark):
         r = (torch.cos(theta) + 1) / torch.sin(theta)
         irregular = 4 * r * (torch.cos(theta) - 1) * denom
         return torch.where(k == 1, -4 / 6, torch.where(k == 0, -6.0, irregular))
-    return torch.where(k == 2, -math.sqrt(3.0), torch.where(k > 2, 0.0,
-                       torch.where(k == 1, -3.0, -6.0)))
+    low = torch.where(k == 1, -3.0, torch.full_like(k, -6.0))  # a tensor keeps k's dtype
+    return torch.where(k == 2, -math.sqrt(3.0), torch.where(k > 2, 0.0, low))

@@ -35,6 +35,7 @@ from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.subdivision._creasing import child_tags, subdivision_rules
 from torchgeo_cg.mesh.subdivision._levels import SubdivisionModule
 from torchgeo_cg.mesh.subdivision._limit_masks import loop_beta
+from torchgeo_cg.mesh.subdivision._parallel_edges import loop_child_edge_tags
 from torchgeo_cg.mesh.subdivision._topology import (
     check_boundary,
     check_crease_method,
@@ -55,6 +56,7 @@ def loop_operator(
     dtype: torch.dtype | None = None,
     tags: SubdivisionTags | None = None,
     crease_method: str = "uniform",
+    edge_tags: torch.Tensor | None = None,
 ) -> SubdivisionOperator:
     """Build one level of Loop subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -73,6 +75,8 @@ def loop_operator(
         tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
             or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
         crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
+        edge_tags: ``(3 F,)`` long per corner of ``faces`` or ``None``: the previous
+            operator's ``child_edge_tags`` when ``faces`` is its ``child_faces``.
 
     Returns:
         :class:`~torchgeo_cg.mesh.subdivision.SubdivisionOperator` with ``matrix``
@@ -80,7 +84,9 @@ def loop_operator(
 
     Raises:
         ShapeError: faces are not triangles.
-        ValueError: bad ``boundary`` or invalid faces (the message names the face).
+        ValueError: bad ``boundary`` or indices out of range or negative (the message
+            names the face). Repeated vertices and repeated faces are refined as
+            OpenSubdiv refines them (as :func:`catmull_clark_operator` does).
         TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
         TypeError: ``dtype`` is not a floating-point dtype.
 
@@ -99,7 +105,7 @@ def loop_operator(
     check_boundary(boundary)
     check_crease_method(crease_method)
     with torch.no_grad():
-        faces_f3 = check_faces(faces, num_vertices)
+        faces_f3 = check_faces(faces, num_vertices, allow_duplicates=True, allow_degenerate=True)
         if faces_f3.shape[0] and (faces_f3.shape[1] != 3 or bool((faces_f3 < 0).any())):
             raise ShapeError(
                 f"faces: Loop subdivision needs triangles (F, 3), got polygons of up to "
@@ -111,7 +117,7 @@ def loop_operator(
         dev = faces_f3.device
         wdtype = weights_dtype(dtype)
         V0, F0 = num_vertices, faces_f3.shape[0]
-        topo = mesh_topology(faces_f3, V0, boundary)
+        topo = mesh_topology(faces_f3, V0, boundary, edge_tags)
         E0 = topo.edge_lo_e.numel()
         V1 = V0 + E0
         rules = subdivision_rules(topo, V0, F0, tags, boundary, crease_method, wdtype)
@@ -156,7 +162,8 @@ def loop_operator(
         faces_f3_all[~hole_child]
     )
     return SubdivisionOperator(
-        stencils, visible, V0, V1, F0, E0, boundary, "loop", faces_f3_all, tags_1
+        stencils, visible, V0, V1, F0, E0, boundary, "loop", faces_f3_all, tags_1,
+        loop_child_edge_tags(faces_f3, topo),
     )
 
 

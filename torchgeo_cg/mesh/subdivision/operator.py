@@ -41,6 +41,11 @@ class SubdivisionOperator(NamedTuple):
         child_tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` of the refined
             mesh (child creases with their decayed sharpness, corners, holes as rows
             of ``child_faces``), or ``None`` for an untagged mesh without holes.
+        child_edge_tags: ``(C1,)`` long per corner of ``child_faces`` (face-major): sides
+            between the same two vertices that are distinct edges (the halves of a
+            degenerate edge, the inner edges of back-to-back triangles) carry different
+            tags; ``None`` where there are none. The next level's builder takes them as
+            ``edge_tags``.
 
     The properties ``matrix`` and ``matrix_t`` give ``S`` and ``S^T`` as
     ``torch.sparse_csr`` tensors (built on use; they share the stencils' memory).
@@ -62,6 +67,7 @@ class SubdivisionOperator(NamedTuple):
     scheme: str = "catmark"
     child_faces: torch.Tensor | None = None
     child_tags: SubdivisionTags | None = None
+    child_edge_tags: torch.Tensor | None = None
 
     @property
     def matrix(self) -> torch.Tensor:

@@ -1,25 +1,29 @@
-"""The Catmark limit surface at any point of any control face, as sparse stencils.
+"""The Catmark and Loop limit surfaces at any point of any control face, as sparse stencils.
 
 Convention:
     - Points are ``(face_ids, uv)`` in OpenSubdiv's ptex numbering (``Far::PtexIndices``)
-      of the operator's input mesh: faces in order, a quad is one ptex face, any other
-      ``k``-gon is ``k`` of them (sub-face ``j`` is the quad at corner ``j``). A quad's
-      corners 0-3 sit at ``uv`` (0,0), (1,0), (1,1), (0,1); sub-face ``j`` of a ``k``-gon
-      has (0,0) at corner ``j``, (1,0) at the middle of edge ``j -> j+1`` and (1,1) at
-      the face's centre. ``du``, ``dv`` are the derivatives in that parametrisation, and
+      of the operator's input mesh: faces in order, a quad (Catmark) or a triangle (Loop)
+      is one ptex face, any other ``k``-gon is ``k`` of them (sub-face ``j`` is the quad
+      at corner ``j``). A quad's corners 0-3 sit at ``uv`` (0,0), (1,0), (1,1), (0,1); a
+      triangle's corners 0-2 at (0,0), (1,0), (0,1) (``u + v <= 1``); sub-face ``j`` of
+      a ``k``-gon has (0,0) at corner ``j``, (1,0) at the middle of edge ``j -> j+1`` and
+      (1,1) at the face's centre. ``du``, ``dv`` are the derivatives in that parametrisation, and
       ``normals = normalize(du x dv)`` point outward for counter-clockwise faces.
-    - Evaluation is OpenSubdiv's feature-adaptive scheme: the point's quad after one
-      level (the operator) is refined around the point until its patch is regular
+    - Evaluation is OpenSubdiv's feature-adaptive scheme: the point's quad (triangle)
+      after one level (the operator) is refined around the point until its patch is
+      regular, and there it is the bicubic B-spline patch
       (:mod:`~torchgeo_cg.mesh.subdivision._patches`: smooth valence-4 corners,
-      boundary and infinitely sharp crease corners, corners of valence 2), and there it
-      is the bicubic B-spline patch, exact to rounding. Infinitely sharp creases are
-      patch boundaries (OpenSubdiv's ``useInfSharpPatch``). Points still in an irregular
-      quad at level ``max_level`` (within ``2**-max_level`` of the face size of an
-      extraordinary or irregular-boundary vertex, a dart, a corner of another valence,
-      a hole's vertex, or a semi-sharp feature sharper than ``max_level``) take a
-      bilinear end cap through the exact limit positions of that quad's corners: so
-      at every vertex the result equals :func:`limit_positions`, and positions stay
-      continuous across every edge.
+      boundary and infinitely sharp crease corners, corners of valence 2) or Loop's
+      quartic box-spline patch (:mod:`~torchgeo_cg.mesh.subdivision._loop_patches`:
+      smooth valence-6 corners, crease and boundary corners with 3 faces on their side),
+      exact to rounding. Infinitely sharp creases are patch boundaries (OpenSubdiv's
+      ``useInfSharpPatch``). Points still in an irregular face at level ``max_level``
+      (within ``2**-max_level`` of the face size of an extraordinary or
+      irregular-boundary vertex, a dart, a corner of another valence, a hole's vertex,
+      or a semi-sharp feature sharper than ``max_level``) take a bilinear (Loop: linear)
+      end cap through the exact limit positions of that face's corners: so at every
+      vertex the result equals :func:`limit_positions`, and positions stay continuous
+      across every edge.
     - Tags, holes and ``boundary`` are those the operator was built with; pass the same
       ``crease_method`` (the operator does not record it). Points on holes raise.
     - The result is linear in the control points: :func:`limit_stencils` builds sparse
@@ -38,7 +42,14 @@ import torch
 from torchgeo_cg.core.check import check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.subdivision._creasing import effective_sharpness
-from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils
+from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils, loop_limit_stencils
+from torchgeo_cg.mesh.subdivision._loop_patches import (
+    box_spline_weights,
+    fold_phantoms,
+    phantom_rules,
+    regular_triangles,
+    triangle_slots,
+)
 from torchgeo_cg.mesh.subdivision._normals import unit_normals
 from torchgeo_cg.mesh.subdivision._patches import (
     patch_grids,
@@ -48,6 +59,7 @@ from torchgeo_cg.mesh.subdivision._patches import (
 )
 from torchgeo_cg.mesh.subdivision._topology import check_verts, mesh_topology
 from torchgeo_cg.mesh.subdivision.catmark import catmull_clark_operator
+from torchgeo_cg.mesh.subdivision.loop import loop_operator
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
 from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, stencil_matrix
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
@@ -62,6 +74,9 @@ _CHUNK = 1 << 16  # points per batched product (bounds the gathered per-face mat
 # child quad p of a quad: its local (s', t') = A_p (s, t) + b_p (module docstring's layout)
 _CHILD_A = ((2, 0, 0, 2), (0, 2, -2, 0), (-2, 0, 0, -2), (0, -2, 2, 0))
 _CHILD_B = ((0, 0), (0, 2), (2, 2), (2, 0))
+# child triangle p of a triangle (Loop's child order: corners 0, 1, 2, then the middle)
+_TRI_A = ((2, 0, 0, 2), (0, 2, -2, -2), (-2, -2, 2, 0), (2, 2, -2, 0))
+_TRI_B = ((0, 0), (0, 2), (2, 0), (-1, 1))
 
 
 class LimitSurfaceSample(NamedTuple):
@@ -116,6 +131,7 @@ class _Level(NamedTuple):
     num_vertices: int
     tags: SubdivisionTags
     chain: tuple  # CSR (crow, col, weights) of this level's vertices in control vertices
+    edge_tags: torch.Tensor | None  # (C,) per corner: sides kept apart (_parallel_edges)
 
 
 def _expand(rows, cols, vals, csr):
@@ -168,23 +184,31 @@ def _chain_rule(ws, wt, jac):
     return ws * a + wt * b, ws * c + wt * d
 
 
-def _to_child(s, t, jac):
-    """Child quad ``p (n,)`` holding local ``(s, t)``, and the point's coordinates and
-    Jacobian in it."""
+def _to_child(s, t, jac, scheme="catmark"):
+    """Child quad (Loop: triangle) ``p (n,)`` holding local ``(s, t)``, and the point's
+    coordinates and Jacobian in it."""
     hi_s, hi_t = s >= 0.5, t >= 0.5
-    p = torch.where(hi_t, torch.where(hi_s, 2, 3), torch.where(hi_s, 1, 0))
-    A = torch.tensor(_CHILD_A, dtype=s.dtype, device=s.device).reshape(4, 2, 2)[p]
-    b = torch.tensor(_CHILD_B, dtype=s.dtype, device=s.device)[p]
+    if scheme == "catmark":
+        p = torch.where(hi_t, torch.where(hi_s, 2, 3), torch.where(hi_s, 1, 0))
+        table_a, table_b = _CHILD_A, _CHILD_B
+    else:
+        p = torch.where(hi_s, 1, torch.where(hi_t, 2, torch.where(s + t <= 0.5, 0, 3)))
+        table_a, table_b = _TRI_A, _TRI_B
+    A = torch.tensor(table_a, dtype=s.dtype, device=s.device).reshape(4, 2, 2)[p]
+    b = torch.tensor(table_b, dtype=s.dtype, device=s.device)[p]
     st = torch.einsum("nij,nj->ni", A, torch.stack([s, t], -1)) + b
     return p, st[:, 0].clamp(0, 1), st[:, 1].clamp(0, 1), A @ jac
 
 
 def _ptex_to_level_one(operator, face_ids, uv, dtype):
-    """``(face (n,), s, t, jac (n, 2, 2))`` of each ptex point in the operator's child quads."""
+    """``(face (n,), s, t, jac (n, 2, 2))`` of each ptex point in the operator's child quads
+    (Loop: triangles)."""
     V0, F0 = operator.num_vertices_in, operator.num_faces_in
     child = operator.faces if operator.child_faces is None else operator.child_faces
-    parent = child[:, 2] - V0  # the face point of a child quad is its parent's
-    size = torch.bincount(parent, minlength=F0)
+    if operator.scheme == "loop":  # a triangle is one ptex face
+        size = torch.full((F0,), 4, dtype=torch.long, device=child.device)
+    else:
+        size = torch.bincount(child[:, 2] - V0, minlength=F0)  # a child quad's face point
     first_child = torch.cumsum(size, 0) - size
     count = torch.where(size == 4, 1, size)
     ptex_end = torch.cumsum(count, 0)
@@ -197,6 +221,9 @@ def _ptex_to_level_one(operator, face_ids, uv, dtype):
     f = torch.searchsorted(ptex_end, face_ids, right=True)
     u, v = uv[:, 0].to(dtype), uv[:, 1].to(dtype)
     eye = torch.eye(2, dtype=dtype, device=uv.device).expand(face_ids.numel(), 2, 2)
+    if operator.scheme == "loop":  # 4 child triangles per face
+        p, s, t, jac = _to_child(u, v, eye, "loop")
+        return first_child[f] + p, s, t, jac
     p, s, t, jac = _to_child(u, v, eye)
     quad = size[f] == 4
     sub = face_ids - (ptex_end[f] - count[f])
@@ -238,13 +265,16 @@ def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, 
         mark_f = mark_v[faces].any(1)
     keep_f = torch.nonzero(mark_f).flatten()
     keep_v, sub_faces = torch.unique(faces[keep_f], return_inverse=True)
+    sub_edge_tags = None if level.edge_tags is None else (
+        level.edge_tags.reshape(faces.shape)[keep_f].flatten())
     vmap = torch.full((V,), -1, dtype=torch.long, device=faces.device)
     vmap[keep_v] = torch.arange(keep_v.numel(), device=faces.device)
     fmap = torch.full((faces.shape[0],), -1, dtype=torch.long, device=faces.device)
     fmap[keep_f] = torch.arange(keep_f.numel(), device=faces.device)
     tags = _sub_tags(level.tags, vmap, fmap, sub_faces)
-    op = catmull_clark_operator(sub_faces, keep_v.numel(), boundary, dtype=dtype, tags=tags,
-                                crease_method=crease_method)
+    build = loop_operator if faces.shape[1] == 3 else catmull_clark_operator
+    op = build(sub_faces, keep_v.numel(), boundary, dtype=dtype, tags=tags,
+               crease_method=crease_method, edge_tags=sub_edge_tags)
     st = op.stencils
     rows = torch.repeat_interleave(torch.arange(op.num_vertices_out, device=faces.device),
                                    st.crow[1:] - st.crow[:-1])
@@ -253,7 +283,7 @@ def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, 
     child_tags = op.child_tags if op.child_tags is not None else SubdivisionTags.empty(
         dtype, faces.device)
     nxt = _Level(op.child_faces, op.num_vertices_out, child_tags,
-                 (chain.crow, chain.col, chain.weights))
+                 (chain.crow, chain.col, chain.weights), op.child_edge_tags)
     return nxt, fmap
 
 
@@ -274,18 +304,37 @@ def _emit_patches(out, level, topo, twin, sharp_e, sample, face, s, t, jac, num_
     _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
 
 
-def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
-    """Triplets of the points ``sample`` in irregular quads at the last level: the bilinear
-    patch through the exact limit positions of the quad's corners."""
+def _emit_triangles(out, level, topo, twin, sharp_e, sample, face, s, t, jac, num_cols):
+    """Triplets of the points ``sample`` in regular triangles ``face`` of ``level``."""
     fu, face_local = torch.unique(face, return_inverse=True)
-    limit = catmark_limit_stencils(level.faces, level.num_vertices, boundary, s.dtype,
-                                   _sharp_tags(level.tags))
+    slots, present, _, _ = triangle_slots(topo, twin, sharp_e >= INFINITELY_SHARP, fu)
+    rule, _ = phantom_rules(present)
+    slots = torch.where(present, slots, slots[:, :1])  # phantoms: weight 0 after folding
+    C, cols = _face_matrices(slots, (level.chain,), num_cols, s.dtype)
+    rule, present = rule[face_local], present[face_local]
+    w, ws, wt = (fold_phantoms(x, rule, present) for x in box_spline_weights(s, t))
+    wu, wv = _chain_rule(ws, wt, jac)
+    _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
+
+
+def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
+    """Triplets of the points ``sample`` in irregular faces at the last level: the bilinear
+    (Loop: linear) patch through the exact limit positions of the face's corners."""
+    fu, face_local = torch.unique(face, return_inverse=True)
+    masks = catmark_limit_stencils if level.faces.shape[1] == 4 else loop_limit_stencils
+    limit = masks(level.faces, level.num_vertices, boundary, s.dtype, _sharp_tags(level.tags),
+                  level.edge_tags)
     C, cols = _face_matrices(level.faces[fu], ((limit.crow, limit.col, limit.weights),
                                                level.chain), num_cols, s.dtype)
     a, b = 1 - s, 1 - t
-    w = torch.stack([a * b, s * b, s * t, a * t], -1)
-    ws = torch.stack([-b, b, t, -t], -1)
-    wt = torch.stack([-a, -s, s, a], -1)
+    if level.faces.shape[1] == 3:
+        w = torch.stack([1 - s - t, s, t], -1)
+        ws = torch.stack([-torch.ones_like(s), torch.ones_like(s), torch.zeros_like(s)], -1)
+        wt = torch.stack([-torch.ones_like(s), torch.zeros_like(s), torch.ones_like(s)], -1)
+    else:
+        w = torch.stack([a * b, s * b, s * t, a * t], -1)
+        ws = torch.stack([-b, b, t, -t], -1)
+        wt = torch.stack([-a, -s, s, a], -1)
     wu, wv = _chain_rule(ws, wt, jac)
     _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
 
@@ -297,9 +346,9 @@ def _check_level(max_level) -> int:
 
 
 def _check_points(operator, face_ids, uv):
-    if operator.scheme != "catmark":
-        raise ValueError(f"operator: the limit surface needs a 'catmark' operator, got one of "
-                         f"scheme {operator.scheme!r}")
+    if operator.scheme not in ("catmark", "loop"):
+        raise ValueError(f"operator: the limit surface needs a 'catmark' or 'loop' operator, "
+                         f"got one of scheme {operator.scheme!r}")
     check_tensor(face_ids, "face_ids")
     check_tensor(uv, "uv")
     if face_ids.dtype.is_floating_point or face_ids.dtype.is_complex or face_ids.dtype == \
@@ -314,6 +363,12 @@ def _check_points(operator, face_ids, uv):
         i = int(torch.nonzero(outside.reshape(-1, 2).any(1))[0])
         raise ValueError(f"uv: expected coordinates in [0, 1], got "
                          f"{uv.reshape(-1, 2)[i].tolist()} at point {i}")
+    if operator.scheme == "loop":
+        beyond = uv.sum(-1) > 1 + 2 * torch.finfo(uv.dtype).eps  # rounding of 1 - u
+        if bool(beyond.any()):
+            i = int(torch.nonzero(beyond.flatten())[0])
+            raise ValueError(f"uv: expected u + v <= 1 on Loop's triangles, got "
+                             f"{uv.reshape(-1, 2)[i].tolist()} at point {i}")
 
 
 def limit_stencils(
@@ -324,16 +379,17 @@ def limit_stencils(
     crease_method: str = "uniform",
     max_level: int = 8,
 ) -> LimitStencils:
-    """Sparse ``(N, V0)`` stencils of the Catmark limit surface at ptex points.
+    """Sparse ``(N, V0)`` stencils of the Catmark or Loop limit surface at ptex points.
 
     Convention:
         See the module docstring (ptex numbering and ``uv``, feature-adaptive evaluation,
         exact farther than ``2**-max_level`` from irregular features).
 
     Args:
-        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        operator: a ``"catmark"`` or ``"loop"`` :class:`SubdivisionOperator` of the
+            control mesh.
         face_ids: ``(*, N)`` integer ptex face ids; the rows are the flattened points.
-        uv: ``(*, N, 2)`` float in ``[0, 1]``.
+        uv: ``(*, N, 2)`` float in ``[0, 1]`` (Loop: ``u + v <= 1``).
         crease_method: the ``crease_method`` the operator was built with.
         max_level: refinement levels at most (``>= 1``; 8 by default).
 
@@ -342,8 +398,9 @@ def limit_stencils(
         operator's weights dtype.
 
     Raises:
-        ValueError: a non-Catmark operator, ``face_ids`` out of range, ``uv`` outside
-            ``[0, 1]``, a point on a hole, or a bad ``max_level``.
+        ValueError: an operator of another scheme, ``face_ids`` out of range, ``uv``
+            outside ``[0, 1]`` (Loop: or ``u + v > 1``), a point on a hole, or a bad
+            ``max_level``.
 
     Example:
         >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
@@ -367,24 +424,31 @@ def _build(operator, face_ids, uv, crease_method, max_level):
     faces = operator.faces if operator.child_faces is None else operator.child_faces
     tags = operator.child_tags if operator.child_tags is not None else SubdivisionTags.empty(
         dtype, faces.device)
-    level = _Level(faces, operator.num_vertices_out, tags, (st.crow, st.col, st.weights))
+    edge_tags = None if operator.child_faces is None else operator.child_edge_tags
+    level = _Level(faces, operator.num_vertices_out, tags, (st.crow, st.col, st.weights),
+                   edge_tags)
     face, s, t, jac = _ptex_to_level_one(operator, face_ids.to(faces.device), uv, dtype)
     sample = torch.arange(face.numel(), device=faces.device)
+    loop = operator.scheme == "loop"
     out = []
     for depth in range(1, max_level + 1):  # a loop over levels
         if sample.numel() == 0:
             break
-        topo = mesh_topology(level.faces, level.num_vertices, boundary)
+        topo = mesh_topology(level.faces, level.num_vertices, boundary, level.edge_tags)
         sharp_e, sharp_v, hole_f = effective_sharpness(
             topo, level.tags, level.num_vertices, level.faces.shape[0], boundary, dtype)
         if bool(hole_f[face].any()):
             i = int(sample[hole_f[face]][0])
             raise ValueError(f"face_ids: point {i} (ptex face {int(face_ids[i])}) is on a hole")
-        regular = regular_quads(topo, level.faces, sharp_e, sharp_v, hole_f)[face]
         twin = quad_twins(topo)
+        if loop:
+            regular = regular_triangles(topo, level.faces, sharp_e, sharp_v, hole_f, twin)[face]
+        else:
+            regular = regular_quads(topo, level.faces, sharp_e, sharp_v, hole_f)[face]
         points = (sample, face, s, t, jac)
         if bool(regular.any()):
-            _emit_patches(out, level, topo, twin, sharp_e, *(x[regular] for x in points), V0)
+            emit = _emit_triangles if loop else _emit_patches
+            emit(out, level, topo, twin, sharp_e, *(x[regular] for x in points), V0)
         rest = ~regular
         if depth == max_level:
             if bool(rest.any()):
@@ -395,7 +459,7 @@ def _build(operator, face_ids, uv, crease_method, max_level):
             break
         level, fmap = _refine_around(level, torch.unique(face), boundary, dtype, crease_method,
                                      V0)
-        p, s, t, jac = _to_child(s, t, jac)
+        p, s, t, jac = _to_child(s, t, jac, operator.scheme)
         face = 4 * fmap[face] + p
     return _assemble(out, face_ids.numel(), V0, dtype, faces.device)
 
@@ -435,7 +499,7 @@ def limit_surface(
     crease_method: str = "uniform",
     max_level: int = 8,
 ) -> LimitSurfaceSample:
-    """Positions, derivatives and normals of the Catmark limit surface at ptex points.
+    """Positions, derivatives and normals of the Catmark or Loop limit surface at ptex points.
 
     Convention:
         See the module docstring. Builds :func:`limit_stencils` and applies them; to
@@ -443,10 +507,11 @@ def limit_surface(
         use :func:`~torchgeo_cg.mesh.subdivision.stencils.apply_stencils`.
 
     Args:
-        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        operator: a ``"catmark"`` or ``"loop"`` :class:`SubdivisionOperator` of the
+            control mesh.
         verts: ``(*B, V0, D)`` float control points (shapes sharing the topology).
         face_ids: ``(*P, N)`` integer ptex face ids.
-        uv: ``(*P, N, 2)`` float in ``[0, 1]``.
+        uv: ``(*P, N, 2)`` float in ``[0, 1]`` (Loop: ``u + v <= 1``).
         crease_method: the ``crease_method`` the operator was built with.
         max_level: refinement levels at most (``>= 1``).
 
@@ -466,6 +531,15 @@ def limit_surface(
         tensor([[0.0802, 0.5000, 0.5000]], dtype=torch.float64)
         >>> out.normals.round(decimals=12) + 0.0
         tensor([[-1.,  0.,  0.]], dtype=torch.float64)
+        >>> from torchgeo_cg.mesh.subdivision import loop_operator
+        >>> octa_v = torch.tensor([[0., 0, 1], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0],
+        ...                        [0, 0, -1]], dtype=torch.float64)
+        >>> octa_f = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1], [5, 2, 1], [5, 3, 2],
+        ...           [5, 4, 3], [5, 1, 4]]
+        >>> centre = torch.tensor([[1 / 3, 1 / 3]], dtype=torch.float64)  # of triangle 0
+        >>> limit_surface(loop_operator(octa_f, 6, dtype=torch.float64), octa_v,
+        ...               torch.tensor([0]), centre).positions
+        tensor([[0.2352, 0.2352, 0.2352]], dtype=torch.float64)
     """
     check_verts(verts, operator.num_vertices_in)
     st = limit_stencils(operator, face_ids, uv, crease_method=crease_method,
@@ -479,6 +553,8 @@ def limit_surface(
 
 
 def _num_ptex_faces(operator) -> int:
+    if operator.scheme == "loop":
+        return operator.num_faces_in
     child = operator.faces if operator.child_faces is None else operator.child_faces
     size = torch.bincount(child[:, 2] - operator.num_vertices_in,
                           minlength=operator.num_faces_in)
@@ -494,18 +570,20 @@ def sample_limit_surface(
     crease_method: str = "uniform",
     max_level: int = 8,
 ) -> SurfaceSamples:
-    """Points uniformly distributed by area on the Catmark limit surface, with normals.
+    """Points uniformly distributed by area on the Catmark or Loop limit surface, with normals.
 
     Convention:
         Each ptex face gets an area bound from ``|du x dv|`` on a 5 x 5 grid (times 1.5,
-        a margin for the interior maximum); candidates are drawn by that bound, uniform
-        in ``uv``, and kept with probability ``|du x dv| / bound`` (rejection sampling,
-        a loop over rounds, not faces). With several shapes ``(*B, V0, D)``, the area is
+        a margin for the interior maximum; Loop: its 15 points with ``u + v <= 1``);
+        candidates are drawn by that bound, uniform in ``uv`` (on the triangle for
+        Loop), and kept with probability ``|du x dv| / bound`` (rejection sampling, a
+        loop over rounds, not faces). With several shapes ``(*B, V0, D)``, the area is
         the first shape's, and the same ``(face_ids, uv)`` are evaluated on all of them.
         Differentiable in ``verts`` (the choice of points is not).
 
     Args:
-        operator: a ``"catmark"`` :class:`SubdivisionOperator` of the control mesh.
+        operator: a ``"catmark"`` or ``"loop"`` :class:`SubdivisionOperator` of the
+            control mesh.
         verts: ``(*B, V0, 3)`` float control points.
         num_samples: ``N >= 0``.
         generator: the ``torch.Generator`` for the draws (``None``: the global one).
@@ -533,6 +611,9 @@ def sample_limit_surface(
     P = _num_ptex_faces(operator)
     grid = torch.linspace(0, 1, 5, dtype=dtype, device=device)
     uv_g = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
+    loop = operator.scheme == "loop"
+    if loop:  # Loop's ptex faces are the triangles u + v <= 1
+        uv_g = uv_g[uv_g.sum(-1) <= 1]
     faces_g = torch.arange(P, device=device).repeat_interleave(uv_g.shape[0])
     probe = limit_surface(operator, first, faces_g, uv_g.repeat(P, 1),
                           crease_method=crease_method, max_level=max_level)
@@ -543,6 +624,8 @@ def sample_limit_surface(
         n = 2 * (num_samples - have) + 16
         f = torch.multinomial(bound, n, replacement=True, generator=generator)
         uv = torch.rand(n, 2, dtype=dtype, device=device, generator=generator)
+        if loop:  # uniform on the triangle: fold the square's upper half onto the lower
+            uv = torch.where(uv.sum(-1, keepdim=True) > 1, 1 - uv, uv)
         at = limit_surface(operator, first, f, uv, crease_method=crease_method,
                            max_level=max_level)
         area = torch.linalg.cross(at.du, at.dv).norm(dim=-1)
