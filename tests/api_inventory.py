@@ -625,8 +625,10 @@ INVENTORY: dict[str, list[str]] = {
         "HomogeneousTransform",
         "HomographyModel",
         "Orbit",
+        "Prismatic",
         "RegistrationResult",
         "ReportShapes",
+        "Revolute",
         "RobustFit",
         "SceneGraph",
         "ShapeFit",
@@ -729,6 +731,10 @@ INVENTORY: dict[str, list[str]] = {
         "translation",
     ],
     "torchgeo_cg.transforms.homography_dlt": ["find_homography_dlt"],
+    "torchgeo_cg.transforms.joints": [
+        "Prismatic",
+        "Revolute",
+    ],
     "torchgeo_cg.transforms.modules": [
         "HomogeneousTransform",
         "TRSTransform",

@@ -76,7 +76,58 @@ def _closed_3d(name: str, scale: bool) -> list[Entry]:
     ]
 
 
+def _revolute(q, axis, origin):
+    return T.Revolute(axis, origin)(q)
+
+
+def _prismatic(q, axis, origin):
+    return T.Prismatic(axis, origin)(q)
+
+
+def _arm(q, o1, o2):
+    """Forward kinematics of a three-joint chain, joint values ``q (T, 3)``."""
+    z, y = o1.new_tensor([0.0, 0.0, 1.0]), o1.new_tensor([0.0, 1.0, 0.0])
+    scene = T.SceneGraph()
+    scene.add("base", None, T.Revolute(z))
+    scene.add("upper", "base", T.Revolute(y, o1))
+    scene.add("fore", "upper", T.Revolute(y, o2))
+    world = scene.world_transforms(q)
+    return world.matrices, world.positions()
+
+
+def _slider(q, o1):
+    """A prismatic chain: every joint value is a length."""
+    x, z = o1.new_tensor([1.0, 0.0, 0.0]), o1.new_tensor([0.0, 0.0, 1.0])
+    scene = T.SceneGraph()
+    scene.add("rail", None, T.Prismatic(x))
+    scene.add("lift", "rail", T.Prismatic(z, o1))
+    world = scene.world_transforms(q)
+    return world.matrices, world.positions()
+
+
+JOINT = Arg("q", (5,), "normal", "unitless")
+AXIS = Arg("axis", (3,), "unit_vector", "unitless")
+ORIGIN = Arg("origin", (3,))
+
 ENTRIES: list[Entry] = [
+    # --- joints: angles scale-free, offsets and slides x s
+    Entry("transforms.Revolute", _revolute, (JOINT, AXIS, ORIGIN), out="matrix",
+          empty=(0, 0), bad=((2,), (3, 3)), bad_arg=1),
+    Entry("transforms.Revolute[matrix]", _revolute,
+          (JOINT, AXIS, Arg("origin", (4, 4), lambda shape, g, dt: T.compose(
+              T.translation(torch.randn(3, generator=g, dtype=F64)),
+              torch.block_diag(GENERATORS["rotation"]((3, 3), g, F64), torch.ones(1, 1,
+                                                                                dtype=F64))),
+              "matrix")),
+          out="matrix", empty=(0, 0), bad=((4, 3), (4,)), bad_arg=2),
+    Entry("transforms.Prismatic", _prismatic, (Arg("q", (5,)), AXIS, ORIGIN), out="matrix",
+          empty=(0, 0), bad=((2,), (3, 3)), bad_arg=1),
+    # the nodes' dtype mismatch raises in the joints (Revolute, Prismatic entries)
+    Entry("transforms.SceneGraph[3d,joints]", _arm,
+          (Arg("theta", (5, 3), "normal", "unitless"), Arg("o1", (3,)), Arg("o2", (3,))),
+          out=("matrix", "length"), empty=(0, 0), mixed=None, bad=((5, 2), (5, 3, 1))),
+    Entry("transforms.SceneGraph[3d,prismatic]", _slider, (Arg("theta", (5, 2)), Arg("o1", (3,))),
+          out=("matrix", "length"), empty=(0, 0), mixed=None, bad=((5, 3), (5, 2, 1))),
     *_closed_3d("find_euclidean", False),
     *_closed_3d("find_similarity", True),
     *_closed_3d("find_affine", True),
