@@ -169,7 +169,7 @@ def _split_params(model: str):
 
 N = 8
 SRC = Arg("src", (2, N, 2), _src)
-BADP = ((2, N, 3), (2,))
+BADP = ((2, N, 4), (2,))  # (2, N, 3) is a valid 3D problem for some
 PAIR_EMPTY = ((0, 0), (1, 0))  # N = 0 is a ShapeError (a fit of no points is undefined)
 MAT = Arg("matrix", (4, 3, 3), "homography", "matrix")
 BADM = ((4, 3, 2), (3,))

@@ -105,6 +105,12 @@ def _slider(q, o1):
     return world.matrices, world.positions()
 
 
+def _typical(points):
+    """A robust scale that scales with the points: their mean |coordinate| (1 if none)."""
+    size = points.detach().nan_to_num(0.0).abs().double()
+    return float(size.mean()) if size.numel() and bool(size.mean() > 0) else 1.0
+
+
 JOINT = Arg("q", (5,), "normal", "unitless")
 AXIS = Arg("axis", (3,), "unit_vector", "unitless")
 ORIGIN = Arg("origin", (3,))
@@ -136,6 +142,21 @@ ENTRIES: list[Entry] = [
           lambda s, d: tuple(T.find_euclidean(s, d, allow_reflection=True)),
           (SRC3, Arg("dst", (2, N3, 3), _dst3(False))), out=FIT3, empty=((0, 0), (1, 0)),
           bad=((2, N3, 4), (2,))),
+    # --- iterative 3D fits (LM on se(3)): matrix, params, loss, history
+    *[Entry(f"transforms.fit_transform[3d,{model},{loss}]",
+            lambda s, d, model=model, loss=loss: tuple(T.fit_transform(
+                s, d, model, steps=4, tol=0.0, loss=loss, scale=_typical(s))),
+            (SRC3, Arg("dst", (2, N3, 3), _dst3(model == "similarity"))),
+            out=("matrix", "unitless", "area", "area"), empty=((0, 0), (1, 0)),
+            bad=((2, N3, 4), (2,)))
+      for model, loss in (("euclidean", "l2"), ("similarity", "cauchy"),
+                          ("euclidean", "tukey"))],
+    Entry("transforms.fit_transform[3d,weights]",
+          lambda w, s, d: tuple(T.fit_transform(s, d, "similarity", steps=4, tol=0.0,
+                                                weights=w)),
+          (Arg("weights", (2, N3), "positive", "unitless"), SRC3,
+           Arg("dst", (2, N3, 3), _dst3(True))), out=("matrix", "unitless", "area", "area"),
+          empty=((0, 0), (1, 0), (2, 0)), bad=((2, N3 + 1), (2, N3, 3))),
     # --- homogeneous 3D
     Entry("transforms.translation[3d]", T.translation, (Arg("offset", (4, 3)),), out="matrix",
           empty=(0, 0), bad=((4, 4), ())),
