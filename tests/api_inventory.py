@@ -748,6 +748,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.transforms.ransac": [
         "RobustFit",
         "SAMPLE_SIZES",
+        "SAMPLE_SIZES_3D",
         "find_transform_ransac",
     ],
     "torchgeo_cg.transforms.registration": [

@@ -111,6 +111,25 @@ def _typical(points):
     return float(size.mean()) if size.numel() and bool(size.mean() > 0) else 1.0
 
 
+def _outliers(gen):
+    """``gen``'s correspondences with the first 6 replaced by gross outliers."""
+    def out(shape, g, dtype):
+        dst = gen(shape, g, dtype)
+        dst[..., :6, :] = 10 * torch.randn(*shape[:-2], 6, 3, generator=_seeded(g, 2),
+                                           dtype=F64)
+        return dst
+    return out
+
+
+def _ransac3(model: str):
+    def call(src, dst):
+        top = float(dst.detach().nan_to_num(0.0).abs().amax()) if dst.numel() else 1.0
+        return tuple(T.find_transform_ransac(src, dst, model, threshold=0.02 * top,
+                                             generator=torch.Generator().manual_seed(0),
+                                             hypotheses_per_round=16))
+    return call
+
+
 JOINT = Arg("q", (5,), "normal", "unitless")
 AXIS = Arg("axis", (3,), "unit_vector", "unitless")
 ORIGIN = Arg("origin", (3,))
@@ -157,6 +176,13 @@ ENTRIES: list[Entry] = [
           (Arg("weights", (2, N3), "positive", "unitless"), SRC3,
            Arg("dst", (2, N3, 3), _dst3(True))), out=("matrix", "unitless", "area", "area"),
           empty=((0, 0), (1, 0), (2, 0)), bad=((2, N3 + 1), (2, N3, 3))),
+    # --- RANSAC in 3D: the threshold is a fraction of the data's extent (scales with it)
+    *[Entry(f"transforms.find_transform_ransac[3d,{model}]", _ransac3(model),
+            (Arg("src", (2, 24, 3), _src3),
+             Arg("dst", (2, 24, 3), _outliers(_dst3(model == "similarity")))),
+            out=("matrix", "index", "index", "index"), empty=((0, 0), (1, 0)), nan="skip",
+            bad=((2, 24, 4), (2,)))
+      for model in ("euclidean", "similarity", "affine")],
     # --- homogeneous 3D
     Entry("transforms.translation[3d]", T.translation, (Arg("offset", (4, 3)),), out="matrix",
           empty=(0, 0), bad=((4, 4), ())),
