@@ -430,8 +430,6 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.points.icp_steps": [
         "apply_transform",
         "point_to_plane_step",
-        "rodrigues",
-        "weighted_procrustes",
     ],
     "torchgeo_cg.points.nearest_neighbors": [
         "KNNResult",

@@ -25,7 +25,7 @@ import math
 import torch
 
 from torchgeo_cg.transforms._so3 import hat
-from torchgeo_cg.transforms._solvers import _spd_solve
+from torchgeo_cg.transforms._solvers import spd_solve
 from torchgeo_cg.transforms.robust import robust_loss, robust_weights
 from torchgeo_cg.transforms.rotations import se3_exp, se3_log
 
@@ -104,7 +104,7 @@ def lm_fit_3d(src, dst, w, init, with_scale: bool, kind: str, scale: float, step
         jtj, jtr = _normal_system(h, p, q, wn, kind, c, with_scale)
         diag = jtj.diagonal(dim1=-2, dim2=-1)
         damp = mu[:, None] * diag + 1e-12 * diag.sum(-1, keepdim=True) + 1e-30
-        step = -_spd_solve(jtj + torch.diag_embed(damp), jtr)  # (B, P)
+        step = -spd_solve(jtj + torch.diag_embed(damp), jtr)  # (B, P)
         step = torch.where(torch.isfinite(step), step, torch.zeros_like(step))
         trial = _perturbation(step, with_scale) @ h
         obj_new, _ = _terms(trial, p, q, wn, kind, c)
