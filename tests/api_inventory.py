@@ -831,6 +831,7 @@ INVENTORY: dict[str, list[str]] = {
         "figure",
         "registered_figures",
     ],
+    "torchgeo_cg.viz.rotations": [],
     "torchgeo_cg.viz.scans": [
         "ScanPairs",
         "rabbit_scan_pairs",
