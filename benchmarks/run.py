@@ -110,6 +110,7 @@ def render_markdown(results_dir: Path = RESULTS) -> str:
             "",
             f"Run {meta['time']}, {meta['machine']}, {meta['cpu_count']} cores, "
             f"torch {meta['torch']}" + (" (quick sizes)" if data.get("quick") else "") + ".",
+            *([f"Note: {meta['note']}"] if meta.get("note") else []),
             "",
             "| case | threads | ours (ms) | peer | peer (ms) | ratio | target | ok | notes |",
             "|---|---:|---:|---|---:|---:|---:|:-:|---|",
@@ -147,7 +148,8 @@ def median_of_runs(runs: list[list[Measurement]]) -> list[Measurement]:
 
 
 def run(
-    only: list[str] | None = None, quick: bool = False, write: bool = True, repeat: int = 1
+    only: list[str] | None = None, quick: bool = False, write: bool = True, repeat: int = 1,
+    note: str | None = None,
 ) -> list[Measurement]:
     RESULTS.mkdir(exist_ok=True)
     measured: list[Measurement] = []
@@ -163,7 +165,7 @@ def run(
         measured += area_results
         if write:
             payload = {
-                "meta": metadata(),
+                "meta": {**metadata(), **({"note": note} if note else {})},
                 "quick": quick,
                 "results": [m.as_dict() for m in area_results],
             }
@@ -208,9 +210,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-write", action="store_true", help="do not write results")
     parser.add_argument("--repeat", type=int, default=1, metavar="K",
                         help="run every area K times in turn; per row the median run")
+    parser.add_argument("--note", metavar="TEXT",
+                        help="a remark stored with the results and shown under the area's "
+                             "heading (e.g. that the machine was loaded)")
     args = parser.parse_args(argv)
     try:
-        measured = run(args.only, args.quick, write=not args.no_write, repeat=max(args.repeat, 1))
+        measured = run(args.only, args.quick, write=not args.no_write, repeat=max(args.repeat, 1),
+                       note=args.note)
     except MissingPeer as exc:
         parser.exit(2, f"{parser.prog}: error: {exc}\n")
     print_table(measured)

@@ -436,8 +436,6 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.points.icp_steps": [
         "apply_transform",
         "point_to_plane_step",
-        "rodrigues",
-        "weighted_procrustes",
     ],
     "torchgeo_cg.points.nearest_neighbors": [
         "KNNResult",
@@ -627,8 +625,10 @@ INVENTORY: dict[str, list[str]] = {
         "HomogeneousTransform",
         "HomographyModel",
         "Orbit",
+        "Prismatic",
         "RegistrationResult",
         "ReportShapes",
+        "Revolute",
         "RobustFit",
         "SceneGraph",
         "ShapeFit",
@@ -731,6 +731,10 @@ INVENTORY: dict[str, list[str]] = {
         "translation",
     ],
     "torchgeo_cg.transforms.homography_dlt": ["find_homography_dlt"],
+    "torchgeo_cg.transforms.joints": [
+        "Prismatic",
+        "Revolute",
+    ],
     "torchgeo_cg.transforms.modules": [
         "HomogeneousTransform",
         "TRSTransform",
@@ -744,6 +748,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.transforms.ransac": [
         "RobustFit",
         "SAMPLE_SIZES",
+        "SAMPLE_SIZES_3D",
         "find_transform_ransac",
     ],
     "torchgeo_cg.transforms.registration": [
@@ -828,6 +833,7 @@ INVENTORY: dict[str, list[str]] = {
         "figure",
         "registered_figures",
     ],
+    "torchgeo_cg.viz.rotations": [],
     "torchgeo_cg.viz.sdf": [],
     "torchgeo_cg.viz.sparse_marching_cubes": [],
     "torchgeo_cg.viz.splines": [],

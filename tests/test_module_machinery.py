@@ -85,6 +85,8 @@ from torchgeo_cg.transforms import (
     HomogeneousTransform,
     HomographyModel,
     Orbit,
+    Prismatic,
+    Revolute,
     SceneGraph,
     TRSTransform,
 )
@@ -149,6 +151,10 @@ def _scene_graph() -> SceneGraph:
     scene.add("planet", None, Orbit(radius=3.0, learnable=True))
     scene.add("moon", "planet", Orbit(radius=1.0, speed=2.0, learnable=True))
     return scene
+
+
+_RIGID = torch.tensor([[0.0, -1.0, 0.0, 0.5], [1.0, 0.0, 0.0, -0.2], [0.0, 0.0, 1.0, 1.0],
+                       [0.0, 0.0, 0.0, 1.0]])
 
 
 def _sphere_volume(seed: int) -> torch.Tensor:
@@ -279,6 +285,12 @@ SPECS: dict[str, Spec] = {
         lambda: Orbit(radius=2.0, speed=1.5, phase=0.2, learnable=True), _T
     ),
     "torchgeo_cg.transforms.scene_graph.SceneGraph": Spec(_scene_graph, _T),
+    "torchgeo_cg.transforms.joints.Revolute": Spec(
+        lambda: Revolute([0.3, -0.4, 1.0], origin=[0.5, 0.0, 1.0]), _T
+    ),
+    "torchgeo_cg.transforms.joints.Prismatic": Spec(
+        lambda: Prismatic([1.0, 2.0, 0.5], origin=_RIGID), _T
+    ),
     "torchgeo_cg.transforms.modules.TRSTransform": Spec(
         lambda: TRSTransform(torch.tensor([0.5, -1.0]), torch.tensor(30.0), torch.tensor(1.5)),
         _P2,

@@ -169,7 +169,7 @@ def _split_params(model: str):
 
 N = 8
 SRC = Arg("src", (2, N, 2), _src)
-BADP = ((2, N, 3), (2,))
+BADP = ((2, N, 4), (2,))  # (2, N, 3) is a valid 3D problem for some
 PAIR_EMPTY = ((0, 0), (1, 0))  # N = 0 is a ShapeError (a fit of no points is undefined)
 MAT = Arg("matrix", (4, 3, 3), "homography", "matrix")
 BADM = ((4, 3, 2), (3,))
@@ -349,12 +349,12 @@ ENTRIES: list[Entry] = [
           (Arg("src", (2, RANSAC_N, 2), _src),
            Arg("dst", (2, RANSAC_N, 2), _dst("homography", outliers=6))),
           out=("matrix", "index", "index", "index"), empty=PAIR_EMPTY, nan="skip",
-          bad=((2, RANSAC_N, 3), (2,)), rtol=1e-7),
+          bad=((2, RANSAC_N, 4), (2,)), rtol=1e-7),
     Entry("transforms.find_transform_ransac[similarity]", _ransac("similarity"),
           (Arg("src", (2, RANSAC_N, 2), _src),
            Arg("dst", (2, RANSAC_N, 2), _dst("similarity", outliers=6))),
           out=("matrix", "index", "index", "index"), empty=PAIR_EMPTY, nan="skip",
-          bad=((2, RANSAC_N, 3), (2,))),
+          bad=((2, RANSAC_N, 4), (2,))),
     Entry("transforms.find_transform_ransac[weights]", _ransac_weighted,
           (Arg("weights", (2, RANSAC_N), _weights, "unitless"),
            Arg("src", (2, RANSAC_N, 2), _src),

@@ -76,7 +76,89 @@ def _closed_3d(name: str, scale: bool) -> list[Entry]:
     ]
 
 
+def _revolute(q, axis, origin):
+    return T.Revolute(axis, origin)(q)
+
+
+def _prismatic(q, axis, origin):
+    return T.Prismatic(axis, origin)(q)
+
+
+def _arm(q, o1, o2):
+    """Forward kinematics of a three-joint chain, joint values ``q (T, 3)``."""
+    z, y = o1.new_tensor([0.0, 0.0, 1.0]), o1.new_tensor([0.0, 1.0, 0.0])
+    scene = T.SceneGraph()
+    scene.add("base", None, T.Revolute(z))
+    scene.add("upper", "base", T.Revolute(y, o1))
+    scene.add("fore", "upper", T.Revolute(y, o2))
+    world = scene.world_transforms(q)
+    return world.matrices, world.positions()
+
+
+def _slider(q, o1):
+    """A prismatic chain: every joint value is a length."""
+    x, z = o1.new_tensor([1.0, 0.0, 0.0]), o1.new_tensor([0.0, 0.0, 1.0])
+    scene = T.SceneGraph()
+    scene.add("rail", None, T.Prismatic(x))
+    scene.add("lift", "rail", T.Prismatic(z, o1))
+    world = scene.world_transforms(q)
+    return world.matrices, world.positions()
+
+
+def _typical(points):
+    """A robust scale that scales with the points: their mean |coordinate| (1 if none)."""
+    size = points.detach().nan_to_num(0.0).abs().double()
+    return float(size.mean()) if size.numel() and bool(size.mean() > 0) else 1.0
+
+
+def _outliers(gen):
+    """``gen``'s correspondences with the first 6 replaced by gross outliers."""
+    def out(shape, g, dtype):
+        dst = gen(shape, g, dtype)
+        dst[..., :6, :] = 10 * torch.randn(*shape[:-2], 6, 3, generator=_seeded(g, 2),
+                                           dtype=F64)
+        return dst
+    return out
+
+
+def _ransac3(model: str):
+    def call(src, dst):
+        top = float(dst.detach().nan_to_num(0.0).abs().amax()) if dst.numel() else 1.0
+        return tuple(T.find_transform_ransac(src, dst, model, threshold=0.02 * top,
+                                             generator=torch.Generator().manual_seed(0),
+                                             hypotheses_per_round=16))
+    return call
+
+
+JOINT = Arg("q", (5,), "normal", "unitless")
+AXIS = Arg("axis", (3,), "unit_vector", "unitless")
+ORIGIN = Arg("origin", (3,))
+
+#: The joints' errors name their own arguments (origin), not the entries' o1, o2; the
+#: Revolute and Prismatic entries cover the joints' batches.
+JOINT_ERRORS = "the joints' errors name their own arguments (origin), not o1, o2"
+
 ENTRIES: list[Entry] = [
+    # --- joints: angles scale-free, offsets and slides x s
+    Entry("transforms.Revolute", _revolute, (JOINT, AXIS, ORIGIN), out="matrix",
+          empty=(0, 0), bad=((2,), (3, 3)), bad_arg=1),
+    Entry("transforms.Revolute[matrix]", _revolute,
+          (JOINT, AXIS, Arg("origin", (4, 4), lambda shape, g, dt: T.compose(
+              T.translation(torch.randn(3, generator=g, dtype=F64)),
+              torch.block_diag(GENERATORS["rotation"]((3, 3), g, F64), torch.ones(1, 1,
+                                                                                dtype=F64))),
+              "matrix")),
+          out="matrix", empty=(0, 0), bad=((4, 3), (4,)), bad_arg=2),
+    Entry("transforms.Prismatic", _prismatic, (Arg("q", (5,)), AXIS, ORIGIN), out="matrix",
+          empty=(0, 0), bad=((2,), (3, 3)), bad_arg=1),
+    # the nodes' dtype mismatch raises in the joints (Revolute, Prismatic entries)
+    Entry("transforms.SceneGraph[3d,joints]", _arm,
+          (Arg("theta", (5, 3), "normal", "unitless"), Arg("o1", (3,)), Arg("o2", (3,))),
+          out=("matrix", "length"), empty=(0, 0), mixed=None, bad=((5, 2), (5, 3, 1)),
+          cross=JOINT_ERRORS),
+    Entry("transforms.SceneGraph[3d,prismatic]", _slider, (Arg("theta", (5, 2)), Arg("o1", (3,))),
+          out=("matrix", "length"), empty=(0, 0), mixed=None, bad=((5, 3), (5, 2, 1)),
+          cross=JOINT_ERRORS),
     *_closed_3d("find_euclidean", False),
     *_closed_3d("find_similarity", True),
     *_closed_3d("find_affine", True),
@@ -85,6 +167,28 @@ ENTRIES: list[Entry] = [
           lambda s, d: tuple(T.find_euclidean(s, d, allow_reflection=True)),
           (SRC3, Arg("dst", (2, N3, 3), _dst3(False))), out=FIT3, empty=((0, 0), (1, 0)),
           bad=((2, N3, 4), (2,))),
+    # --- iterative 3D fits (LM on se(3)): matrix, params, loss, history
+    *[Entry(f"transforms.fit_transform[3d,{model},{loss}]",
+            lambda s, d, model=model, loss=loss: tuple(T.fit_transform(
+                s, d, model, steps=4, tol=0.0, loss=loss, scale=_typical(s))),
+            (SRC3, Arg("dst", (2, N3, 3), _dst3(model == "similarity"))),
+            out=("matrix", "unitless", "area", "area"), empty=((0, 0), (1, 0)),
+            bad=((2, N3, 4), (2,)))
+      for model, loss in (("euclidean", "l2"), ("similarity", "cauchy"),
+                          ("euclidean", "tukey"))],
+    Entry("transforms.fit_transform[3d,weights]",
+          lambda w, s, d: tuple(T.fit_transform(s, d, "similarity", steps=4, tol=0.0,
+                                                weights=w)),
+          (Arg("weights", (2, N3), "positive", "unitless"), SRC3,
+           Arg("dst", (2, N3, 3), _dst3(True))), out=("matrix", "unitless", "area", "area"),
+          empty=((0, 0), (1, 0), (2, 0)), bad=((2, N3 + 1), (2, N3, 3))),
+    # --- RANSAC in 3D: the threshold is a fraction of the data's extent (scales with it)
+    *[Entry(f"transforms.find_transform_ransac[3d,{model}]", _ransac3(model),
+            (Arg("src", (2, 24, 3), _src3),
+             Arg("dst", (2, 24, 3), _outliers(_dst3(model == "similarity")))),
+            out=("matrix", "index", "index", "index"), empty=((0, 0), (1, 0)), nan="skip",
+            bad=((2, 24, 4), (2,)))
+      for model in ("euclidean", "similarity", "affine")],
     # --- homogeneous 3D
     Entry("transforms.translation[3d]", T.translation, (Arg("offset", (4, 3)),), out="matrix",
           empty=(0, 0), bad=((4, 4), ())),

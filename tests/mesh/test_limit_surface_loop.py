@@ -14,6 +14,7 @@ from tests.mesh.test_limit_surface import grid
 from torchgeo_cg.mesh import (
     LoopSubdivision,
     SubdivisionTags,
+    apply_stencils,
     limit_positions,
     limit_stencils,
     limit_surface,
@@ -21,7 +22,6 @@ from torchgeo_cg.mesh import (
     sample_limit_surface,
 )
 from torchgeo_cg.mesh.data import rabbit
-from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
 
 F64 = torch.float64
 OCTA_V = [[0, 0, 1], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, -1]]

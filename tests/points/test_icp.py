@@ -12,6 +12,7 @@ import torch
 from torchgeo_cg.core import ShapeError
 from torchgeo_cg.mesh.data import rabbit_scan_pairs
 from torchgeo_cg.points import estimate_normals, icp
+from torchgeo_cg.transforms import find_euclidean, find_similarity
 
 
 def _rotation(angle, axis):
@@ -89,6 +90,30 @@ def test_init_and_max_distance():
     torch.testing.assert_close(res.transform, truth, atol=1e-9, rtol=0)
     tight = icp(source, target, max_distance=1e-3, max_iterations=5)
     assert float(tight.inlier_fraction) < 0.1
+
+
+def test_point_to_point_step_is_the_closed_form_on_the_last_matches():
+    """The final transform is find_euclidean / find_similarity of the last matches."""
+    target = _cloud(400, 6)
+    truth = _rigid(0.2, [1.0, 2.0, 0.5], [0.05, -0.02, 0.03])
+    source = _apply(torch.linalg.inv(truth), target)[:300]
+    source = source + 1e-3 * torch.randn(300, 3, generator=torch.Generator().manual_seed(0),
+                                         dtype=torch.float64)
+    for model, closed in (("euclidean", find_euclidean), ("similarity", find_similarity)):
+        res = icp(source, target, model=model, max_iterations=60)
+        moved = _apply(res.transform, source)
+        nearest = target[torch.cdist(moved, target).argmin(-1)]  # brute-force matches
+        torch.testing.assert_close(res.transform, closed(source, nearest).matrix,
+                                   atol=1e-9, rtol=0)
+
+
+def test_no_match_keeps_the_initial_transform():
+    """Every match rejected by max_distance: the pair keeps init, not the identity."""
+    target = _cloud(50, 7)
+    init = _rigid(0.3, [0.0, 1.0, 0.0], [5.0, 0.0, 0.0])
+    res = icp(target + 100.0, target, init=init, max_distance=1e-3, max_iterations=3)
+    torch.testing.assert_close(res.transform, init, atol=0, rtol=0)
+    assert float(res.inlier_fraction) == 0.0
 
 
 @pytest.mark.grad

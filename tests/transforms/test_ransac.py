@@ -80,7 +80,8 @@ def problems(b, n, outliers, noise, gen, model="homography", dtype=torch.float64
 
 
 def test_public_surface():
-    assert set(ransac.__all__) == {"RobustFit", "SAMPLE_SIZES", "find_transform_ransac"}
+    assert set(ransac.__all__) == {"RobustFit", "SAMPLE_SIZES", "SAMPLE_SIZES_3D",
+                                   "find_transform_ransac"}
     assert ransac.RobustFit._fields == ("matrix", "inliers", "num_inliers", "rank_ok")
 
 

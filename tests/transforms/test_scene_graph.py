@@ -148,7 +148,7 @@ def test_errors():
         scene.add("moon", "sun")
     with pytest.raises(TypeError, match="local_transform must be"):
         scene.add("moon", "planet", 3.0)
-    with pytest.raises(ShapeError, match=r"theta: expected shape \(T\), got \(2, 3\)"):
+    with pytest.raises(ShapeError, match=r"theta: expected shape \(T\) or \(T, K=1\).* \(2, 3\)"):
         scene.world_transforms(torch.zeros(2, 3))
     with pytest.raises(TypeError, match="theta: expected a floating"):
         scene.world_transforms(torch.zeros(3, dtype=torch.long))

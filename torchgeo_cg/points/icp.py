@@ -47,9 +47,10 @@ import torch
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
 from torchgeo_cg.points._search_grid import build_grid, grid_knn_indices, grid_per_cell
-from torchgeo_cg.points.icp_steps import apply_transform, point_to_plane_step, weighted_procrustes
+from torchgeo_cg.points.icp_steps import apply_transform, point_to_plane_step
 from torchgeo_cg.points.nearest_neighbors import check_lengths, search_scale
 from torchgeo_cg.points.normals import estimate_normals
+from torchgeo_cg.transforms.estimation import find_euclidean, find_similarity
 from torchgeo_cg.transforms.robust import LOSSES, robust_weights
 
 __all__ = ["ICPResult", "icp", "METHODS", "MODELS"]
@@ -215,12 +216,21 @@ def _weights(match: _Match, loss: str, scale_b) -> torch.Tensor:
 
 
 def _solve(method, model, src, tgt_all, normals_all, matrix, match, w):
-    """The next transform ``(B, 4, 4)`` from the matches (differentiable in the points)."""
+    """The next transform ``(B, 4, 4)`` from the matches (differentiable in the points).
+
+    A pair without a weighted match keeps ``matrix`` (the closed forms would read an
+    all-zero weight set as uniform weights); so does an empty source (``N = 0``, which
+    the closed forms reject as undefined).
+    """
     B, N, _ = src.shape
+    if N == 0:
+        return matrix
     q = torch.gather(tgt_all, 1, match.idx[..., None].expand(B, N, 3))
     similarity = model == "similarity"
     if method == "point_to_point":
-        return weighted_procrustes(src, q, w, similarity)
+        closed = find_similarity if similarity else find_euclidean
+        fit = closed(src, q, w).matrix  # Kabsch / Umeyama, no reflection
+        return torch.where((w.sum(-1) > 0)[:, None, None], fit, matrix)
     n = torch.gather(normals_all, 1, match.idx[..., None].expand(B, N, 3))
     step = point_to_plane_step(apply_transform(matrix, src), q, n, w, similarity)
     return step @ matrix

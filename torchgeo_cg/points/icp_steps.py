@@ -1,11 +1,12 @@
-"""The update steps of :func:`~torchgeo_cg.points.icp`: weighted Procrustes and the
-linearised point-to-plane solve, batched over pairs, in float64.
+"""The update step of :func:`~torchgeo_cg.points.icp` for point-to-plane: the linearised
+solve, batched over pairs, in float64. (Point-to-point steps are the closed forms
+:func:`~torchgeo_cg.transforms.find_euclidean` / :func:`~torchgeo_cg.transforms.find_similarity`.)
 
 Convention:
     - Column vectors, ``p' = M @ p`` with homogeneous ``(B, 4, 4)`` matrices.
     - Correspondences come as ``src (B, N, 3)``, ``dst (B, N, 3)`` and weights
       ``w (B, N) >= 0``; zero weight ignores a row. A pair whose weights sum to zero
-      gets the identity (point-to-point) or a zero step (point-to-plane).
+      gets a zero step (the identity).
     - Every step is scale-free: no threshold has a unit (the damping of the
       point-to-plane normal equations is relative to their trace).
 """
@@ -14,7 +15,9 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["weighted_procrustes", "point_to_plane_step", "rodrigues", "apply_transform"]
+from torchgeo_cg.transforms.rotations import axis_angle_to_matrix
+
+__all__ = ["point_to_plane_step", "apply_transform"]
 
 
 def apply_transform(matrix_b44: torch.Tensor, points_bn3: torch.Tensor) -> torch.Tensor:
@@ -36,66 +39,6 @@ def _weighted_means(src, dst, w):
     mu_src = (w[..., None] * src).sum(1) / total_b1
     mu_dst = (w[..., None] * dst).sum(1) / total_b1
     return mu_src, mu_dst, total_b1, ok_b
-
-
-def weighted_procrustes(src: torch.Tensor, dst: torch.Tensor, w: torch.Tensor,
-                        similarity: bool = False) -> torch.Tensor:
-    """The rigid (Kabsch) or similarity (Umeyama) ``(B, 4, 4)`` minimising
-    ``sum_i w_i |M src_i - dst_i|^2``, without reflection.
-
-    Differentiable in ``src``, ``dst`` and ``w`` where the cross-covariance has
-    distinct singular values (every non-degenerate scan).
-
-    Example:
-        >>> src = torch.eye(3, dtype=torch.float64)[None]
-        >>> dst = src[:, :, [1, 0, 2]] * torch.tensor([1.0, -1.0, 1.0]) + 2.0
-        >>> m = weighted_procrustes(src, dst, torch.ones(1, 3, dtype=torch.float64))
-        >>> torch.allclose(apply_transform(m, src), dst)
-        True
-    """
-    mu_src, mu_dst, total_b1, ok_b = _weighted_means(src, dst, w)
-    sc, dc = src - mu_src[:, None], dst - mu_dst[:, None]
-    cov_b33 = torch.einsum("bn,bni,bnj->bij", w, dc, sc) / total_b1[..., None]
-    u, sv, vh = torch.linalg.svd(cov_b33)
-    det = torch.linalg.det(u @ vh)
-    sign_b = torch.where(det < 0, -1.0, 1.0).to(src)
-    diag_b3 = torch.cat([torch.ones_like(sv[:, :2]), sign_b[:, None]], -1)
-    rot = u @ (diag_b3[..., None] * vh)
-    if similarity:
-        var_b = (w * sc.square().sum(-1)).sum(-1) / total_b1[:, 0]
-        var_ok = var_b > 0
-        c = (sv * diag_b3).sum(-1) / torch.where(var_ok, var_b, torch.ones_like(var_b))
-        rot = rot * torch.where(var_ok, c, torch.ones_like(c))[:, None, None]
-    out = torch.eye(4, dtype=src.dtype, device=src.device).repeat(src.shape[0], 1, 1)
-    out[:, :3, :3] = rot
-    out[:, :3, 3] = mu_dst - (rot @ mu_src[..., None])[..., 0]
-    return torch.where(ok_b[:, None, None], out, torch.eye(4, dtype=src.dtype,
-                                                            device=src.device))
-
-
-def rodrigues(omega_b3: torch.Tensor) -> torch.Tensor:
-    """Rotation matrices ``(B, 3, 3)`` of rotation vectors (radians), exact SO(3).
-
-    Below ``theta = eps^(1/4)`` the coefficients are their Taylor series (truncation
-    far below ``eps``), with the double-``where`` so the gradient at 0 is the limit.
-
-    Example:
-        >>> r = rodrigues(torch.tensor([[0.0, 0.0, torch.pi / 2]]))
-        >>> r.round(decimals=6)[0, :2, :2]
-        tensor([[ 0., -1.],
-                [ 1.,  0.]])
-    """
-    t2 = omega_b3.square().sum(-1)
-    small = t2 < torch.finfo(omega_b3.dtype).eps ** 0.5
-    t2_safe = torch.where(small, torch.ones_like(t2), t2)
-    t = t2_safe.sqrt()
-    a = torch.where(small, 1 - t2 / 6 + t2 * t2 / 120, t.sin() / t)
-    b = torch.where(small, 0.5 - t2 / 24 + t2 * t2 / 720, (1 - t.cos()) / t2_safe)
-    x, y, z = omega_b3.unbind(-1)
-    zero = torch.zeros_like(x)
-    k = torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], -1).reshape(-1, 3, 3)
-    eye = torch.eye(3, dtype=omega_b3.dtype, device=omega_b3.device)
-    return eye + a[:, None, None] * k + b[:, None, None] * (k @ k)
 
 
 def point_to_plane_step(p: torch.Tensor, q: torch.Tensor, n: torch.Tensor, w: torch.Tensor,
@@ -136,7 +79,7 @@ def point_to_plane_step(p: torch.Tensor, q: torch.Tensor, n: torch.Tensor, w: to
     damp_b = torch.where(ok_b, 1e-12 * trace_b, torch.ones_like(trace_b))
     x_bk = torch.linalg.solve(a_bkk + damp_b[:, None, None] * eye_k, rhs_bk[..., None])[..., 0]
     x_bk = torch.where(ok_b[:, None], x_bk, torch.zeros_like(x_bk))
-    rot = rodrigues(x_bk[:, :3] / rho_b[:, None])
+    rot = axis_angle_to_matrix(x_bk[:, :3] / rho_b[:, None])
     if similarity:
         rot = rot * x_bk[:, 6].exp()[:, None, None]
     out = torch.eye(4, dtype=p.dtype, device=p.device).repeat(p.shape[0], 1, 1)

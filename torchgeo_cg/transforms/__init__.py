@@ -1,4 +1,4 @@
-"""Homogeneous 2D and 3D transforms, rotations, articulated scene graphs and estimation."""
+"""Homogeneous 2D and 3D transforms, rotations, articulated scene graphs and joints, estimation."""
 
 from torchgeo_cg.transforms import rotations
 from torchgeo_cg.transforms._correspondences import TransformFit
@@ -29,6 +29,7 @@ from torchgeo_cg.transforms.homogeneous import (
     translation,
 )
 from torchgeo_cg.transforms.homography_dlt import find_homography_dlt
+from torchgeo_cg.transforms.joints import Prismatic, Revolute
 from torchgeo_cg.transforms.modules import HomogeneousTransform, TRSTransform
 from torchgeo_cg.transforms.parametrization import matrix_to_parameters, parameters_to_matrix
 from torchgeo_cg.transforms.ransac import RobustFit, find_transform_ransac
@@ -136,6 +137,8 @@ __all__ = [
     "FixedTransform",
     "HomogeneousTransform",
     "Orbit",
+    "Prismatic",
+    "Revolute",
     "SceneGraph",
     "TRSTransform",
     "WorldTransforms",

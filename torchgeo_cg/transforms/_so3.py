@@ -63,11 +63,18 @@ def theta_minus_sin(theta: torch.Tensor) -> torch.Tensor:
 
 
 def exp_map(omega: torch.Tensor) -> torch.Tensor:
+    """``I + a [ω]× + b [ω]×²`` entrywise, with ``[ω]×² = ω ωᵀ - θ² I`` (no batched 3x3
+    matmul; the diagonal as ``1 - b (y² + z²)`` etc., which also avoids ``θ²`` cancelling)."""
     theta = safe_norm(omega)
-    k = hat(omega)
     a, b = sinc(theta), one_minus_cos(theta)
-    eye = torch.eye(3, dtype=omega.dtype, device=omega.device)
-    return eye + a[..., None, None] * k + b[..., None, None] * (k @ k)
+    x, y, z = omega.unbind(-1)
+    ax, ay, az = a * x, a * y, a * z
+    bxy, bxz, byz = b * x * y, b * x * z, b * y * z
+    xx, yy, zz = x * x, y * y, z * z
+    rows = [1 - b * (yy + zz), bxy - az, bxz + ay,
+            bxy + az, 1 - b * (xx + zz), byz - ax,
+            bxz - ay, byz + ax, 1 - b * (xx + yy)]
+    return torch.stack(rows, -1).unflatten(-1, (3, 3))
 
 
 

@@ -35,7 +35,7 @@ def _param_jacobian(fn, theta: torch.Tensor) -> torch.Tensor:
     return torch.einsum("bik,bkjp->bijp", fn.base, jac.unflatten(1, (3, 3))).flatten(1, 2)
 
 
-def _spd_solve(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+def spd_solve(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Solve ``a x = b`` for small SPD ``a`` (B, P, P), ``b`` (B, P) by Cholesky, batch last.
 
     Loops over the P <= 9 columns only; every operation acts on all B problems at
@@ -85,7 +85,7 @@ def levenberg_marquardt(fn, theta, prob, objective, steps, mu0, tol, bar, histor
             g = d.mT @ jtr[..., None]
         diag = a.diagonal(dim1=-2, dim2=-1)
         damp = mu[:, None] * diag + 1e-12 * diag.sum(-1, keepdim=True) + 1e-30
-        step = -_spd_solve(a + torch.diag_embed(damp), g.squeeze(-1))  # (B, P)
+        step = -spd_solve(a + torch.diag_embed(damp), g.squeeze(-1))  # (B, P)
         step = torch.where(torch.isfinite(step), step, torch.zeros_like(step))
         trial = theta + step
         obj_new, loss_new = loss_terms(fn(trial), prob, objective)

@@ -1,4 +1,4 @@
-"""Robust, batched estimation of 2D transforms: LO-RANSAC with MSAC scoring.
+"""Robust, batched estimation of 2D and 3D transforms: LO-RANSAC with MSAC scoring.
 
 :func:`find_transform_ransac` fits one transform per problem of a batch to
 correspondences with outliers. Every round draws ``K`` minimal samples for
@@ -22,6 +22,11 @@ Convention:
     - Sampling, minimal solvers and scoring run in Hartley-normalized
       coordinates (the threshold is scaled with them), so the result does not
       depend on the units of the points.
+    - 3D: ``(*, N, 3)`` points and ``(*, 4, 4)`` matrices for the euclidean,
+      similarity and affine models (minimal samples of 3, 3 and 4 points:
+      :data:`SAMPLE_SIZES_3D`), with the same algorithm; the minimal solvers are
+      the closed forms (Kabsch/Umeyama on 3 points, the affine solve on 4), batched
+      over all hypotheses.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import check_choice
-from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.transforms._correspondences import check_pair, hartley_weighted, similarity_matrix
 from torchgeo_cg.transforms._dlt import adjugate3, dlt_moments, dlt_smallest_eigenpair, matmul3
 from torchgeo_cg.transforms.estimation import (
@@ -42,10 +47,17 @@ from torchgeo_cg.transforms.estimation import (
 )
 from torchgeo_cg.transforms.fitting import fit_transform
 
-__all__ = ["RobustFit", "SAMPLE_SIZES", "find_transform_ransac"]
+__all__ = ["RobustFit", "SAMPLE_SIZES", "SAMPLE_SIZES_3D", "find_transform_ransac"]
 
-#: Minimal sample size of each model.
+#: Minimal sample size of each model (2D points).
 SAMPLE_SIZES: dict[str, int] = {"homography": 4, "affine": 3, "similarity": 2, "euclidean": 2}
+
+#: Minimal sample size of each model for 3D points.
+SAMPLE_SIZES_3D: dict[str, int] = {"affine": 4, "similarity": 3, "euclidean": 3}
+
+# the 1 - 1e-6 quantile of the chi-square distribution with D degrees of freedom
+# (scipy.stats.chi2.isf(1e-6, D)): squared errors of Gaussian inliers stay below it
+_CHI2_WIDE = {2: 27.631021115928547, 3: 30.664849706213598}
 _CLOSED_FORMS = {"affine": find_affine, "similarity": find_similarity,
                  "euclidean": find_euclidean}
 
@@ -54,7 +66,7 @@ class RobustFit(NamedTuple):
     """Result of :func:`find_transform_ransac`.
 
     Attributes:
-        matrix: ``(*, 3, 3)`` ``dst_from_src`` (``matrix[..., 2, 2] = 1`` for
+        matrix: ``(*, 3, 3)`` (3D: ``(*, 4, 4)``) ``dst_from_src`` (``matrix[..., 2, 2] = 1`` for
             homographies); the identity where no model was found. Never NaN for
             finite input.
         inliers: ``(*, N)`` bool, ``‖π(M p) - q‖ <= threshold`` (and positive weight).
@@ -71,17 +83,42 @@ class RobustFit(NamedTuple):
 
 
 class _Frame(NamedTuple):
-    p: torch.Tensor  # (B, N, 2) normalized src
-    q: torch.Tensor  # (B, N, 2) normalized dst
-    t_src: torch.Tensor  # (B, 3, 3) normalized_from_src
-    t_dst: torch.Tensor  # (B, 3, 3) normalized_from_dst
+    p: torch.Tensor  # (B, N, D) normalized src
+    q: torch.Tensor  # (B, N, D) normalized dst
+    t_src: torch.Tensor  # (B, D + 1, D + 1) normalized_from_src
+    t_dst: torch.Tensor  # (B, D + 1, D + 1) normalized_from_dst
     thr2: torch.Tensor  # (B,) squared threshold in normalized dst units
     w: torch.Tensor  # (B, N) weights (0 for non-finite points)
-    ph: torch.Tensor  # (B, 3, N) homogeneous normalized src, for the batched matmuls
+    ph: torch.Tensor  # (B, D + 1, N) homogeneous normalized src, for the batched matmuls
+
+
+def _frame_3d(src, dst, w, threshold: float) -> _Frame:
+    """3D frames: both sets centred, one shared scale (mean distance sqrt(3)) for every
+    model, so the similarity-class models stay in their class."""
+    wn = w / w.sum(-1, keepdim=True)
+    cs, cd = (src * wn[..., None]).sum(-2), (dst * wn[..., None]).sum(-2)  # (B, 3)
+    ps, qs = src - cs[:, None], dst - cd[:, None]
+    radius = (wn * (safe_norm(ps) + safe_norm(qs))).sum(-1) / 2  # (B,)
+    ok = radius > 0  # only coincident points leave the scale undefined
+    scale = torch.where(ok, math.sqrt(3.0) / torch.where(ok, radius, torch.ones_like(radius)),
+                        torch.ones_like(radius))
+
+    def similarity(centroid):  # [[k I, -k c], [0, 1]], (B, 4, 4)
+        eye = torch.eye(3, dtype=src.dtype, device=src.device) * scale[:, None, None]
+        top = torch.cat([eye, (-scale[:, None] * centroid)[..., None]], -1)
+        bottom = torch.zeros_like(top[:, :1])
+        bottom[..., 3] = 1.0
+        return torch.cat([top, bottom], -2)
+
+    p, q = ps * scale[:, None, None], qs * scale[:, None, None]
+    return _Frame(p, q, similarity(cs), similarity(cd), (threshold * scale).square(), w,
+                  _homogeneous(p))
 
 
 def _normalized_frame(src, dst, w, model: str, threshold: float) -> _Frame:
     """Hartley frames; similarity-class models share one scale between src and dst."""
+    if src.shape[-1] == 3:
+        return _frame_3d(src, dst, w, threshold)
     ns, nd = hartley_weighted(src, w), hartley_weighted(dst, w)
     if model in ("homography", "affine"):
         return _Frame(ns.points, nd.points, ns.transform, nd.transform,
@@ -130,12 +167,23 @@ def _homography_4pt(ps: torch.Tensor, qs: torch.Tensor):
     return h.movedim(0, -1).movedim(0, -1), valid  # (..., 3, 3)
 
 
+def _spread_3d(pts: torch.Tensor, model: str) -> torch.Tensor:
+    """Volume of the 4 points' tetrahedron (affine) or squared area of the 3 points'
+    triangle (rigid models), (B, K), in the normalized frame."""
+    d = pts[..., 1:, :] - pts[..., :1, :]  # (B, K, m - 1, 3)
+    if model == "affine":
+        return torch.linalg.det(d).abs()
+    return torch.linalg.cross(d[..., 0, :], d[..., 1, :], dim=-1).square().sum(-1)
+
+
 def _minimal_fits(model: str, ps: torch.Tensor, qs: torch.Tensor):
-    """Hypotheses (B, K, 3, 3) and validity (B, K) from samples (B, K, m, 2)."""
+    """Hypotheses (B, K, D + 1, D + 1) and validity (B, K) from samples (B, K, m, D)."""
     if model == "homography":
         return _homography_4pt(ps, qs)
     tol = math.sqrt(torch.finfo(ps.dtype).eps)
-    if model == "affine":
+    if ps.shape[-1] == 3:  # collinear (rigid) or coplanar (affine) samples are rejected
+        valid = (_spread_3d(ps, model) > tol) & (_spread_3d(qs, model) > tol)
+    elif model == "affine":
         valid = (_cross(ps[..., 0, :], ps[..., 1, :], ps[..., 2, :]).abs() > tol) & (
             _cross(qs[..., 0, :], qs[..., 1, :], qs[..., 2, :]).abs() > tol)
     else:
@@ -144,18 +192,21 @@ def _minimal_fits(model: str, ps: torch.Tensor, qs: torch.Tensor):
     return _CLOSED_FORMS[model](ps, qs).matrix, valid
 
 
-def _squared_errors(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
-    """``‖π(H p) - q‖²`` (B, K, N) for hypotheses (B, K, 3, 3) and points (B, N, 2).
-
-    ``p`` may also be given homogeneous and transposed, (B, 3, N).
+def _squared_errors(h: torch.Tensor, homog: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """``‖π(H p) - q‖²`` (B, K, N) for hypotheses (B, K, D+1, D+1), points ``p`` given
+    homogeneous and transposed, ``homog`` (B, D + 1, N) (:func:`_homogeneous`), and
+    ``q`` (B, N, D).
 
     One batched matmul maps all points by all hypotheses. A point mapped to
     infinity (``w = 0``) gives inf or NaN, which :func:`_msac` and the inlier
     test count as an outlier (no grad flows here, so no guard is needed).
     """
-    b, k = h.shape[:2]
-    homog = p if p.shape[-2] == 3 and p.shape[-1] != 2 else _homogeneous(p)  # (B, 3, N)
-    uvw = (h.reshape(b, k * 3, 3) @ homog).unflatten(1, (k, 3))  # (B, K, 3, N)
+    b, k, size = h.shape[0], h.shape[1], h.shape[-1]
+    d = size - 1
+    uvw = (h.reshape(b, k * size, size) @ homog).unflatten(1, (k, size))  # (B, K, D + 1, N)
+    if d == 3:  # affine-class models only in 3D: the last row is (0, 0, 0, 1)
+        e = uvw[:, :, :3] - q.mT[:, None]
+        return e.square().sum(2)
     inv_w = uvw[:, :, 2].reciprocal()
     ex = torch.addcmul(-q[:, None, :, 0], uvw[:, :, 0], inv_w)
     ey = torch.addcmul(-q[:, None, :, 1], uvw[:, :, 1], inv_w)
@@ -163,7 +214,7 @@ def _squared_errors(h: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.
 
 
 def _homogeneous(p: torch.Tensor) -> torch.Tensor:
-    """(B, N, 2) -> (B, 3, N) homogeneous columns."""
+    """(B, N, D) -> (B, D + 1, N) homogeneous columns."""
     return torch.cat([p, torch.ones_like(p[..., :1])], -1).mT
 
 
@@ -174,34 +225,35 @@ def _msac(err2: torch.Tensor, thr2: torch.Tensor, w: torch.Tensor) -> torch.Tens
 
 
 def _sample(frame: _Frame, m: int, k: int, weighted: bool, generator):
-    """Minimal samples (B, K, m, 2) of src and dst."""
+    """Minimal samples (B, K, m, D) of src and dst."""
     p, q, w = frame.p, frame.q, frame.w
-    b, n = p.shape[:2]
+    b, n, d = p.shape
     if weighted:
         idx = torch.multinomial(w, k * m, replacement=True, generator=generator)
     else:
         idx = torch.randint(0, n, (b, k * m), generator=generator, device=p.device)
-    idx = idx.reshape(b, k * m, 1).expand(b, k * m, 2)
-    return (torch.gather(p, 1, idx).reshape(b, k, m, 2),
-            torch.gather(q, 1, idx).reshape(b, k, m, 2))
+    idx = idx.reshape(b, k * m, 1).expand(b, k * m, d)
+    return (torch.gather(p, 1, idx).reshape(b, k, m, d),
+            torch.gather(q, 1, idx).reshape(b, k, m, d))
 
 
 def _round(frame: _Frame, model, k, preview, keep, weighted, generator):
-    """One round: best hypothesis (B, 3, 3) of K samples per problem and its score (B,)."""
-    m = SAMPLE_SIZES[model]
+    """One round: best hypothesis (B, D+1, D+1) of K samples per problem and its score (B,)."""
+    m = _sample_size(model, frame.p.shape[-1])
     ps, qs = _sample(frame, m, k, weighted, generator)
     hyp, valid = _minimal_fits(model, ps, qs)  # (B, K, 3, 3), (B, K)
     hyp = torch.where(valid[..., None, None], hyp, torch.zeros_like(hyp))
     p, q, w, thr2 = frame.p, frame.q, frame.w, frame.thr2
-    b, n = p.shape[:2]
+    b, n, d = p.shape
     if preview < n:  # preemptive ranking on a random subset of the points
         sub = torch.randint(0, n, (b, preview), generator=generator, device=p.device)
-        sub2 = sub[..., None].expand(b, preview, 2)
-        rough = _msac(_squared_errors(hyp, torch.gather(p, 1, sub2), torch.gather(q, 1, sub2)),
+        sub2 = sub[..., None].expand(b, preview, d)
+        rough = _msac(_squared_errors(hyp, _homogeneous(torch.gather(p, 1, sub2)),
+                                      torch.gather(q, 1, sub2)),
                       thr2, torch.gather(w, 1, sub))
         rough = torch.where(valid, rough, torch.full_like(rough, math.inf))
         top = rough.topk(min(keep, k), dim=1, largest=False).indices  # (B', T)
-        hyp = torch.gather(hyp, 1, top[..., None, None].expand(-1, -1, 3, 3))
+        hyp = torch.gather(hyp, 1, top[..., None, None].expand(-1, -1, d + 1, d + 1))
         valid = torch.gather(valid, 1, top)
     score = _msac(_squared_errors(hyp, frame.ph, q), thr2, w)
     score = torch.where(valid, score, torch.full_like(score, math.inf))
@@ -211,23 +263,23 @@ def _round(frame: _Frame, model, k, preview, keep, weighted, generator):
 
 
 def _count(h, frame: _Frame):
-    """Squared errors (B, N) of one hypothesis per problem (B, 3, 3), and the inlier mask."""
+    """Squared errors (B, N) of one hypothesis per problem (B, D+1, D+1), and the inliers."""
     err = _squared_errors(h[:, None], frame.ph, frame.q)[:, 0]
     return err, (err <= frame.thr2[:, None]) & (frame.w > 0)
 
 
 def _search(frame: _Frame, model, confidence, max_iterations, k, lo_iterations, weighted,
             generator, start):
-    """Adaptive rounds of :func:`_round` + LO: best hypothesis (B, 3, 3) and score (B,).
+    """Adaptive rounds of :func:`_round` + LO: best hypothesis (B, D+1, D+1), score (B,).
 
     After each round the round's winner is locally optimized (LO-RANSAC), and a
     problem stops once ``K · rounds >= log(1 - confidence) / log(1 - ε^m)``
     with ``ε`` its best inlier fraction so far (the classical RANSAC bound).
     """
-    b = frame.p.shape[0]
-    m = SAMPLE_SIZES[model]
-    eye = torch.eye(3, dtype=frame.p.dtype, device=frame.p.device)
-    best = eye.expand(b, 3, 3).clone()
+    b, d = frame.p.shape[0], frame.p.shape[-1]
+    m = _sample_size(model, d)
+    eye = torch.eye(d + 1, dtype=frame.p.dtype, device=frame.p.device)
+    best = eye.expand(b, d + 1, d + 1).clone()
     score = torch.full_like(frame.thr2, math.inf)
     drawn = torch.zeros(b, dtype=torch.long, device=frame.p.device)
     needed = torch.where(start, max_iterations, 0)
@@ -279,7 +331,8 @@ def _dlt_in_frame(frame: _Frame, w_fit: torch.Tensor):
 def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, final: bool):
     """Least-squares refit on weights w_fit (B, N): DLT (or LM from ``init`` when ``final``)."""
     if model != "homography":
-        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit).matrix, (w_fit > 0).sum(-1) >= 2
+        enough = (w_fit > 0).sum(-1) >= _sample_size(model, frame.p.shape[-1])
+        return _CLOSED_FORMS[model](frame.p, frame.q, w_fit).matrix, enough
     if not final:
         return _dlt_in_frame(frame, w_fit)
     ok = (w_fit > 0).sum(-1) >= 4
@@ -304,26 +357,32 @@ def _local_optimization(frame: _Frame, model, best, score, lo_iterations: int):
 def _final_refit(frame: _Frame, model, best):
     """The maximum-likelihood refit of the winner.
 
-    The noise scale is estimated from the inliers (``σ² = mean e² / 2``, as for a
-    2D Gaussian error; the truncation at the threshold biases it a little low)
-    and every point with
-    ``e <= max(threshold, 5.26 σ)`` (the 1 - 1e-6 quantile) is fitted, so that no
+    The noise scale is estimated from the inliers (``σ² = mean e² / D``, as for a
+    Gaussian error in D dimensions; the truncation at the threshold biases it a little
+    low) and every point with ``e <= max(threshold, 5.26 σ)`` (5.54 σ in 3D: the
+    1 - 1e-6 quantile) is fitted, so that no
     true inlier is cut at the threshold (MAGSAC's observation); homographies
     use LM on the transfer error, the other models their closed forms.
     """
     err, inl = _count(best, frame)
+    d = frame.p.shape[-1]
     count = inl.sum(-1).clamp_min(1)
-    sigma2 = torch.where(inl, err, torch.zeros_like(err)).sum(-1) / (2 * count)  # E e² = 2σ²
-    wide2 = torch.maximum(frame.thr2, -2 * math.log(1e-6) * sigma2.nan_to_num(0.0))
+    sigma2 = torch.where(inl, err, torch.zeros_like(err)).sum(-1) / (d * count)  # E e² = Dσ²
+    wide2 = torch.maximum(frame.thr2, _CHI2_WIDE[d] * sigma2.nan_to_num(0.0))
     wide = (err <= wide2[:, None]) & (frame.w > 0)
     refit, ok = _refit(model, frame, frame.w * wide, best, True)
     ok = ok & torch.isfinite(refit).flatten(-2).all(-1)
     return torch.where(ok[:, None, None], refit, best)
 
 
+def _sample_size(model: str, d: int) -> int:
+    return (SAMPLE_SIZES_3D if d == 3 else SAMPLE_SIZES)[model]
+
+
 def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
-              lo_iterations, min_inliers):
-    check_choice(model, SAMPLE_SIZES, "model")
+              lo_iterations, min_inliers, d):
+    check_choice(model, SAMPLE_SIZES_3D if d == 3 else SAMPLE_SIZES,
+                 "model (3D points)" if d == 3 else "model")
     if not (isinstance(threshold, (int, float)) and math.isfinite(threshold) and threshold > 0):
         raise ValueError(f"threshold: expected a finite positive number, got {threshold!r}")
     if not (isinstance(confidence, (int, float)) and 0 < confidence < 1):
@@ -338,9 +397,9 @@ def _validate(model, threshold, confidence, max_iterations, hypotheses_per_round
 
 
 def _prepare(src, dst, weights):
-    """Flattened (B, N, 2) points with non-finite ones zeroed, weights (B, N), NaN-weight flag."""
-    n = src.shape[-2]
-    p, q = src.reshape(-1, n, 2), dst.reshape(-1, n, 2)
+    """Flattened (B, N, D) points with non-finite ones zeroed, weights (B, N), NaN-weight flag."""
+    n, d = src.shape[-2:]
+    p, q = src.reshape(-1, n, d), dst.reshape(-1, n, d)
     finite = torch.isfinite(p).all(-1) & torch.isfinite(q).all(-1)  # (B, N)
     w = torch.ones_like(p[..., 0]) if weights is None else weights.reshape(-1, n)
     nan_weight = torch.isnan(w).any(-1)
@@ -371,7 +430,10 @@ def find_transform_ransac(
     (or, for homographies, inconsistent orientations) are rejected before
     scoring; the winner is refit on its inliers ``lo_iterations`` times (DLT
     or closed-form least squares), and a homography finally gets 5 LM steps on
-    the transfer error of its inliers (:func:`fit_transform`).
+    the transfer error of its inliers (:func:`fit_transform`). 3D points
+    ``(*, N, 3)`` give ``(*, 4, 4)`` matrices for the euclidean, similarity and
+    affine models (minimal samples of 3, 3 and 4 points, :data:`SAMPLE_SIZES_3D`;
+    collinear, respectively coplanar, samples are rejected).
 
     Convention:
         Column vectors, ``dst ~ M @ [x, y, 1]ᵀ``; ``threshold`` is in ``dst``
@@ -388,10 +450,11 @@ def find_transform_ransac(
         solved in float32 and the matrix is returned in their dtype.
 
     Args:
-        src: ``(*, N, 2)`` source points.
-        dst: ``(*, N, 2)`` destination points.
+        src: ``(*, N, 2)`` or ``(*, N, 3)`` source points.
+        dst: ``(*, N, D)`` destination points.
         model: ``"homography"``, ``"affine"``, ``"similarity"`` or ``"euclidean"``
-            (minimal samples of 4, 3, 2, 2 points: :data:`SAMPLE_SIZES`).
+            (minimal samples of 4, 3, 2, 2 points: :data:`SAMPLE_SIZES`); in 3D
+            ``"affine"``, ``"similarity"`` or ``"euclidean"``.
         threshold: inlier threshold on the transfer error, input units, > 0.
         confidence: probability of drawing at least one all-inlier sample, in (0, 1).
         max_iterations: most minimal samples drawn per problem.
@@ -403,7 +466,7 @@ def find_transform_ransac(
             14 for homographies, more than random outliers reach).
 
     Returns:
-        :class:`RobustFit` ``(matrix (*, 3, 3), inliers (*, N), num_inliers (*),
+        :class:`RobustFit` ``(matrix (*, D + 1, D + 1), inliers (*, N), num_inliers (*),
         rank_ok (*))``.
 
     Example:
@@ -419,10 +482,24 @@ def find_transform_ransac(
         >>> bool(fit.inliers[:, 40:].all()), torch.allclose(fit.matrix, h.expand(2, 3, 3),
         ...                                                 atol=1e-3)
         (True, True)
+
+        In 3D, a rigid motion with 50% outliers:
+
+        >>> from torchgeo_cg.transforms import se3_exp
+        >>> m = se3_exp(torch.tensor([1.0, -2.0, 0.5, 0.4, 0.1, -0.8]))
+        >>> src = torch.randn(200, 3, generator=gen)
+        >>> dst = transform_points(m, src)
+        >>> dst[:100] = torch.randn(100, 3, generator=gen) * 3
+        >>> fit = find_transform_ransac(src, dst, "euclidean", threshold=0.01, generator=gen)
+        >>> fit.matrix.shape, int(fit.num_inliers), bool(fit.inliers[100:].all())
+        (torch.Size([4, 4]), 100, True)
+        >>> bool((fit.matrix - m).abs().max() < 1e-5)
+        True
     """
-    weights = check_pair(src, dst, weights)
+    weights = check_pair(src, dst, weights, dims=(2, 3))
+    d = src.shape[-1]
     _validate(model, threshold, confidence, max_iterations, hypotheses_per_round,
-              lo_iterations, min_inliers)
+              lo_iterations, min_inliers, d)
     if working_dtype(src.dtype) != src.dtype:  # float16/bfloat16: solved in float32
         work = working_dtype(src.dtype)
         fit = find_transform_ransac(src.to(work), dst.to(work), model, threshold, confidence,
@@ -430,7 +507,7 @@ def find_transform_ransac(
                                     None if weights is None else weights.to(work), generator,
                                     hypotheses_per_round, lo_iterations, min_inliers)
         return fit._replace(matrix=cast_back(fit.matrix, src.dtype))
-    m = SAMPLE_SIZES[model]
+    m = _sample_size(model, d)
     min_inliers = 3 * m + 2 if min_inliers is None else min_inliers
     batch, n = src.shape[:-2], src.shape[-2]
     p, q, w, nan_weight = _prepare(src, dst, weights)
@@ -442,10 +519,10 @@ def find_transform_ransac(
     best = _final_refit(frame, model, best)
     _, inliers = _count(best, frame)
     matrix = torch.linalg.solve(frame.t_dst, best @ frame.t_src)  # T_dst⁻¹ Ĥ T_src
-    h33 = matrix[..., 2, 2]
+    h33 = matrix[..., d, d]
     matrix = matrix / torch.where(h33 != 0, h33, torch.ones_like(h33))[..., None, None]
     num = inliers.sum(-1)
     rank_ok = usable & (num >= min_inliers) & torch.isfinite(score) & ~nan_weight
     matrix = torch.where(nan_weight[:, None, None], torch.full_like(matrix, math.nan), matrix)
-    return RobustFit(matrix.reshape(*batch, 3, 3), inliers.reshape(*batch, n),
+    return RobustFit(matrix.reshape(*batch, d + 1, d + 1), inliers.reshape(*batch, n),
                      num.reshape(batch), rank_ok.reshape(batch))

@@ -1,19 +1,26 @@
-"""Articulated motion: a kinematic tree of 2D homogeneous transforms (report section 2.3).
+"""Articulated motion: a kinematic tree of 2D or 3D homogeneous transforms (report section 2.3).
 
 Convention:
     - Column vectors: a node's world matrix is ``world_from_node = world_from_parent @
       parent_from_node``, so a point ``p`` in the node's frame is at
       ``transform_points(world_from_node, p)`` in the world.
+    - Nodes are ``(3, 3)`` (2D) or ``(4, 4)`` (3D) matrices, one size per graph.
     - Time ``theta`` is a batch of phases in **radians**, ``(T,)``; one animation
       cycle is ``theta`` in ``[0, 2π)``. A body with ``speed = k`` completes ``k``
       revolutions per cycle (period ``2π / k``).
     - Positive speeds orbit counter-clockwise (y up).
+    - Joint values: ``theta`` may instead be ``(T, K)``, one column per node in
+      insertion order, so each joint of a chain
+      (:class:`~torchgeo_cg.transforms.Revolute`,
+      :class:`~torchgeo_cg.transforms.Prismatic`) gets its own value: the forward
+      kinematics of ``T`` configurations. Nodes without a joint ignore their column
+      (a NaN there still gives NaN).
 
-Each node's local transform is an ``nn.Module`` (or a fixed ``(3, 3)`` tensor, or
-a plain callable) mapping ``theta (T,)`` to ``parent_from_node (T, 3, 3)``.
-:meth:`SceneGraph.world_transforms` evaluates every node for all ``T`` times in
-one pass per tree level: each level's local matrices are stacked and multiplied
-by their parents' world matrices in a single batched matmul.
+Each node's local transform is an ``nn.Module`` (or a fixed ``(3, 3)`` / ``(4, 4)``
+tensor, or a plain callable) mapping ``theta (T,)`` to ``parent_from_node (T, 3, 3)``
+or ``(T, 4, 4)``. :meth:`SceneGraph.world_transforms` evaluates every node for all
+``T`` times in one pass per tree level: each level's local matrices are stacked and
+multiplied by their parents' world matrices in a single batched matmul.
 """
 
 from __future__ import annotations
@@ -25,7 +32,13 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from torchgeo_cg.core.check import check_float, check_shape
+from torchgeo_cg.core.check import (
+    ShapeError,
+    check_float,
+    check_shape,
+    check_tensor,
+    format_shape,
+)
 from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.homogeneous import rotation, translation
@@ -38,22 +51,24 @@ class WorldTransforms(NamedTuple):
 
     Attributes:
         names: the node names, in the order of ``matrices``.
-        matrices: ``(K, T, 3, 3)`` ``world_from_node`` for the K nodes and T times.
+        matrices: ``(K, T, 3, 3)`` (2D) or ``(K, T, 4, 4)`` (3D) ``world_from_node``
+            for the K nodes and T times.
     """
 
     names: tuple[str, ...]
     matrices: torch.Tensor
 
     def get(self, name: str) -> torch.Tensor:
-        """``(T, 3, 3)`` world matrix of node ``name``."""
+        """``(T, 3, 3)`` (or ``(T, 4, 4)``) world matrix of node ``name``."""
         try:
             return self.matrices[self.names.index(name)]
         except ValueError:
             raise KeyError(f"WorldTransforms: no node named {name!r}; have {self.names}") from None
 
     def positions(self) -> torch.Tensor:
-        """``(K, T, 2)`` world position of every node's origin."""
-        return self.matrices[..., :2, 2]
+        """``(K, T, 2)`` (or ``(K, T, 3)``) world position of every node's origin."""
+        d = self.matrices.shape[-1] - 1
+        return self.matrices[..., :d, d]
 
 
 class Orbit(nn.Module):
@@ -127,27 +142,42 @@ class FixedTransform(nn.Module):
     """A constant ``parent_from_node`` matrix, stored as a buffer so ``.to()`` moves it.
 
     Convention:
-        Column vectors; ``forward(theta (*))`` returns the matrix expanded to
-        ``(*, 3, 3)`` in ``theta``'s (float) dtype, the same for every time; a cast to
-        float16/bfloat16 saturates at the largest finite value.
+        Column vectors; ``forward(theta (*))`` returns the ``(3, 3)`` (2D) or
+        ``(4, 4)`` (3D) matrix expanded to ``(*, 3, 3)`` / ``(*, 4, 4)`` in ``theta``'s
+        (float) dtype, the same for every time; a cast to float16/bfloat16 saturates at
+        the largest finite value.
 
     Example:
         >>> FixedTransform(translation(torch.tensor([1.0, 2.0])))(torch.zeros(3)).shape
         torch.Size([3, 3, 3])
+        >>> FixedTransform(translation(torch.tensor([1.0, 2.0, 3.0])))(torch.zeros(2)).shape
+        torch.Size([2, 4, 4])
     """
 
     def __init__(self, matrix: torch.Tensor) -> None:
         super().__init__()
-        check_shape(matrix, ["3", "3"], "matrix")
+        check_tensor(matrix, "matrix")
+        if tuple(matrix.shape) not in ((3, 3), (4, 4)):
+            raise ShapeError(f"matrix: expected shape (3, 3) or (4, 4), "
+                             f"got {format_shape(tuple(matrix.shape))}")
         check_float(matrix, "matrix")
         self.register_buffer("matrix", matrix.clone(), persistent=True)
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
         check_module_dtype(self, theta, "theta")
         check_float(theta, "theta")  # an integer theta would truncate the matrix
-        matrix = cast_back(self.matrix, theta.dtype).expand(*theta.shape, 3, 3)
+        size = self.matrix.shape[-1]
+        matrix = cast_back(self.matrix, theta.dtype).expand(*theta.shape, size, size)
         # the matrix does not depend on the time, but an undefined time stays undefined
         return torch.where(theta.isnan()[..., None, None], math.nan, matrix)
+
+
+class _Identity(nn.Module):
+    """The identity node: its size (3 or 4) is the graph's, known only at evaluation."""
+
+    def forward(self, theta: torch.Tensor, size: int = 3) -> torch.Tensor:
+        eye = torch.eye(size, dtype=theta.dtype, device=theta.device)
+        return eye.expand(*theta.shape, size, size) + 0 * theta[..., None, None]
 
 
 class _CallableTransform(nn.Module):
@@ -160,15 +190,19 @@ class _CallableTransform(nn.Module):
 
 
 class SceneGraph(nn.Module):
-    """A kinematic tree of named 2D frames.
+    """A kinematic tree of named 2D or 3D frames.
 
     Convention:
         Column vectors. Each node has a ``parent_from_node`` local transform, a
-        module or callable mapping times ``theta (T,)`` to ``(T, 3, 3)``; a node's
-        world matrix is ``world_from_parent @ parent_from_node`` (the root's is its
-        local transform). Nodes are added parents first; ``world_transforms``
-        evaluates one tree level at a time, all nodes of a level and all times
-        batched. See the module docstring.
+        module or callable mapping times ``theta (T,)`` to ``(T, 3, 3)`` (2D) or
+        ``(T, 4, 4)`` (3D), one size for the whole graph (identity nodes take it);
+        a node's world matrix is ``world_from_parent @ parent_from_node`` (the
+        root's is its local transform). Nodes are added parents first;
+        ``world_transforms`` evaluates one tree level at a time, all nodes of a level
+        and all times batched. ``theta`` is ``(T,)``, shared by every node, or
+        ``(T, K)``: joint values, column ``k`` for node ``k`` in insertion order
+        (forward kinematics, differentiable in the joint values). See the module
+        docstring.
 
     Example:
         >>> scene = SceneGraph()
@@ -180,6 +214,17 @@ class SceneGraph(nn.Module):
         >>> world.get("moon")[:, :2, 2].round(decimals=4) + 0.0
         tensor([[2., 0.],
                 [0., 2.]])
+
+        A 3D arm: a base turning about z, an elbow about y one unit up, a slider.
+
+        >>> from torchgeo_cg.transforms import Prismatic, Revolute
+        >>> arm = SceneGraph()
+        >>> arm.add("base", None, Revolute([0.0, 0.0, 1.0]))
+        >>> arm.add("elbow", "base", Revolute([0.0, 1.0, 0.0], origin=[0.0, 0.0, 1.0]))
+        >>> arm.add("tip", "elbow", Prismatic([1.0, 0.0, 0.0]))
+        >>> q = torch.tensor([[math.pi / 2, 0.0, 2.0]])  # (T=1, K=3) joint values
+        >>> arm.world_transforms(q).get("tip")[0, :3, 3].round(decimals=4) + 0.0
+        tensor([0., 2., 1.])
     """
 
     def __init__(self) -> None:
@@ -209,8 +254,8 @@ class SceneGraph(nn.Module):
             name: a new, unique node name.
             parent: an existing node, or ``None``.
             local_transform: ``parent_from_node``: an ``nn.Module`` or callable
-                mapping ``theta (T,)`` to ``(T, 3, 3)``, a fixed ``(3, 3)`` tensor,
-                or ``None`` for the identity.
+                mapping ``theta (T,)`` to ``(T, 3, 3)`` or ``(T, 4, 4)``, a fixed
+                ``(3, 3)`` or ``(4, 4)`` tensor, or ``None`` for the identity.
 
         Raises:
             ValueError: ``name`` exists already, or ``parent`` does not.
@@ -222,17 +267,15 @@ class SceneGraph(nn.Module):
                 f"SceneGraph.add: parent {parent!r} of {name!r} is not a node; have {self.names}"
             )
         if local_transform is None:
-            # the identity has no dtype of its own: it follows theta
-            local_transform = _CallableTransform(
-                lambda theta: torch.eye(3, dtype=theta.dtype, device=theta.device).expand(
-                    *theta.shape, 3, 3) + 0 * theta[..., None, None])
+            # the identity has no dtype nor size of its own: it follows theta and the graph
+            local_transform = _Identity()
         elif isinstance(local_transform, torch.Tensor):
             local_transform = FixedTransform(local_transform)
         elif not isinstance(local_transform, nn.Module):
             if not callable(local_transform):
                 raise TypeError(
                     "SceneGraph.add: local_transform must be an nn.Module, a callable, a (3, 3) "
-                    f"tensor or None, got {type(local_transform).__name__}"
+                    f"or (4, 4) tensor or None, got {type(local_transform).__name__}"
                 )
             local_transform = _CallableTransform(local_transform)
         self.locals[name] = local_transform
@@ -243,34 +286,61 @@ class SceneGraph(nn.Module):
         """``world_from_node`` for every node at every time in ``theta``.
 
         Args:
-            theta: ``(T,)`` float phases in radians.
+            theta: ``(T,)`` float phases in radians, given to every node, or ``(T, K)``
+                joint values, column ``k`` to node ``k`` (insertion order).
 
         Returns:
-            :class:`WorldTransforms` with ``matrices (K, T, 3, 3)``, nodes in
-            insertion order, in ``theta``'s dtype (every local transform is cast to
-            it; float16/bfloat16 are computed in float32 and cast back).
+            :class:`WorldTransforms` with ``matrices (K, T, 3, 3)`` (2D nodes) or
+            ``(K, T, 4, 4)`` (3D nodes), nodes in insertion order, in ``theta``'s
+            dtype (every local transform is cast to it; float16/bfloat16 are computed
+            in float32 and cast back). A graph of identity nodes only is 2D.
+
+        Raises:
+            ShapeError: ``theta`` is neither ``(T,)`` nor ``(T, K)``, or a node's local
+                transform is not ``(T, 3, 3)`` / ``(T, 4, 4)`` of the graph's size.
         """
-        check_shape(theta, ["T"], "theta")
-        check_float(theta, "theta")
         names = self.names
         if not names:
             raise ValueError("SceneGraph.world_transforms: the graph has no nodes")
-        index = {n: i for i, n in enumerate(names)}
+        check_tensor(theta, "theta")
+        if theta.ndim not in (1, 2) or (theta.ndim == 2 and theta.shape[1] != len(names)):
+            raise ShapeError(
+                f"theta: expected shape (T) or (T, K={len(names)}) (one column per node), "
+                f"got {format_shape(tuple(theta.shape))}")
+        check_float(theta, "theta")
         theta_w = theta.to(working_dtype(theta.dtype))
-        world = theta_w.new_zeros(len(names), theta.shape[0], 3, 3)  # (K, T, 3, 3)
+        steps = theta.shape[0]
+        per_node = theta_w.unbind(-1) if theta.ndim == 2 else (theta_w,) * len(names)
+        index = {n: i for i, n in enumerate(names)}
+        local = {n: self.locals[n](per_node[index[n]]) for n in names
+                 if not isinstance(self.locals[n], _Identity)}
+        size = next((m.shape[-1] for m in local.values()
+                     if isinstance(m, torch.Tensor) and m.ndim >= 1), 3)
+        for n in names:
+            if n in local:
+                m = local[n]
+                if not isinstance(m, torch.Tensor) or tuple(m.shape) != (steps, size, size):
+                    got = tuple(m.shape) if isinstance(m, torch.Tensor) else type(m).__name__
+                    raise ShapeError(
+                        f"SceneGraph: node {n!r}: expected its local transform of shape "
+                        f"{format_shape([steps, size, size])} (one size per graph), got {got}")
+                local[n] = m.to(theta_w)
+            else:
+                local[n] = self.locals[n](per_node[index[n]], size)
+        world = theta_w.new_zeros(len(names), steps, size, size)  # (K, T, d+1, d+1)
         for depth in range(max(self._depth.values()) + 1):  # loop over tree levels
             level = [n for n in names if self._depth[n] == depth]
             rows = torch.tensor([index[n] for n in level], device=theta.device)
-            local = torch.stack([self.locals[n](theta_w).to(theta_w) for n in level])  # (L,T,3,3)
+            stacked = torch.stack([local[n] for n in level])  # (L, T, d+1, d+1)
             if depth == 0:
-                world = world.index_copy(0, rows, local)
+                world = world.index_copy(0, rows, stacked)
             else:
                 parents = torch.tensor([index[self._parent[n]] for n in level], device=theta.device)
-                world = world.index_copy(0, rows, world[parents] @ local)
+                world = world.index_copy(0, rows, world[parents] @ stacked)
         return WorldTransforms(names, cast_back(world, theta.dtype))
 
     def forward(self, theta: torch.Tensor) -> torch.Tensor:
-        """``(K, T, 3, 3)``: same as ``world_transforms(theta).matrices``."""
+        """``(K, T, 3, 3)`` or ``(K, T, 4, 4)``: ``world_transforms(theta).matrices``."""
         check_module_dtype(self, theta, "theta")
         return self.world_transforms(theta).matrices
 
