@@ -44,7 +44,6 @@ if tool == "skimage":
     sk(fn[::16, ::16, ::16].copy(), 0.0)
 else:
     from torchgeo_cg.mesh import marching_cubes
-from torchgeo_cg.mesh.data import mri_phantom
     marching_cubes(f[::16, ::16, ::16].contiguous(), ambiguity="asymptotic")
 before = high_water_kb()
 if tool == "skimage":

@@ -32,6 +32,7 @@ __all__ = [
     "take",
     "classify",
     "Welded",
+    "lower_crossings",
     "weld",
     "triangulate",
     "Centres",
@@ -140,6 +141,15 @@ class Welded(NamedTuple):
     corner_ijk: torch.Tensor
 
 
+def lower_crossings(device) -> torch.Tensor:
+    """``(256, 3)`` bool: does a case's lower x / y / z edge (corner 0 against corners 4,
+    2, 1) cross, i.e. own a vertex?"""
+    case_ids = torch.arange(256, device=device)
+    bit0 = case_ids & 1
+    return torch.stack([bit0 != ((case_ids >> 4) & 1), bit0 != ((case_ids >> 2) & 1),
+                        bit0 != ((case_ids >> 1) & 1)], dim=1)
+
+
 def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
     """Vertices of the crossing lower edges (corner 0 against corners 4, 2, 1) of the cells.
 
@@ -148,19 +158,15 @@ def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
         sizes: ``(X, Y, Z)``.
     """
     X, Y, Z = sizes
-    case_ids = torch.arange(256, device=cases.device)
-    bit0 = case_ids & 1
-    lower_cross = torch.stack(
-        [bit0 != ((case_ids >> 4) & 1), bit0 != ((case_ids >> 2) & 1),
-         bit0 != ((case_ids >> 1) & 1)], dim=1
-    )  # (256, 3): does the case's lower x / y / z edge cross?
-    vert_cell, d_v = take(lower_cross, cases).nonzero().unbind(1)  # sorted by (cell, d)
+    vert_cell, d_v = take(lower_crossings(cases.device), cases).nonzero().unbind(1)
+    # sorted by (cell, d)
     lower = take(cell_id, vert_cell)
     ijk = torch.stack([(lower // (Y * Z)) % X, (lower // Z) % Y, lower % Z], dim=1)
     return Welded(lower, d_v, lower * 3 + d_v, vert_cell, ijk)
 
 
-def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
+def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
+                layers: tuple[int, int] | None = None):
     """Faces of the active cells: table rows -> local edges -> welded vertex ids.
 
     Local edge ``e`` of cell ``c`` is the lower edge (direction ``edge_dir[e]``) of the
@@ -173,6 +179,9 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
         tri_table: ``(R, T, 3)`` local edge triples, ``-1`` padded.
         vert_key: ``(V,)`` sorted vertex keys (:class:`Welded`).
         sizes: ``(X, Y, Z)``; batch: ``B``.
+        layers: ``(first, stop)`` stacked cell layers holding every cell of ``cell_id``
+            (default: all ``B * X``); ``vert_key`` then holds the vertices of those
+            layers and of layer ``stop``, and the ids are indices into it.
 
     Returns:
         ``(faces (F, 3) long, cell_of_face (F,), tri_row (F,))``: ``tri_row`` indexes
@@ -195,8 +204,9 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
     face_cell3 = take(cell_id, cell_of_face) * 3  # (F,) sorted
     faces = torch.empty(face_cell3.shape[0], 3, dtype=torch.long, device=device)
     map_slab = max(1, MAP_CELLS // YZ)
-    layer_bounds = torch.arange(0, batch * X + map_slab, map_slab, device=device)
-    layer_bounds = layer_bounds.clamp_max(batch * X) * (3 * YZ)  # key bounds of the slabs
+    first, stop = (0, batch * X) if layers is None else layers
+    layer_bounds = torch.arange(first, stop + map_slab, map_slab, device=device)
+    layer_bounds = layer_bounds.clamp_max(stop) * (3 * YZ)  # key bounds of the slabs
     face_bounds = torch.searchsorted(face_cell3, layer_bounds).tolist()
     vert_lo = torch.searchsorted(vert_key, layer_bounds).tolist()
     vert_hi = torch.searchsorted(
@@ -208,7 +218,7 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
         if f0 == f1:
             continue
         v0, v1 = vert_lo[n], vert_hi[n + 1]  # vertices of the slab and one more layer
-        base = n * map_slab * YZ * 3
+        base = (first + n * map_slab) * YZ * 3
         id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
         face_key = take(tri_delta, tri_row[f0:f1]).add_((face_cell3[f0:f1] - base)[:, None])
         faces[f0:f1] = take(id_map, face_key.view(-1)).view(-1, 3)
