@@ -30,6 +30,8 @@ __all__ = [
     "SLAB_CELLS",
     "MAP_CELLS",
     "take",
+    "idiv",
+    "imod",
     "classify",
     "Welded",
     "lower_crossings",
@@ -54,6 +56,17 @@ MAP_CELLS = 1 << 17
 def take(source: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     """``source[index]`` along dim 0 (``index_select``: much faster than advanced indexing)."""
     return torch.index_select(source, 0, index)
+
+
+def idiv(x: torch.Tensor, d: int) -> torch.Tensor:
+    """``x // d`` of non-negative integers; a shift when ``d`` is a power of two (integer
+    division is an order of magnitude slower than a shift)."""
+    return x >> (d.bit_length() - 1) if d & (d - 1) == 0 else x // d
+
+
+def imod(x: torch.Tensor, d: int) -> torch.Tensor:
+    """``x % d`` of non-negative integers; a mask when ``d`` is a power of two."""
+    return x & (d - 1) if d & (d - 1) == 0 else x % d
 
 
 def _nonzero_sparse(mask: torch.Tensor) -> torch.Tensor:
@@ -161,7 +174,8 @@ def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
     vert_cell, d_v = take(lower_crossings(cases.device), cases).nonzero().unbind(1)
     # sorted by (cell, d)
     lower = take(cell_id, vert_cell)
-    ijk = torch.stack([(lower // (Y * Z)) % X, (lower // Z) % Y, lower % Z], dim=1)
+    ijk = torch.stack([imod(idiv(lower, Y * Z), X), imod(idiv(lower, Z), Y), imod(lower, Z)],
+                      dim=1)
     return Welded(lower, d_v, lower * 3 + d_v, vert_cell, ijk)
 
 
@@ -276,7 +290,7 @@ def find_centres(cell_id, rows, centre_mask, decided, vert_key, cell_of_face, tr
     # 1 / count in float64 (correctly rounded in every working dtype; a long / long
     # division would give float32 weights for float64 volumes)
     weight = bits.double() / bits.sum(1, keepdim=True).double()
-    return Centres(members * bits, weight, cells // (X * Y * Z))
+    return Centres(members * bits, weight, idiv(cells, X * Y * Z))
 
 
 def place_centres(verts, normals, centres: Centres):
@@ -315,7 +329,8 @@ def sample_stencil(welded: Welded, sizes):
     index[0], index[1] = lower, upper
     axes, steps = [], []
     for s, shift in enumerate((1, 2)):  # the two axes across the edge
-        a = (d_v + shift) % 3  # (V,)
+        a = take(torch.tensor([shift, (1 + shift) % 3, (2 + shift) % 3], device=device),
+                 d_v)  # (V,) (d + shift) % 3
         c = corner_ijk.gather(1, a[:, None]).squeeze(1)
         up = (c < take(last, a)).long()
         down = (c > 0).long()
@@ -441,7 +456,7 @@ def soft_weights(vol, cell_id, cases, cell_of_face, args) -> torch.Tensor:
     f_corners = f_corners.view(-1, 8).to(args.work)  # (C, 8)
     inside_bits = (take(cases, cells)[:, None] >> torch.arange(8, device=device)) & 1
     sign = (2 * inside_bits - 1).to(args.work)  # (C, 8): +1 inside, -1 outside
-    b_c = take(cell_id, cells) // (X * Y * Z)
+    b_c = idiv(take(cell_id, cells), X * Y * Z)
     # halves first: iso - f cannot overflow near the top of the float range (a quotient
     # beyond it is +-inf, which logsigmoid saturates correctly)
     half_gap = take(args.iso, b_c)[:, None] * 0.5 - f_corners * 0.5

@@ -82,6 +82,7 @@ from torchgeo_cg.mesh.marching_cubes._steps import (
     Welded,
     classify,
     find_centres,
+    idiv,
     interpolate,
     lower_crossings,
     place_centres,
@@ -254,7 +255,7 @@ def marching_cubes(
                                                    (X, Y, Z), B)
         centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
         faces[centre_slot] = 0  # filled by find_centres
-        b_a = cell_id // (X * Y * Z) if B > 1 else None  # (A,) volume of each active cell
+        b_a = idiv(cell_id, X * Y * Z) if B > 1 else None  # (A,) volume of each active cell
         b_v = take(b_a, welded.cell) if B > 1 else None
         if args.mask is not None:  # drop the vertices only unmasked cells used
             welded, b_v, faces = _drop_unused(welded, b_v, faces, centre_slot)
@@ -312,7 +313,7 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
     with torch.no_grad():
         nv = take(lower_crossings(device).sum(1), cases_a)  # (A,) vertices each cell owns
         v_start = torch.cat([nv.new_zeros(1), nv.cumsum(0)])  # (A + 1,)
-        layer = cell_id // YZ
+        layer = idiv(cell_id, YZ)
         cuts = torch.unique(take(layer, torch.arange(SLAB_ACTIVE, cell_id.shape[0],
                                                      SLAB_ACTIVE, device=device)))
         bounds = [0, *(c for c in cuts.tolist() if c > 0), B * X]
@@ -325,7 +326,7 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
         W = v_at[-1]  # welded vertices in all
         if B > 1:
             w_per = torch.zeros(B, dtype=torch.long, device=device)
-            w_per.index_add_(0, cell_id // XYZ, nv)
+            w_per.index_add_(0, idiv(cell_id, XYZ), nv)
             w_incl = w_per.cumsum(0)  # welded vertices in volumes <= b
             c_per = torch.zeros(B, dtype=torch.long, device=device)
         del nv, v_start
@@ -351,7 +352,7 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
             if centre is not None:
                 centres = find_centres(own_id, rows, *centre, welded.key, cell_of_face,
                                        centre_slot, faces, (X, Y, Z))
-            b_sub = take(cell_id[a0:a2], welded.cell) // XYZ if B > 1 else None
+            b_sub = idiv(take(cell_id[a0:a2], welded.cell), XYZ) if B > 1 else None
             verts, normals = interpolate(det_vol, welded, b_sub, args, to_world)
             V_sub = verts.shape[0]
             n_c = 0
@@ -372,7 +373,7 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
             faces += v_at[n]
             faces[is_c] += W + n_centres - V_sub - v_at[n]
             if B > 1:  # volume b's centres follow its welded vertices
-                b_f = take(own_id, cell_of_face) // XYZ  # (F_s,)
+                b_f = idiv(take(own_id, cell_of_face), XYZ)  # (F_s,)
                 c_excl = c_per.cumsum(0) - c_per  # centres in volumes < b (all seen)
                 shift = torch.where(is_c, (take(w_incl, b_f) - W)[:, None],
                                     take(c_excl, b_f)[:, None])
