@@ -62,6 +62,11 @@ Convention:
       coincide, so it is not guaranteed there (faces and topology are unchanged).
     - Batches are returned packed: ``faces`` index the packed ``verts``;
       :meth:`MarchingCubesResult.split` gives one mesh per volume.
+    - Memory: a volume with more than ``2 * SLAB_ACTIVE`` active cells, in hard mode
+      without a ``mask`` and with no gradient recorded, is extracted slab by slab along
+      the stacked x (the result is identical bit for bit), so the working buffers follow
+      a slab of about ``SLAB_ACTIVE`` active cells, not the volume; under autograd (or
+      with ``temperature`` or ``mask``) it runs in one go.
 """
 
 from __future__ import annotations
