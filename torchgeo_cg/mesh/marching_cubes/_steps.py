@@ -409,7 +409,8 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
     flat = vol.reshape(-1)
     samples = take(flat, stencil.view(-1)).view(stencil.shape).to(args.work)  # (10, V)
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)
-    spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)
+    spacing_v = (args.spacing[:1] if b_v is None or args.shared_frame
+                 else take(args.spacing, b_v))  # (1, 3) broadcasts when shared
     return place_vertices(samples, iso_v, welded, axes, steps, spacing_v,
                           lambda index_pos: to_world(index_pos, b_v))
 
