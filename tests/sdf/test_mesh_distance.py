@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import sys
 import warnings
 
 import numpy as np
@@ -473,6 +475,77 @@ def test_backend_names_and_missing_engine(monkeypatch):
     assert E.resolve_backend("auto") == expected
     with pytest.raises(ImportError, match="fast"):
         M.MeshSDF(V, F, backend="ghost")
+
+
+class _BrokenWarp:
+    """A meta path finder under which ``warp`` is found (installed) but importing it raises
+    what a missing CUDA driver library raises."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "warp":
+            return None
+        return importlib.util.spec_from_loader(name, self)
+
+    def create_module(self, spec):
+        return None
+
+    def exec_module(self, module):
+        raise OSError("libcuda.so: cannot open shared object file")
+
+
+@pytest.fixture
+def broken_warp(monkeypatch):
+    """Warp installed but failing to import: the engine module is imported afresh under
+    :class:`_BrokenWarp`; the real modules come back after the test."""
+    for name in ("warp", "torchgeo_cg.sdf._engine_warp"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    if hasattr(S, "_engine_warp"):  # the fresh import rebinds it; restored at teardown
+        monkeypatch.setattr(S, "_engine_warp", S._engine_warp)
+    monkeypatch.setattr(sys, "meta_path", [_BrokenWarp(), *sys.meta_path])
+    monkeypatch.setattr(E, "_WARNED", set())
+
+
+def test_engine_that_fails_to_import(broken_warp):
+    """An installed engine whose import raises (not ImportError): ``auto`` warns once and
+    gives the torch results; an explicit ``warp`` raises an ImportError chained from it."""
+    m = trimesh.creation.icosphere(subdivisions=1)
+    V, F = _mesh(m)
+    p = _points(m, 50, seed=3)
+    with pytest.warns(UserWarning, match="failed to import.*OSError: libcuda.so") as record:
+        assert E.resolve_backend("auto") == "torch"
+        got = M.mesh_sdf(V, F, p, return_closest=True)  # backend="auto"
+        M.MeshSDF(V, F)
+    assert len([w for w in record if "failed to import" in str(w.message)]) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no second warning
+        M.mesh_sdf(V, F, p)
+    want = M.mesh_sdf(V, F, p, return_closest=True, backend="torch")
+    assert torch.equal(got.sdf, want.sdf) and torch.equal(got.closest_points,
+                                                          want.closest_points)
+    assert E.available_engines() == []
+    with pytest.raises(ImportError, match="installed but failed to import.*libcuda") as info:
+        M.mesh_sdf(V, F, p, backend="warp")
+    assert isinstance(info.value.__cause__, OSError)
+    assert "fast" not in str(info.value)  # not the message of a missing extra
+    with pytest.raises(ImportError, match="failed to import"):
+        M.MeshSDF(V, F, backend="warp")
+    from torchgeo_cg.sdf import _engine_warp as broken
+
+    with pytest.raises(ImportError, match="failed to import") as info:
+        broken.build_warp_search(V[None], F)
+    assert isinstance(info.value.__cause__, OSError)
+
+
+def test_missing_engine_message_differs_from_failed_import(monkeypatch):
+    """Not installed at all: the message names the extra and no warning is given."""
+    monkeypatch.setitem(sys.modules, "warp", None)  # find_spec finds nothing
+    monkeypatch.setattr(E, "_WARNED", set())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert E.resolve_backend("auto") == "torch"
+    with pytest.raises(ImportError, match="optional extra 'fast'") as info:
+        E.resolve_backend("warp")
+    assert "failed to import" not in str(info.value)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

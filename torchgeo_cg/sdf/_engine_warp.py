@@ -30,19 +30,28 @@ from tqdm.auto import tqdm
 
 from torchgeo_cg.sdf._triangle import pseudo_normals, unit_normals
 
-try:
-    import warp as wp
-except ImportError:  # the optional extra "fast" is not installed
-    wp = None
-
 __all__: list[str] = []
 
-if wp is not None:  # kernels exist only with the optional extra
+#: Why Warp, although installed, cannot be used: the exception its import or
+#: initialisation raised (a broken CUDA driver, a missing system library, a failing
+#: dependency), else None. ``wp`` is None then, as without the extra.
+IMPORT_ERROR: Exception | None = None
+try:
+    import warp as wp
+
     # Warp's info banner and kernel-load lines would print on every import; warnings stay
     if wp.config.log_level < logging.WARNING:
         wp.config.log_level = logging.WARNING
     wp.init()
     wp.set_module_options({"enable_backward": False})  # the search needs no adjoint kernels
+except ModuleNotFoundError as exc:
+    wp = None
+    if exc.name != "warp":  # Warp is there, one of its own imports is missing
+        IMPORT_ERROR = exc
+except Exception as exc:  # noqa: BLE001  any failure of an installed Warp disables it
+    wp, IMPORT_ERROR = None, exc
+
+if wp is not None:  # kernels exist only with a working optional extra
 
     @wp.func
     def _dot3(u: wp.vec3d, v: wp.vec3d) -> wp.float64:
@@ -307,18 +316,23 @@ def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSea
         :class:`WarpSearch`.
 
     Raises:
-        ImportError: Warp is not installed (the message names the extra ``fast``).
+        ImportError: Warp is not installed (the message names the extra ``fast``), or it
+            is installed but its import failed (the message says why; chained from the
+            original exception).
 
     Example:
         >>> v = torch.tensor([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]])
         >>> tris = torch.tensor([[0, 1, 2], [0, 1, 3]])
         >>> try:
         ...     rings = build_warp_search(v, tris).ring_start.tolist()
-        ... except ImportError as e:  # without the extra: the message names it
-        ...     rings = face_rings(tris, 4)[0].tolist() if "fast" in str(e) else None
+        ... except ImportError:  # without a working extra: the same table in torch
+        ...     rings = face_rings(tris, 4)[0].tolist()
         >>> rings
         [0, 1, 2]
     """
+    if IMPORT_ERROR is not None:
+        raise ImportError(f"the Warp engine is installed but failed to import: "
+                          f"{type(IMPORT_ERROR).__name__}: {IMPORT_ERROR}") from IMPORT_ERROR
     if wp is None:
         raise ImportError("the Warp engine needs the optional extra 'fast': "
                           "pip install 'torchgeo_cg[fast]'")

@@ -8,8 +8,11 @@ distance on that face in torch. Backends:
   (always installed).
 - ``"warp"``: :mod:`~torchgeo_cg.sdf._engine_warp`, NVIDIA Warp's BVH (float32) with a
   float64 check of the neighbouring faces; CPU or CUDA; the optional extra ``fast``.
-- ``"auto"``: the fastest installed engine (:data:`ENGINES` is ordered by speed), else
-  ``"torch"``.
+- ``"auto"``: the fastest installed engine that imports (:data:`ENGINES` is ordered by
+  speed), else ``"torch"``. An engine that is installed but fails to import or
+  initialise (a broken CUDA driver, a missing system library) is skipped with one
+  ``UserWarning`` per process naming the failure; ``backend="warp"`` then raises an
+  ``ImportError`` saying so, chained from the original exception.
 
 The search is a ``torch.library`` custom op (``torchgeo_cg::closest_faces``) with a
 batching rule, so ``mesh_sdf`` works under ``torch.func.vmap`` and ``jacrev``.
@@ -24,6 +27,7 @@ from __future__ import annotations
 import importlib.util
 import itertools
 import math
+import warnings
 import weakref
 
 import torch
@@ -47,11 +51,12 @@ _KEYS = itertools.count()
 
 
 def available_engines() -> list[str]:
-    """Installed engines, fastest first.
+    """Installed engines that import, fastest first.
 
     Convention:
         Names as accepted by ``mesh_sdf(backend=...)``; ``"torch"`` (always there) is not
-        listed. The engines come with the optional extra ``fast``.
+        listed. The engines come with the optional extra ``fast``; an installed engine
+        whose import failed is not listed (``backend="auto"`` warns about it once).
 
     Returns:
         A list of engine names, a subset of :data:`ENGINES`.
@@ -60,31 +65,71 @@ def available_engines() -> list[str]:
         >>> set(available_engines()) <= set(ENGINES)
         True
     """
+    return [name for name in _installed() if _import_error(name) is None]
+
+
+def _installed() -> list[str]:
+    """Engines whose module is installed (found, not imported), fastest first."""
     return [name for name, module in ENGINES.items()
             if importlib.util.find_spec(module) is not None]
 
 
+def _import_error(name: str) -> Exception | None:
+    """The exception the import or initialisation of installed engine ``name`` raised,
+    else None (the engine module imports once per process and keeps it)."""
+    if name != "warp":
+        return None
+    from torchgeo_cg.sdf._engine_warp import IMPORT_ERROR
+
+    return IMPORT_ERROR
+
+
+def _describe(error: Exception) -> str:
+    return f"{type(error).__name__}: {error}"
+
+
+#: Engines whose failed import ``backend="auto"`` has already warned about.
+_WARNED: set[str] = set()
+
+
 def resolve_backend(backend: str) -> str:
-    """``"auto"`` -> the fastest installed engine or ``"torch"``; an engine name is
-    checked to be installed.
+    """``"auto"`` -> the fastest installed engine that imports, or ``"torch"``; an engine
+    name is checked to be installed and to import.
+
+    Warns:
+        UserWarning: ``"auto"`` skips an engine that is installed but failed to import
+            (once per process and engine).
 
     Raises:
         ValueError: unknown name.
-        ImportError: the engine is not installed (names the extra ``fast``).
+        ImportError: the engine is not installed (names the extra ``fast``), or it is
+            installed but its import failed (says why; chained from that exception).
 
     Example:
         >>> resolve_backend("torch")
         'torch'
     """
     if backend == "auto":
-        found = available_engines()
-        return found[0] if found else "torch"
+        for name in _installed():
+            error = _import_error(name)
+            if error is None:
+                return name
+            if name not in _WARNED:
+                _WARNED.add(name)
+                warnings.warn(f"backend='auto': the {name!r} engine is installed but failed "
+                              f"to import ({_describe(error)}); using the torch search",
+                              UserWarning, stacklevel=3)
+        return "torch"
     if backend == "torch":
         return backend
     check_choice(backend, ("auto", "torch", *sorted(ENGINES)), "backend")
     if importlib.util.find_spec(ENGINES[backend]) is None:
         raise ImportError(f"backend={backend!r} needs the optional extra 'fast': "
                           f"pip install 'torchgeo_cg[fast]' (installs {ENGINES[backend]})")
+    error = _import_error(backend)
+    if error is not None:
+        raise ImportError(f"backend={backend!r}: {ENGINES[backend]} is installed but failed "
+                          f"to import ({_describe(error)})") from error
     return backend
 
 

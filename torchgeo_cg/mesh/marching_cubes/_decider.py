@@ -32,7 +32,7 @@ import math
 import torch
 
 from torchgeo_cg.core.numerics import power_of_two_scale
-from torchgeo_cg.mesh.marching_cubes._steps import take
+from torchgeo_cg.mesh.marching_cubes._steps import idiv, imod, take
 from torchgeo_cg.mesh.marching_cubes._tables import (
     MAX_TUBES,
     ConfigurationTables,
@@ -148,7 +148,7 @@ def asymptotic_rows(vol: torch.Tensor, iso_b: torch.Tensor, cell_id: torch.Tenso
     cells = take(cell_id, pick)
     flat = vol.reshape(-1)
     f = take(flat, (cells[:, None] + corner_delta).view(-1)).view(-1, 8).double()
-    iso_c = take(iso_b.double(), cells // (X * Y * Z))
+    iso_c = take(iso_b.double(), idiv(cells, X * Y * Z))
     g = _decider_values(f, iso_c)  # (N, 8)
     case_p = take(cases, pick)
     config = case_p * 64 + face_decisions(g, case_p, tables)
@@ -176,8 +176,8 @@ def cell_rows(vol: torch.Tensor, iso_b: torch.Tensor, mask: torch.Tensor | None,
         ``(centre_mask (R,), decided (N,))`` for the asymptotic rule, else None.
     """
     B, X, Y, Z = vol.shape
-    k, j, layer = cell_id % Z, (cell_id // Z) % Y, cell_id // (Y * Z)
-    real = (layer % X < X - 1) & (j < Y - 1) & (k < Z - 1)  # padded cells make nothing
+    k, j, layer = imod(cell_id, Z), imod(idiv(cell_id, Z), Y), idiv(cell_id, Y * Z)
+    real = (imod(layer, X) < X - 1) & (j < Y - 1) & (k < Z - 1)  # padded cells make nothing
     if mask is not None:  # the cell's far corner (corner 7) decides, as scikit-image
         far = cell_id + (Y * Z + Z + 1)
         real &= take(mask.view(-1), far.clamp_max(mask.numel() - 1))

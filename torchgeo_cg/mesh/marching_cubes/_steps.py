@@ -30,8 +30,11 @@ __all__ = [
     "SLAB_CELLS",
     "MAP_CELLS",
     "take",
+    "idiv",
+    "imod",
     "classify",
     "Welded",
+    "lower_crossings",
     "weld",
     "triangulate",
     "Centres",
@@ -53,6 +56,17 @@ MAP_CELLS = 1 << 17
 def take(source: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     """``source[index]`` along dim 0 (``index_select``: much faster than advanced indexing)."""
     return torch.index_select(source, 0, index)
+
+
+def idiv(x: torch.Tensor, d: int) -> torch.Tensor:
+    """``x // d`` of non-negative integers; a shift when ``d`` is a power of two (integer
+    division is an order of magnitude slower than a shift)."""
+    return x >> (d.bit_length() - 1) if d & (d - 1) == 0 else x // d
+
+
+def imod(x: torch.Tensor, d: int) -> torch.Tensor:
+    """``x % d`` of non-negative integers; a mask when ``d`` is a power of two."""
+    return x & (d - 1) if d & (d - 1) == 0 else x % d
 
 
 def _nonzero_sparse(mask: torch.Tensor) -> torch.Tensor:
@@ -140,6 +154,15 @@ class Welded(NamedTuple):
     corner_ijk: torch.Tensor
 
 
+def lower_crossings(device) -> torch.Tensor:
+    """``(256, 3)`` bool: does a case's lower x / y / z edge (corner 0 against corners 4,
+    2, 1) cross, i.e. own a vertex?"""
+    case_ids = torch.arange(256, device=device)
+    bit0 = case_ids & 1
+    return torch.stack([bit0 != ((case_ids >> 4) & 1), bit0 != ((case_ids >> 2) & 1),
+                        bit0 != ((case_ids >> 1) & 1)], dim=1)
+
+
 def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
     """Vertices of the crossing lower edges (corner 0 against corners 4, 2, 1) of the cells.
 
@@ -148,19 +171,16 @@ def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
         sizes: ``(X, Y, Z)``.
     """
     X, Y, Z = sizes
-    case_ids = torch.arange(256, device=cases.device)
-    bit0 = case_ids & 1
-    lower_cross = torch.stack(
-        [bit0 != ((case_ids >> 4) & 1), bit0 != ((case_ids >> 2) & 1),
-         bit0 != ((case_ids >> 1) & 1)], dim=1
-    )  # (256, 3): does the case's lower x / y / z edge cross?
-    vert_cell, d_v = take(lower_cross, cases).nonzero().unbind(1)  # sorted by (cell, d)
+    vert_cell, d_v = take(lower_crossings(cases.device), cases).nonzero().unbind(1)
+    # sorted by (cell, d)
     lower = take(cell_id, vert_cell)
-    ijk = torch.stack([(lower // (Y * Z)) % X, (lower // Z) % Y, lower % Z], dim=1)
+    ijk = torch.stack([imod(idiv(lower, Y * Z), X), imod(idiv(lower, Z), Y), imod(lower, Z)],
+                      dim=1)
     return Welded(lower, d_v, lower * 3 + d_v, vert_cell, ijk)
 
 
-def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
+def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
+                layers: tuple[int, int] | None = None):
     """Faces of the active cells: table rows -> local edges -> welded vertex ids.
 
     Local edge ``e`` of cell ``c`` is the lower edge (direction ``edge_dir[e]``) of the
@@ -173,6 +193,9 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
         tri_table: ``(R, T, 3)`` local edge triples, ``-1`` padded.
         vert_key: ``(V,)`` sorted vertex keys (:class:`Welded`).
         sizes: ``(X, Y, Z)``; batch: ``B``.
+        layers: ``(first, stop)`` stacked cell layers holding every cell of ``cell_id``
+            (default: all ``B * X``); ``vert_key`` then holds the vertices of those
+            layers and of layer ``stop``, and the ids are indices into it.
 
     Returns:
         ``(faces (F, 3) long, cell_of_face (F,), tri_row (F,))``: ``tri_row`` indexes
@@ -195,8 +218,9 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
     face_cell3 = take(cell_id, cell_of_face) * 3  # (F,) sorted
     faces = torch.empty(face_cell3.shape[0], 3, dtype=torch.long, device=device)
     map_slab = max(1, MAP_CELLS // YZ)
-    layer_bounds = torch.arange(0, batch * X + map_slab, map_slab, device=device)
-    layer_bounds = layer_bounds.clamp_max(batch * X) * (3 * YZ)  # key bounds of the slabs
+    first, stop = (0, batch * X) if layers is None else layers
+    layer_bounds = torch.arange(first, stop + map_slab, map_slab, device=device)
+    layer_bounds = layer_bounds.clamp_max(stop) * (3 * YZ)  # key bounds of the slabs
     face_bounds = torch.searchsorted(face_cell3, layer_bounds).tolist()
     vert_lo = torch.searchsorted(vert_key, layer_bounds).tolist()
     vert_hi = torch.searchsorted(
@@ -208,7 +232,7 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int):
         if f0 == f1:
             continue
         v0, v1 = vert_lo[n], vert_hi[n + 1]  # vertices of the slab and one more layer
-        base = n * map_slab * YZ * 3
+        base = (first + n * map_slab) * YZ * 3
         id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
         face_key = take(tri_delta, tri_row[f0:f1]).add_((face_cell3[f0:f1] - base)[:, None])
         faces[f0:f1] = take(id_map, face_key.view(-1)).view(-1, 3)
@@ -266,7 +290,7 @@ def find_centres(cell_id, rows, centre_mask, decided, vert_key, cell_of_face, tr
     # 1 / count in float64 (correctly rounded in every working dtype; a long / long
     # division would give float32 weights for float64 volumes)
     weight = bits.double() / bits.sum(1, keepdim=True).double()
-    return Centres(members * bits, weight, cells // (X * Y * Z))
+    return Centres(members * bits, weight, idiv(cells, X * Y * Z))
 
 
 def place_centres(verts, normals, centres: Centres):
@@ -305,7 +329,8 @@ def sample_stencil(welded: Welded, sizes):
     index[0], index[1] = lower, upper
     axes, steps = [], []
     for s, shift in enumerate((1, 2)):  # the two axes across the edge
-        a = (d_v + shift) % 3  # (V,)
+        a = take(torch.tensor([shift, (1 + shift) % 3, (2 + shift) % 3], device=device),
+                 d_v)  # (V,) (d + shift) % 3
         c = corner_ijk.gather(1, a[:, None]).squeeze(1)
         up = (c < take(last, a)).long()
         down = (c > 0).long()
@@ -384,7 +409,8 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
     flat = vol.reshape(-1)
     samples = take(flat, stencil.view(-1)).view(stencil.shape).to(args.work)  # (10, V)
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)
-    spacing_v = args.spacing[:1] if b_v is None else take(args.spacing, b_v)
+    spacing_v = (args.spacing[:1] if b_v is None or args.shared_frame
+                 else take(args.spacing, b_v))  # (1, 3) broadcasts when shared
     return place_vertices(samples, iso_v, welded, axes, steps, spacing_v,
                           lambda index_pos: to_world(index_pos, b_v))
 
@@ -431,7 +457,7 @@ def soft_weights(vol, cell_id, cases, cell_of_face, args) -> torch.Tensor:
     f_corners = f_corners.view(-1, 8).to(args.work)  # (C, 8)
     inside_bits = (take(cases, cells)[:, None] >> torch.arange(8, device=device)) & 1
     sign = (2 * inside_bits - 1).to(args.work)  # (C, 8): +1 inside, -1 outside
-    b_c = take(cell_id, cells) // (X * Y * Z)
+    b_c = idiv(take(cell_id, cells), X * Y * Z)
     # halves first: iso - f cannot overflow near the top of the float range (a quotient
     # beyond it is +-inf, which logsigmoid saturates correctly)
     half_gap = take(args.iso, b_c)[:, None] * 0.5 - f_corners * 0.5
