@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import torch
 
-from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP
+from torchgeo_cg.mesh.subdivision._patches import sharp_edge_counts
 
 SLOTS = ((0, 0), (1, 0), (0, 1), (1, -1), (0, -1), (-1, 0), (1, 1), (2, 0), (2, -1),
          (-1, 1), (-1, 2), (0, 2))
@@ -153,18 +153,10 @@ def fold_phantoms(w: torch.Tensor, rule: torch.Tensor, present: torch.Tensor) ->
 
 def regular_triangles(topo, faces_f3, sharp_e, sharp_v, hole_f, twin) -> torch.Tensor:
     """``(F,)`` bool: the triangles whose limit is one box-spline patch (module docstring)."""
-    V = topo.valence_v.numel()
     F = faces_f3.shape[0]
     if F == 0:
         return torch.zeros(0, dtype=torch.bool, device=faces_f3.device)
-    inf_e = sharp_e >= INFINITELY_SHARP
-    semi_e = (sharp_e > 0) & ~inf_e
-    ends = torch.cat([topo.edge_lo_e, topo.edge_hi_e])
-
-    def count(mask):
-        return torch.bincount(ends[torch.cat([mask, mask])], minlength=V)
-
-    n_inf, n_semi = count(inf_e), count(semi_e)
+    inf_e, n_inf, n_semi = sharp_edge_counts(topo, sharp_e)
     val, nf = topo.valence_v, topo.num_faces_v
     free = (sharp_v == 0) & (n_semi == 0)
     smooth_v = free & (n_inf == 0) & (val == 6) & (nf == 6)

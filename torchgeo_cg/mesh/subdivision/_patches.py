@@ -58,8 +58,10 @@ def quad_twins(topo) -> torch.Tensor:
     return twin
 
 
-def regular_quads(topo, faces_q4, sharp_e, sharp_v, hole_f) -> torch.Tensor:
-    """``(F,)`` bool: the quads whose limit is one bicubic B-spline patch (module docstring)."""
+def sharp_edge_counts(topo, sharp_e: torch.Tensor
+                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``(inf_e, n_inf_v, n_semi_v)``: the infinitely sharp edges, and per vertex the number
+    of its infinitely sharp and of its semi-sharp edges."""
     V = topo.valence_v.numel()
     inf_e = sharp_e >= INFINITELY_SHARP
     semi_e = (sharp_e > 0) & ~inf_e
@@ -68,9 +70,15 @@ def regular_quads(topo, faces_q4, sharp_e, sharp_v, hole_f) -> torch.Tensor:
     def count(mask):
         return torch.bincount(ends[torch.cat([mask, mask])], minlength=V)
 
-    n_inf, n_semi = count(inf_e), count(semi_e)
+    return inf_e, count(inf_e), count(semi_e)
+
+
+def regular_quads(topo, faces_q4, sharp_e, sharp_v, hole_f) -> torch.Tensor:
+    """``(F,)`` bool: the quads whose limit is one bicubic B-spline patch (module docstring)."""
+    V = topo.valence_v.numel()
+    inf_e, n_inf, n_semi = sharp_edge_counts(topo, sharp_e)
     per_corner = inf_e[topo.edge_c].long() + inf_e[topo.edge_c[topo.prev_corner_c]].long()
-    most = torch.zeros(V, dtype=torch.long, device=ends.device).scatter_reduce(
+    most = torch.zeros(V, dtype=torch.long, device=sharp_e.device).scatter_reduce(
         0, topo.vert_c, per_corner, "amax")
     val, nf = topo.valence_v, topo.num_faces_v
     free = sharp_v == 0
@@ -80,7 +88,7 @@ def regular_quads(topo, faces_q4, sharp_e, sharp_v, hole_f) -> torch.Tensor:
     corner = (sharp_v >= INFINITELY_SHARP) & (val == 2) & (nf == 1)
     regular_v = (smooth | crease | corner) & (n_semi == 0)
     if faces_q4.shape[0] == 0:
-        return torch.zeros(0, dtype=torch.bool, device=ends.device)
+        return torch.zeros(0, dtype=torch.bool, device=sharp_e.device)
     return regular_v[faces_q4].all(1) & ~hole_f
 
 
