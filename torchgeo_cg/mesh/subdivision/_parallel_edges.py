@@ -29,15 +29,25 @@ def catmark_child_edge_tags(topo) -> torch.Tensor | None:
     return tags.flatten()
 
 
+def _shares_vertices(faces_f3: torch.Tensor) -> torch.Tensor:
+    """``(F,)`` bool: the triangles whose vertex set is another triangle's too."""
+    key = torch.sort(faces_f3, dim=1).values
+    V = int(key.max()) + 1 if key.numel() else 1
+    if V ** 3 < 2 ** 62:  # one integer per set: a 1D unique, much faster than unique(dim=0)
+        key = (key[:, 0] * V + key[:, 1]) * V + key[:, 2]
+        _, inverse, counts = torch.unique(key, return_inverse=True, return_counts=True)
+    else:
+        _, inverse, counts = torch.unique(key, dim=0, return_inverse=True, return_counts=True)
+    return counts[inverse] > 1
+
+
 def loop_child_edge_tags(faces_f3: torch.Tensor, topo) -> torch.Tensor | None:
     """``(12 F,)`` tags of the child triangles' corners (children ``4 f + k``: the corner
     triangles, then the middle one): the far half of a degenerate edge gets 1, and the
     inner edges of a face sharing its vertices with another face get ``2 + f``."""
     F = faces_f3.shape[0]
     degenerate_e = topo.edge_lo_e == topo.edge_hi_e
-    key = torch.sort(faces_f3, dim=1).values
-    _, inverse, counts = torch.unique(key, dim=0, return_inverse=True, return_counts=True)
-    shared_f = counts[inverse] > 1 if F else torch.zeros(0, dtype=torch.bool)
+    shared_f = _shares_vertices(faces_f3)
     if not (bool(degenerate_e.any()) or bool(shared_f.any())):
         return None
     dev = faces_f3.device
