@@ -25,7 +25,7 @@ import math
 import torch
 
 from torchgeo_cg.transforms._so3 import hat
-from torchgeo_cg.transforms._solvers import spd_solve
+from torchgeo_cg.transforms._solvers import damped_step, lm_update
 from torchgeo_cg.transforms.robust import robust_loss, robust_weights
 from torchgeo_cg.transforms.rotations import se3_exp, se3_log
 
@@ -102,21 +102,14 @@ def lm_fit_3d(src, dst, w, init, with_scale: bool, kind: str, scale: float, step
     mu = torch.full_like(obj, mu0)
     for _ in bar:
         jtj, jtr = _normal_system(h, p, q, wn, kind, c, with_scale)
-        diag = jtj.diagonal(dim1=-2, dim2=-1)
-        damp = mu[:, None] * diag + 1e-12 * diag.sum(-1, keepdim=True) + 1e-30
-        step = -spd_solve(jtj + torch.diag_embed(damp), jtr)  # (B, P)
-        step = torch.where(torch.isfinite(step), step, torch.zeros_like(step))
+        step = damped_step(jtj, jtr, mu)  # (B, P)
         trial = _perturbation(step, with_scale) @ h
         obj_new, _ = _terms(trial, p, q, wn, kind, c)
-        accept = obj_new < obj
+        small = step.norm(dim=-1) <= math.sqrt(tol)
+        accept, obj, mu, converged = lm_update(obj, obj_new, mu, small, tol)
         h = torch.where(accept[:, None, None], trial, h)
-        decrease = torch.where(accept, obj - obj_new, torch.zeros_like(obj))
-        obj = torch.where(accept, obj_new, obj)
-        mu = torch.where(accept, mu * 0.1, mu * 10.0).clamp(1e-12, 1e12)
         history.append(obj.detach() / k.square())
         bar.set_postfix(loss=float((obj / k.square()).detach().mean()))
-        small = step.norm(dim=-1) <= math.sqrt(tol)
-        converged = ((decrease <= tol * obj) & small) | (obj <= 1e-30) | (mu >= 1e12)
         if bool(converged.all()):
             break
     # M = T_dst⁻¹ Ĥ T_src: the linear part again unchanged, t = t̂ / k + cd - A cs

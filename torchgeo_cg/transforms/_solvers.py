@@ -64,6 +64,30 @@ def spd_solve(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return torch.stack(x, dim=-1)
 
 
+def damped_step(a: torch.Tensor, g: torch.Tensor, mu: torch.Tensor) -> torch.Tensor:
+    """The LM step ``-(A + damp) \\ g`` of normal equations ``A (B, P, P)``, ``g (B, P)``
+    with Marquardt's diagonal scaling by ``mu (B,)``; a non-finite step is zero. The
+    problems are normalized, so the floors are relative to unit-sized data."""
+    diag = a.diagonal(dim1=-2, dim2=-1)
+    damp = mu[:, None] * diag + 1e-12 * diag.sum(-1, keepdim=True) + 1e-30
+    step = -spd_solve(a + torch.diag_embed(damp), g)
+    return torch.where(torch.isfinite(step), step, torch.zeros_like(step))
+
+
+def lm_update(obj, obj_new, mu, small, tol):
+    """Accept the trials that lower the objective, adapt ``mu``, test convergence.
+
+    Returns ``(accept, obj, mu, converged)``, all ``(B,)``; ``small`` says where the step
+    was small relative to the parameters.
+    """
+    accept = obj_new < obj
+    decrease = torch.where(accept, obj - obj_new, torch.zeros_like(obj))
+    obj = torch.where(accept, obj_new, obj)
+    mu = torch.where(accept, mu * 0.1, mu * 10.0).clamp(1e-12, 1e12)
+    converged = ((decrease <= tol * obj) & small) | (obj <= 1e-30) | (mu >= 1e12)
+    return accept, obj, mu, converged
+
+
 def levenberg_marquardt(fn, theta, prob, objective, steps, mu0, tol, bar, history):
     """Levenberg-Marquardt (Marquardt's diagonal scaling), per problem, unrolled."""
     constant_jac = None
@@ -83,22 +107,15 @@ def levenberg_marquardt(fn, theta, prob, objective, steps, mu0, tol, bar, histor
             d = _param_jacobian(fn, theta)  # (B, 9, P)
             a = d.mT @ jtj @ d
             g = d.mT @ jtr[..., None]
-        diag = a.diagonal(dim1=-2, dim2=-1)
-        damp = mu[:, None] * diag + 1e-12 * diag.sum(-1, keepdim=True) + 1e-30
-        step = -spd_solve(a + torch.diag_embed(damp), g.squeeze(-1))  # (B, P)
-        step = torch.where(torch.isfinite(step), step, torch.zeros_like(step))
+        step = damped_step(a, g.squeeze(-1), mu)  # (B, P)
         trial = theta + step
         obj_new, loss_new = loss_terms(fn(trial), prob, objective)
-        accept = obj_new < obj
+        small = step.norm(dim=-1) <= math.sqrt(tol) * (1 + theta.norm(dim=-1))
+        accept, obj, mu, converged = lm_update(obj, obj_new, mu, small, tol)
         theta = torch.where(accept[:, None], trial, theta)
-        decrease = torch.where(accept, obj - obj_new, torch.zeros_like(obj))
-        obj = torch.where(accept, obj_new, obj)
         loss = torch.where(accept, loss_new, loss)
-        mu = torch.where(accept, mu * 0.1, mu * 10.0).clamp(1e-12, 1e12)
         history.append(loss.detach())
         bar.set_postfix(loss=float(loss.detach().mean()))
-        small = step.norm(dim=-1) <= math.sqrt(tol) * (1 + theta.norm(dim=-1))
-        converged = ((decrease <= tol * obj) & small) | (obj <= 1e-30) | (mu >= 1e12)
         if bool(converged.all()):
             break
     return theta
