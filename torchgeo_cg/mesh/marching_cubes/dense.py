@@ -297,6 +297,32 @@ def _needs_grad(args) -> bool:
                                                      args.spacing))
 
 
+def _slab_plan(cell_id, cases_a, shape):
+    """Where the slabs of about :data:`SLAB_ACTIVE` active cells start and end.
+
+    Returns ``(bounds, a_lo, a_next, v_at, w_per)``: the slabs' first cell layers (and the
+    end), the first active cell of each slab and of the layer after each slab, the welded
+    vertices before each slab, and the welded vertices per volume ``(B,)``.
+    """
+    B, X, Y, Z = shape
+    YZ, device = Y * Z, cell_id.device
+    nv = take(lower_crossings(device).sum(1), cases_a)  # (A,) vertices each cell owns
+    v_start = torch.cat([nv.new_zeros(1), nv.cumsum(0)])  # (A + 1,)
+    layer = idiv(cell_id, YZ)
+    cuts = torch.unique(take(layer, torch.arange(SLAB_ACTIVE, cell_id.shape[0], SLAB_ACTIVE,
+                                                 device=device)))
+    bounds = [0, *(c for c in cuts.tolist() if c > 0), B * X]
+    edges = torch.tensor(bounds + [min(b + 1, B * X) for b in bounds[1:]], device=device)
+    cell_at = torch.searchsorted(cell_id, edges * YZ).tolist()
+    n_slabs = len(bounds) - 1
+    a_lo, a_next = cell_at[:n_slabs + 1], cell_at[n_slabs + 1:]
+    v_at = take(v_start, torch.tensor(a_lo, device=device)).tolist()
+    w_per = torch.zeros(B, dtype=torch.long, device=device)
+    if B > 1:
+        w_per.index_add_(0, idiv(cell_id, Y * Z * X), nv)
+    return bounds, a_lo, a_next, v_at, w_per
+
+
 def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
     """Hard mode without a mask and without autograd, slab by slab along the stacked x.
 
@@ -311,30 +337,17 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
     volume).
     """
     B, X, Y, Z = vol.shape
-    YZ, XYZ = Y * Z, X * Y * Z
+    XYZ = X * Y * Z
     device = vol.device
     det_vol, det_iso = vol.detach(), args.iso.detach()
     to_world = _world_map(args)
     with torch.no_grad():
-        nv = take(lower_crossings(device).sum(1), cases_a)  # (A,) vertices each cell owns
-        v_start = torch.cat([nv.new_zeros(1), nv.cumsum(0)])  # (A + 1,)
-        layer = idiv(cell_id, YZ)
-        cuts = torch.unique(take(layer, torch.arange(SLAB_ACTIVE, cell_id.shape[0],
-                                                     SLAB_ACTIVE, device=device)))
-        bounds = [0, *(c for c in cuts.tolist() if c > 0), B * X]
-        del layer, cuts
-        edges = torch.tensor(bounds + [min(b + 1, B * X) for b in bounds[1:]], device=device)
-        cell_at = torch.searchsorted(cell_id, edges * YZ).tolist()
+        bounds, a_lo, a_next, v_at, w_per = _slab_plan(cell_id, cases_a, vol.shape)
         n_slabs = len(bounds) - 1
-        a_lo, a_next = cell_at[:n_slabs + 1], cell_at[n_slabs + 1:]
-        v_at = take(v_start, torch.tensor(a_lo, device=device)).tolist()
         W = v_at[-1]  # welded vertices in all
         if B > 1:
-            w_per = torch.zeros(B, dtype=torch.long, device=device)
-            w_per.index_add_(0, idiv(cell_id, XYZ), nv)
             w_incl = w_per.cumsum(0)  # welded vertices in volumes <= b
             c_per = torch.zeros(B, dtype=torch.long, device=device)
-        del nv, v_start
     verts_w, normals_w, verts_c, normals_c, b_c, face_parts, b_f_parts = ([] for _ in range(7))
     n_centres = 0
     id_dtype = torch.int32
