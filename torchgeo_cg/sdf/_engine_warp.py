@@ -74,12 +74,20 @@ if wp is not None:  # kernels exist only with a working optional extra
 
 
     @wp.func
-    def _nearer_edge(p: wp.vec3d, u: wp.vec3d, v: wp.vec3d, edge: int, best: wp.float64,
-                     t_best: wp.float64, q: wp.vec3d, code: int):
-        """The candidate ``(squared distance, t, point, code)`` after edge ``uv`` (code
-        ``edge``) is tried: it replaces the current one only when strictly nearer."""
-        d2, t, qe = _segment(p, u, v)
-        if d2 < best:
+    def _defers(t: wp.float64, t_prev: wp.float64, t_next: wp.float64) -> bool:
+        """An edge's candidate clamped to a corner that the other edge at that corner does
+        not clamp to defers to it (the rule of the torch evaluation's ``_defer_vertices``)."""
+        at_start = t <= wp.float64(0.0) and not (t_prev >= wp.float64(1.0))
+        at_end = t >= wp.float64(1.0) and not (t_next <= wp.float64(0.0))
+        return at_start or at_end
+
+
+    @wp.func
+    def _nearer_edge(d2: wp.float64, t: wp.float64, qe: wp.vec3d, edge: int, skip: bool,
+                     best: wp.float64, t_best: wp.float64, q: wp.vec3d, code: int):
+        """The candidate ``(squared distance, t, point, code)`` after edge ``edge`` is
+        tried: it replaces the current one only when strictly nearer and not skipped."""
+        if d2 < best and not skip:
             return d2, t, qe, edge
         return best, t_best, q, code
 
@@ -104,6 +112,7 @@ if wp is not None:  # kernels exist only with a working optional extra
         q = a
         code = wp.int32(0)
         t_best = wp.float64(0.0)
+        inside = False
         if den > wp.float64(1.0e-12) * d00 * d11:
             bv = (d11 * dot0 - d01 * dot1) / den
             bw = (d00 * dot1 - d01 * dot0) / den
@@ -112,9 +121,20 @@ if wp is not None:  # kernels exist only with a working optional extra
                              a[2] + bv * e0[2] + bw * e1[2])
                 d = p - q
                 best = _dot3(d, d)
-        best, t_best, q, code = _nearer_edge(p, a, b, 1, best, t_best, q, code)
-        best, t_best, q, code = _nearer_edge(p, b, c, 2, best, t_best, q, code)
-        best, t_best, q, code = _nearer_edge(p, c, a, 3, best, t_best, q, code)
+                inside = True
+        d1, t1, q1 = _segment(p, a, b)
+        d2, t2, q2 = _segment(p, b, c)
+        d3, t3, q3 = _segment(p, c, a)
+        s1 = _defers(t1, t3, t2)
+        s2 = _defers(t2, t1, t3)
+        s3 = _defers(t3, t2, t1)
+        if s1 and s2 and s3:  # a degenerate triangle: then no edge defers
+            s1 = False
+            s2 = False
+            s3 = False
+        best, t_best, q, code = _nearer_edge(d1, t1, q1, 1, inside or s1, best, t_best, q, code)
+        best, t_best, q, code = _nearer_edge(d2, t2, q2, 2, inside or s2, best, t_best, q, code)
+        best, t_best, q, code = _nearer_edge(d3, t3, q3, 3, inside or s3, best, t_best, q, code)
         feature = code
         if code > 0 and t_best <= wp.float64(0.0):
             feature = 3 + code  # the edge's start vertex: a, b, c
