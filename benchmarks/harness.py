@@ -37,6 +37,10 @@ class Case:
         threads: thread counts to time at.
         extra: free-form numbers to report (errors, peak memory, points/s, ...).
         sync: synchronize CUDA inside the timed region.
+        once: ``ours`` and ``peer`` each run once and time themselves (a run of minutes,
+            usually in a fresh process that also measures its peak memory): they return a
+            dict with ``"s"``, the seconds, and any other numbers, reported in the notes
+            with an ``ours_`` or ``peer_`` prefix. No warm-up, no blocks.
     """
 
     name: str
@@ -48,6 +52,7 @@ class Case:
     threads: tuple[int, ...] = (1, 2)
     extra: dict = field(default_factory=dict)
     sync: bool = False
+    once: bool = False
 
 
 @dataclass
@@ -110,6 +115,8 @@ def run_case(case: Case, min_run_time: float = 0.5, rounds: int = 5) -> list[Mea
     """
     import statistics
 
+    if case.once:
+        return [_run_once(case, n) for n in case.threads]
     out = []
     block = min_run_time / rounds
     for n in case.threads:
@@ -148,6 +155,26 @@ def run_case(case: Case, min_run_time: float = 0.5, rounds: int = 5) -> list[Mea
             )
         )
     return out
+
+
+def _run_once(case: Case, threads: int) -> Measurement:
+    """One self-timed call of ours and of the peer (see ``Case.once``)."""
+    with _limit_threads(threads):
+        ours = dict(case.ours())
+        peer = None if case.peer is None else dict(case.peer())
+    extra = dict(case.extra)
+    extra.update({f"ours_{k}": v for k, v in ours.items() if k != "s"})
+    ratio = None
+    if peer is not None:
+        extra.update({f"peer_{k}": v for k, v in peer.items() if k != "s"})
+        ratio = ours["s"] / (peer["s"] * case.peer_scale)
+    passed = None if (ratio is None or case.target is None) else ratio <= case.target
+    return Measurement(
+        case=case.name, threads=threads, ours_ms=ours["s"] * 1e3, ours_iqr_ms=0.0,
+        peer_ms=None if peer is None else peer["s"] * case.peer_scale * 1e3,
+        peer_iqr_ms=None if peer is None else 0.0, peer_name=case.peer_name, ratio=ratio,
+        target=case.target, passed=passed, extra=extra,
+    )
 
 
 def metadata() -> dict:
