@@ -1152,6 +1152,36 @@ def test_slabbed_equals_one_go_bit_for_bit(name, ambiguity, monkeypatch):
         assert ok, why
 
 
+def test_slabbed_equals_one_go_with_near_overflow_samples(monkeypatch):
+    """Near-overflow samples (whose vertices are rescaled) in one part of the volume, and in
+    another vertices whose stencils mix 1e300 and 1e-9 (rescaling those would push the
+    small samples into subnormals and change their bits): the slabbed result equals the one-go
+    result bit for bit, and the huge part equals the unscaled field's extraction."""
+    g = torch.Generator().manual_seed(5)
+    X, Y, Z, h, lo = grid(40, -1.5, 1.5)
+    sphere = torch.sqrt((X + 0.75) ** 2 + Y**2 + Z**2) - 0.5
+    choice = torch.randint(0, 4, X.shape, generator=g)
+    small = (torch.rand(X.shape, generator=g, dtype=torch.float64) - 0.5) * 1e-9
+    huge_pm = torch.where(choice == 2, -1e300, torch.full_like(small, 1e300))
+    mixed = torch.where(choice < 2, small, huge_pm)
+    for huge in (1e308, 2.0**1022):
+        field = torch.where(X < 0, sphere * huge, mixed)
+        assert field.abs().max() > torch.finfo(torch.float64).max / 4
+        monkeypatch.setattr(_dense, "SLAB_ACTIVE", 1 << 40)
+        whole = marching_cubes(field)
+        monkeypatch.setattr(_dense, "SLAB_ACTIVE", 64)
+        slabbed = marching_cubes(field)
+        for got, want in zip(slabbed, whole):
+            assert torch.equal(got, want)
+    # scaled by an exact power of two, the huge part away from the seam x = 0 (index 19.5)
+    # is the unscaled field's extraction, bit for bit
+    reference = marching_cubes(torch.where(X < 0, sphere, mixed))
+    far, far_ref = whole.verts[:, 0] < 18, reference.verts[:, 0] < 18
+    assert far.sum() > 100
+    assert torch.equal(whole.verts[far], reference.verts[far_ref])
+    assert torch.equal(whole.normals[far], reference.normals[far_ref])
+
+
 def test_slabs_keep_the_autograd_path(monkeypatch):
     """With autograd recording, the call runs in one go (the gradients are those of the
     one-go path); without, in slabs; the values agree exactly."""

@@ -369,9 +369,12 @@ def _unit_normals(samples, t, d_v, axes, steps, spacing_v):
 
 
 def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
-    """Samples and ``iso`` so large that their differences could overflow (beyond a quarter
-    of the dtype's largest value) are multiplied by a power of two per vertex (exact), which
-    changes neither ``t`` nor the normal's direction. One ``aminmax`` pass checks for it.
+    """The stencil samples and ``iso`` of a vertex whose values are so large that their
+    differences could overflow (beyond a quarter of the dtype's largest value) are divided
+    by a power of two (exact), which changes neither ``t`` nor the normal's direction. One
+    ``aminmax`` pass checks for it. The decision is per vertex, so a vertex's result never
+    depends on the other vertices extracted with it (a slab or a block gives the one-go
+    bits), and small samples elsewhere are never scaled down into subnormals.
 
     Args:
         samples: ``(10, V)`` the stencil samples of each vertex; iso_v: ``(V,)``.
@@ -387,7 +390,7 @@ def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
     if max(-float(low), float(high), float(iso_high)) <= limit:
         return samples, iso_v
     top = torch.maximum(samples.detach().abs().amax(0), iso_v.detach().abs())  # (V,)
-    scale = power_of_two_scale(top)  # (V,)
+    scale = torch.where(top > limit, power_of_two_scale(top), torch.ones_like(top))  # (V,)
     return samples / scale, iso_v / scale
 
 
