@@ -1,7 +1,7 @@
 """NaN in an argument other than the first is never swallowed.
 
 The contract suite puts NaN into each callable's primary argument; these cases put it
-where a selection or a comparison used to drop it: a triangle corner, a volume
+where a selection or a comparison could drop it: a triangle corner, a volume
 sample, the time of a constant transform.
 """
 
@@ -38,7 +38,7 @@ def test_closest_point_on_triangle_nan_vertex(corner):
 def test_zero_level_set_nan_sample_raises():
     vol = sample_grid(lambda p: p[:, 0] - 0.5, 5, (0.0, 1.0))
     values = vol.values.clone()
-    values[4, 4, 4] = math.nan  # far from the surface: it used to be dropped silently
+    values[4, 4, 4] = math.nan  # far from the surface: a comparison would drop it silently
     with pytest.raises(ValueError, match="volume.*NaN.*1 of 125"):
         zero_level_set(vol._replace(values=values))
     with pytest.raises(ValueError, match="volume"):

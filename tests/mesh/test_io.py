@@ -258,7 +258,7 @@ def test_malformed_file_raises_value_error_naming_file_and_line(tmp_path, case):
 
 
 # ---------------------------------------------------------------------------
-# Files that used to be misread: they now load exactly
+# Files a naive reader misreads: they load exactly
 # ---------------------------------------------------------------------------
 
 TRI = [[0, 1, 2]]
@@ -662,7 +662,7 @@ def test_one_huge_face_does_not_pad_every_face_to_gigabytes(tmp_path):
 @pytest.mark.parametrize("suffix, binary", [(".obj", True), (".ply", True), (".ply", False),
                                             (".off", True)])
 def test_bfloat16_verts_save_exactly(tmp_path, suffix, binary):
-    # was: TypeError "Got unsupported ScalarType BFloat16" from .numpy()
+    # unguarded: TypeError "Got unsupported ScalarType BFloat16" from .numpy()
     v = (_verts(torch.float64) * 1.37 - 0.4).to(torch.bfloat16)
     path = tmp_path / f"m{suffix}"
     save_mesh(path, v, MIXED, binary=binary)
@@ -673,7 +673,7 @@ def test_bfloat16_verts_save_exactly(tmp_path, suffix, binary):
 
 
 def test_uvs_and_sharpness_keep_their_own_digits(tmp_path):
-    # was: uvs and tag sharpness written with the digits of the verts' dtype (9 for float32)
+    # unguarded: uvs and tag sharpness written with the digits of the verts' dtype (9 for float32)
     v = _verts(torch.float32)
     uvs = torch.tensor([[0.1, 0.2], [1 / 3, 2 / 3], [0.7, 0.9]], dtype=torch.float64)
     uv_faces = [[0, 1, 2, 0], [1, 2, 0], [2, 0, 1, 2, 0]]
@@ -690,7 +690,7 @@ def test_uvs_and_sharpness_keep_their_own_digits(tmp_path):
 
 @pytest.mark.parametrize("dtype", [torch.long, torch.bool, "float64"])
 def test_non_float_dtype_raises(tmp_path, dtype):
-    # was: load_mesh(dtype=torch.long) truncated the coordinates silently
+    # unguarded: load_mesh(dtype=torch.long) truncated the coordinates silently
     path = tmp_path / "m.obj"
     save_mesh(path, _verts() + 0.25, MIXED)
     with pytest.raises(TypeError, match="dtype: expected a floating-point dtype"):
@@ -701,7 +701,7 @@ def test_non_float_dtype_raises(tmp_path, dtype):
 
 @pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16])
 def test_half_dtype_saturates_instead_of_inf(tmp_path, dtype):
-    # was: 1e5 (float16) or 1e39 (bfloat16) in the file became inf
+    # unguarded: 1e5 (float16) or 1e39 (bfloat16) in the file became inf
     big = 1e39 if dtype == torch.bfloat16 else 1e5
     v = _verts() * big
     path = tmp_path / "m.obj"

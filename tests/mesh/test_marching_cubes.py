@@ -997,7 +997,7 @@ def test_nan_sample_raises_naming_volume(where, mask):
 def test_nan_iso_raises_and_opposite_infinities_are_samples():
     X, Y, Z, h, lo = grid(5)
     vol = sphere(X, Y, Z)
-    with pytest.raises(ValueError, match="iso"):  # was: an empty mesh
+    with pytest.raises(ValueError, match="iso"):  # not an empty mesh
         marching_cubes(vol, iso=float("nan"))
     with pytest.raises(ValueError, match="iso"):
         marching_cubes(torch.stack([vol, vol]), iso=torch.tensor([0.0, float("nan")]))
@@ -1010,7 +1010,7 @@ def test_nan_iso_raises_and_opposite_infinities_are_samples():
 
 @pytest.mark.parametrize("soft", [None, 0.5])
 def test_empty_batch_gives_empty_result(soft):
-    # was: ValueError from torch.cat(): expected a non-empty list of Tensors
+    # unguarded: ValueError from torch.cat(): expected a non-empty list of Tensors
     for dtype in (torch.float32, torch.float64):
         result = marching_cubes(torch.zeros(0, 3, 4, 5, dtype=dtype), iso=torch.zeros(0),
                                 origin=torch.zeros(0, 3), temperature=soft)
@@ -1024,7 +1024,7 @@ def test_empty_batch_gives_empty_result(soft):
 @pytest.mark.parametrize("s", [1e-300, 1e-200, 1e200, 1e300])
 @pytest.mark.parametrize("ambiguity", ["asymptotic", "separate"])
 def test_any_float64_field_scale_gives_the_same_mesh(s, ambiguity):
-    # was: the decider's products g_a g_c - g_b g_d underflowed to 0 (ties) below ~1e-160
+    # unguarded: the decider's products g_a g_c - g_b g_d underflowed to 0 (ties) below ~1e-160
     # and overflowed to inf - inf = NaN above ~1e154, changing the triangulation
     gen = torch.Generator().manual_seed(3)
     vol = torch.randn(2, 7, 6, 5, generator=gen, dtype=torch.float64)
@@ -1037,7 +1037,7 @@ def test_any_float64_field_scale_gives_the_same_mesh(s, ambiguity):
 
 @pytest.mark.parametrize("h", [1e-310, 1e-200, 1e200])
 def test_normals_at_tiny_and_huge_spacing(h):
-    # was: grad / spacing overflowed to inf at a subnormal spacing (NaN normals)
+    # unguarded: grad / spacing overflowed to inf at a subnormal spacing (NaN normals)
     X, Y, Z, _, lo = grid(6)
     vol = torus(X, Y, Z)
     want = marching_cubes(vol, spacing=(1.0, 2.0, 0.5))
@@ -1048,7 +1048,7 @@ def test_normals_at_tiny_and_huge_spacing(h):
 
 @pytest.mark.parametrize("s", [1e30, 8e37])
 def test_float32_field_near_the_top_of_its_range(s):
-    # was: f2 - f1 and the central differences overflowed to inf beyond ~4e37: vertices
+    # unguarded: f2 - f1 and the central differences overflowed to inf beyond ~4e37: vertices
     # moved to the sample and normals were NaN (inf / inf) although every input was finite
     gen = torch.Generator().manual_seed(0)
     vol = torch.randn(2, 6, 6, 6, generator=gen, dtype=torch.float32)
@@ -1061,7 +1061,7 @@ def test_float32_field_near_the_top_of_its_range(s):
 
 
 def test_float64_field_near_the_top_of_its_range():
-    # was: f - iso overflowed to inf in the decider for samples and iso of opposite signs
+    # unguarded: f - iso overflowed to inf in the decider for samples and iso of opposite signs
     # near 1e308 (inf products, NaN decisions), changing the triangulation
     gen = torch.Generator().manual_seed(4)
     u = torch.rand(2, 6, 5, 7, generator=gen, dtype=torch.float64)
@@ -1076,7 +1076,7 @@ def test_float64_field_near_the_top_of_its_range():
 
 
 def test_soft_weights_near_the_top_of_the_range():
-    # was: iso - f overflowed to inf, so logits (iso - f) / tau saturated: weights 0 or 1
+    # unguarded: iso - f overflowed to inf, so logits (iso - f) / tau saturated: weights 0 or 1
     gen = torch.Generator().manual_seed(5)
     u = torch.rand(6, 5, 7, generator=gen, dtype=torch.float64)
     inside = torch.rand(6, 5, 7, generator=gen, dtype=torch.float64) < 0.5
@@ -1090,7 +1090,7 @@ def test_soft_weights_near_the_top_of_the_range():
 
 
 def test_half_positions_saturate_instead_of_inf():
-    # was: float16 positions beyond 65504 (a large origin) were rounded to inf
+    # unguarded: float16 positions beyond 65504 (a large origin) were rounded to inf
     X, Y, Z, h, lo = grid(6)
     vol = sphere(X, Y, Z).half()
     origin = (65530.0, 0.0, 0.0)  # x beyond 65520 rounds to inf in float16

@@ -181,7 +181,7 @@ def test_flat_grid_gradient_is_finite_and_nan_propagates():
 
 # ----------------------------------------------------------------------------- contract ------
 def test_nan_vertex_propagates_to_normal_consistency_and_cotangents():
-    # was: a NaN normal failed the "> 0" guard and counted as a zero-area face (term 0)
+    # unguarded: a NaN normal failed the "> 0" guard and counted as a zero-area face (term 0)
     verts, faces = mixed_polygons()
     bad = verts.clone()
     bad[6, 2] = float("nan")
@@ -196,7 +196,7 @@ def test_nan_vertex_propagates_to_normal_consistency_and_cotangents():
 
 @pytest.mark.parametrize("s", [1e-30, 1e-12, 1e12, 1e30])
 def test_float32_at_extreme_scales_matches_float64(s):
-    # was: |n_f|^2 |n_g|^2 (s^8) and |a x b|^2 (s^4) under/overflowed float32: the normal
+    # unguarded: |n_f|^2 |n_g|^2 (s^8) and |a x b|^2 (s^4) under/overflowed float32: the normal
     # consistency became 0 or NaN, the cotangent weights 0, the smoothing loss 0 or inf
     verts, faces = bumpy_mesh()
     want_nc = normal_consistency_loss(verts, faces)
@@ -244,12 +244,12 @@ def test_edge_length_target_tensor():
         edge_length_loss(verts, faces, torch.tensor([0.5, -1.0], dtype=torch.float64))
     with pytest.raises(ValueError, match="target"):
         edge_length_loss(verts, faces, float("nan"))
-    with pytest.raises(ShapeError, match="target"):  # was: a raw broadcasting RuntimeError
+    with pytest.raises(ShapeError, match="target"):  # not a raw broadcasting RuntimeError
         edge_length_loss(batch, faces, torch.ones(3, dtype=torch.float64))
 
 
 def test_mesh_edges_validates_and_accepts_lists():
-    # was: raw torch errors (unpack of a 1-D shape) and no check of face sizes
+    # unguarded: raw torch errors (unpack of a 1-D shape) and no check of face sizes
     want = mesh_edges(torch.tensor([[0, 1, 2, 3], [1, 4, 2, -1]]))
     got = mesh_edges([[0, 1, 2, 3], [1, 4, 2]])
     assert torch.equal(got.edges, want.edges) and torch.equal(got.face_pairs, want.face_pairs)

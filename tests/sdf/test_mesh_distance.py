@@ -678,7 +678,7 @@ def test_closest_point_on_triangle_at_any_scale(dtype, s):
 
 
 def test_mixed_dtypes_follow_the_points_or_raise_naming_both():
-    # the mesh follows the points (winding numbers used to follow the vertices instead)
+    # the mesh follows the points (winding numbers as well as distances)
     V, F, p32 = TET_V, TET_F, TET_P.float()
     ref = M.mesh_sdf(V.float(), F, p32).sdf
     assert torch.equal(M.mesh_sdf(V, F, p32).sdf, ref)
@@ -686,7 +686,7 @@ def test_mixed_dtypes_follow_the_points_or_raise_naming_both():
     w = M.winding_number(V, F, p32)
     assert w.dtype == torch.float32 and torch.equal(w, M.winding_number(V.float(), F, p32))
     with pytest.raises(TypeError, match="v1 is torch.float32 on cpu but points"):
-        S.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])  # was promoted
+        S.closest_point_on_triangle(TET_P, V[0], V[1].float(), V[2])  # not promoted
 
 
 @pytest.mark.parametrize("low", [torch.float16, torch.bfloat16])

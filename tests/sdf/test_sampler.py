@@ -258,7 +258,7 @@ def test_save_samples_dtypes(tmp_path):
     sdf = torch.tensor([-1.0, 1.0], dtype=torch.float64)
     path = tmp_path / "s.npz"
     with pytest.raises(TypeError, match="sdf is torch.float32 on cpu but points"):
-        save_samples(path, SDFSamples(points, sdf.float()))  # was silently promoted
+        save_samples(path, SDFSamples(points, sdf.float()))  # never silently promoted
     with pytest.raises(TypeError, match="sdf: expected a floating-point"):
         save_samples(path, SDFSamples(points, sdf.long()))
     # numpy has no bfloat16: stored as float32, restored on request (was a raw torch error)
