@@ -72,12 +72,17 @@ def _fans(v, faces, vfaces, edge_faces, manifold):
     return fans
 
 
-def _sharpness(faces, V, tags, boundary):
+def _sharpness(faces, V, tags, boundary, inherited=None):
+    """Effective sharpness. ``inherited`` (a refined level: the parent's non-manifold
+    edges' children and non-manifold-sharpened vertices) replaces the base level's
+    derivation from the topology, as OpenSubdiv's refinement inherits its tags."""
     edges, edge_faces = _topology(faces)
     count = {e: len(edge_faces[e]) for e in edges}
     inconsistent = {e: count[e] == 2 and edge_faces[e][0][1] == edge_faces[e][1][1]
                     for e in edges}
     nonman = {e: count[e] > 2 or inconsistent[e] for e in edges}
+    if inherited is not None:
+        nonman = {e: nonman[e] or e in inherited["edges"] for e in edges}
     manifold = {e: count[e] == 2 and not inconsistent[e] for e in edges}
     v_edges = {v: [] for v in range(V)}
     for e in edges:
@@ -91,22 +96,28 @@ def _sharpness(faces, V, tags, boundary):
             if any(count[e] == 1 and crease_tag.get(e, 0.0) < INF for e in v_edges[v]):
                 holes.update(v_faces[v])
     es = {e: (INF if count[e] == 1 or nonman[e] else crease_tag.get(e, 0.0)) for e in edges}
-    vs = {}
+    vs, nm_sharp = {}, set()
     for v in range(V):
         s = tags.get("corners", {}).get(v, 0.0)
         n_e, n_f = len(v_edges[v]), len(v_faces[v])
         n_nm = sum(nonman[e] for e in v_edges[v])
         n_b = sum(count[e] == 1 for e in v_edges[v])
-        nonmanifold_v = n_nm > 0 or (n_f and _fans(v, faces, v_faces[v], edge_faces,
-                                                    manifold) > 1)
-        if nonmanifold_v and not (n_nm == 2 and n_b == 0 and n_f > n_e):
+        if inherited is not None:
+            sharpened = v in inherited["vertices"]
+        else:
+            nonmanifold_v = n_nm > 0 or (n_f and _fans(v, faces, v_faces[v], edge_faces,
+                                                        manifold) > 1)
+            sharpened = nonmanifold_v and not (n_nm == 2 and n_b == 0 and n_f > n_e)
+        if sharpened:
             s = INF
+            nm_sharp.add(v)
         if boundary == "edge_and_corner" and n_f == 1 and n_e == 2:
             s = INF
         if n_e == 0:
             s = INF
         vs[v] = s
-    return edges, edge_faces, v_edges, v_faces, es, vs, holes, crease_tag
+    nm_edges = {e for e in edges if nonman[e] and count[e] > 1}
+    return edges, edge_faces, v_edges, v_faces, es, vs, holes, crease_tag, nm_edges, nm_sharp
 
 
 def _child_edge_sharpness(e, v, es, v_edges, method):
@@ -151,12 +162,14 @@ def _blend(a, b, wa):
     return out
 
 
-def reference_level(verts_count, faces, tags, boundary, method, scheme, triangle_rule="catmark"):
-    """One level: dense ``(V1, V0)`` matrix, child faces (all), visible faces, child tags."""
+def reference_level(verts_count, faces, tags, boundary, method, scheme, triangle_rule="catmark",
+                    inherited=None):
+    """One level: dense ``(V1, V0)`` matrix, child faces (all), visible faces, child tags
+    and what the children inherit."""
     V = verts_count
     F = len(faces)
-    edges, edge_faces, v_edges, v_faces, es, vs, holes, crease_tag = _sharpness(
-        faces, V, tags, boundary)
+    edges, edge_faces, v_edges, v_faces, es, vs, holes, crease_tag, nm_edges, nm_sharp = (
+        _sharpness(faces, V, tags, boundary, inherited))
     E = len(edges)
     eid = {e: i for i, e in enumerate(edges)}
     V1 = V + (F if scheme == "catmark" else 0) + E
@@ -264,15 +277,19 @@ def reference_level(verts_count, faces, tags, boundary, method, scheme, triangle
     child = {"creases": creases, "corners": corners,
              "holes": [i for i, h in enumerate(hole_child) if h]}
     visible = [c for c, h in zip(child_faces, hole_child) if not h]
-    return S, child_faces, visible, child
+    kids = {"edges": {(min(e[i], p), max(e[i], p)) for e in nm_edges
+                      for i, p in ((0, row_edge + eid[e]), (1, row_edge + eid[e]))},
+            "vertices": nm_sharp}
+    return S, child_faces, visible, child, kids
 
 
 def reference_levels(V, faces, tags, boundary, method, scheme, levels, triangle_rule="catmark"):
-    out = []
+    out, inherited = [], None
     for level in range(levels):
-        S, child_faces, visible, tags = reference_level(
+        S, child_faces, visible, tags, inherited = reference_level(
             V, faces, tags, boundary if level == 0 else
-            ("edge_only" if boundary == "none" else boundary), method, scheme, triangle_rule)
+            ("edge_only" if boundary == "none" else boundary), method, scheme, triangle_rule,
+            inherited)
         out.append((S, visible))
         V, faces = S.shape[0], child_faces
     return out

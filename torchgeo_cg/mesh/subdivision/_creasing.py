@@ -14,6 +14,13 @@ Convention (OpenSubdiv 3, ``Sdc::Crease``, ``Far::TopologyRefinerFactory``):
       the vertex lies on an interior non-manifold crease (exactly two non-manifold
       edges, no boundary edge, more faces than edges), and on topological corners (one
       face, two edges) with ``boundary="edge_and_corner"``.
+    - Refined levels inherit the non-manifold sharpness (``Vtr::Refinement`` propagates
+      the tags): the children of a non-manifold edge stay non-manifold even where their
+      faces look manifold (a 2-gon's edge), the child of a vertex sharpened as
+      non-manifold stays an infinitely sharp corner, and an edge's or a face's child
+      vertex is not sharpened. The operators carry this in ``child_edge_tags`` (``-1``)
+      and ``child_tags`` (corners); a level whose edge tags hold ``-1`` is a refined one
+      and derives no vertex sharpness from non-manifoldness.
     - Rule of a vertex: corner if its sharpness is positive, else by its number of
       sharp edges: 0 or 1 smooth (a dart is smooth), 2 crease, more corner.
     - Child sharpness: ``"uniform"`` decrements by 1 (values in ``(0, 1]`` become 0,
@@ -60,6 +67,10 @@ class SubdivisionRules(NamedTuple):
         child_corner_v: ``(V,)`` decremented corner-tag sharpness.
         hole_f: ``(F,)`` bool, faces without children.
         rule_v: ``(V,)`` long parent rule (0 smooth, 1 crease, 2 corner).
+        inherit_e: ``(E,)`` bool, non-manifold edges whose children stay non-manifold
+            (the builders mark their children's sides in ``child_edge_tags``).
+        inherit_v: ``(V,)`` bool, vertices made infinitely sharp by non-manifoldness
+            (their children are infinitely sharp corners of ``child_tags``).
     """
 
     smooth_v: torch.Tensor
@@ -74,6 +85,8 @@ class SubdivisionRules(NamedTuple):
     child_corner_v: torch.Tensor
     hole_f: torch.Tensor
     rule_v: torch.Tensor
+    inherit_e: torch.Tensor
+    inherit_v: torch.Tensor
 
 
 def decrement_sharpness(sharpness: torch.Tensor) -> torch.Tensor:
@@ -142,8 +155,21 @@ def _fan_count(topo, num_vertices: int, manifold_e: torch.Tensor) -> torch.Tenso
     return torch.bincount(topo.vert_c[roots], minlength=num_vertices)
 
 
-def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
-    """Tagged and effective sharpness of edges and vertices, and the hole mask."""
+class _Sharpness(NamedTuple):
+    tag_e: torch.Tensor  # (E,) tagged sharpness
+    tag_v: torch.Tensor  # (V,)
+    sharp_e: torch.Tensor  # (E,) effective sharpness
+    sharp_v: torch.Tensor  # (V,)
+    hole_f: torch.Tensor  # (F,) bool
+    inherit_e: torch.Tensor  # (E,) bool: non-manifold edges with two or more faces
+    inherit_v: torch.Tensor  # (V,) bool: vertices made infinitely sharp by non-manifoldness
+
+
+def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype) -> _Sharpness:
+    """Tagged and effective sharpness of edges and vertices, the hole mask, and what the
+    children inherit (OpenSubdiv derives non-manifold sharpness at the base level only:
+    the children of a non-manifold edge stay non-manifold and the child of a sharpened
+    vertex stays sharp, while an edge's or a face's child vertex starts smooth)."""
     V, E = num_vertices, topo.edge_lo_e.numel()
     dev = topo.edge_lo_e.device
     count_e = torch.bincount(topo.edge_c, minlength=E)
@@ -154,6 +180,8 @@ def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
     nonmanifold_e = (count_e > 2) | inconsistent_e
     if topo.repeat_e is not None:  # a face using one pair twice (a 2-gon, [a, a, b])
         nonmanifold_e = nonmanifold_e | topo.repeat_e
+    if topo.inherited_e is not None:  # a child of a non-manifold edge
+        nonmanifold_e = nonmanifold_e | topo.inherited_e
     tag_e = torch.zeros(E, dtype=dtype, device=dev)
     tag_v = torch.zeros(V, dtype=dtype, device=dev)
     hole_f = torch.zeros(num_faces, dtype=torch.bool, device=dev)
@@ -167,16 +195,20 @@ def _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
     inf = torch.full_like(tag_e, INFINITELY_SHARP)
     sharp_e = torch.where(boundary_e | nonmanifold_e, torch.maximum(tag_e, inf), tag_e)
     valence_v, faces_v = topo.valence_v, topo.num_faces_v
-    nm_edges_v, boundary_edges_v = per_end(nonmanifold_e), per_end(boundary_e)
-    fans_v = _fan_count(topo, V, (count_e == 2) & ~inconsistent_e)
-    nonmanifold_v = (fans_v > 1) | (nm_edges_v > 0)
-    interior_crease_v = (nm_edges_v == 2) & (boundary_edges_v == 0) & (faces_v > valence_v)
-    sharpen_v = nonmanifold_v & ~interior_crease_v
+    carry_v = torch.zeros(V, dtype=torch.bool, device=dev)
+    if topo.inherited_e is None:  # a refined level's vertices inherit (the tags carry them)
+        nm_edges_v, boundary_edges_v = per_end(nonmanifold_e), per_end(boundary_e)
+        fans_v = _fan_count(topo, V, (count_e == 2) & ~inconsistent_e)
+        nonmanifold_v = (fans_v > 1) | (nm_edges_v > 0)
+        interior_crease_v = (nm_edges_v == 2) & (boundary_edges_v == 0) & (faces_v > valence_v)
+        carry_v = nonmanifold_v & ~interior_crease_v
+    sharpen_v = carry_v
     if boundary == "edge_and_corner":
         sharpen_v = sharpen_v | ((faces_v == 1) & (valence_v == 2))
     sharp_v = torch.where(sharpen_v, torch.full_like(tag_v, INFINITELY_SHARP), tag_v)
     sharp_v = torch.where(valence_v == 0, torch.full_like(tag_v, INFINITELY_SHARP), sharp_v)
-    return tag_e, tag_v, sharp_e, sharp_v, hole_f
+    return _Sharpness(tag_e, tag_v, sharp_e, sharp_v, hole_f, nonmanifold_e & ~boundary_e,
+                      carry_v)
 
 
 def effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
@@ -189,10 +221,8 @@ def effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype):
         >>> effective_sharpness(mesh_topology(quad, 4), None, 4, 1, "edge_only", torch.float64)[0]
         tensor([10., 10., 10., 10.], dtype=torch.float64)
     """
-    _, _, sharp_e, sharp_v, hole_f = _effective_sharpness(
-        topo, tags, num_vertices, num_faces, boundary, dtype
-    )
-    return sharp_e, sharp_v, hole_f
+    found = _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype)
+    return found.sharp_e, found.sharp_v, found.hole_f
 
 
 def _faces_touching(topo, mask_v: torch.Tensor, num_faces: int) -> torch.Tensor:
@@ -301,9 +331,8 @@ def subdivision_rules(
     """
     V = num_vertices
     lo_e, hi_e = topo.edge_lo_e, topo.edge_hi_e
-    tag_e, tag_v, sharp_e, sharp_v, hole_f = _effective_sharpness(
-        topo, tags, V, num_faces, boundary, dtype
-    )
+    found = _effective_sharpness(topo, tags, V, num_faces, boundary, dtype)
+    tag_e, tag_v, sharp_e, sharp_v, hole_f = found[:5]
     ends = torch.cat([lo_e, hi_e])
     count = lambda mask_lo, mask_hi: torch.bincount(  # noqa: E731
         ends[torch.cat([mask_lo, mask_hi])], minlength=V
@@ -340,6 +369,7 @@ def subdivision_rules(
         smooth_v.to(dtype), (crease_p + crease_c).to(dtype), corner_v.to(dtype),
         crease_end_lo.to(dtype), crease_end_hi.to(dtype), crease_e.to(dtype),
         child_lo, child_hi, tag_e > 0, decrement_sharpness(tag_v), hole_f, parent,
+        found.inherit_e, found.inherit_v,
     )
 
 
@@ -352,9 +382,11 @@ def child_tags(
     like: SubdivisionTags | None,
 ) -> SubdivisionTags | None:
     """Tags of the refined mesh: child creases (at each end of a tagged edge, where the
-    child sharpness stays positive), decremented corners and the children of holes.
-    ``None`` when the parent has no tags and no hole."""
-    if like is None and not bool(hole_child.any()):
+    child sharpness stays positive), decremented corners, infinitely sharp corners at the
+    children of vertices sharpened by non-manifoldness, and the children of holes.
+    ``None`` when the parent has no tags, no hole and no such vertex."""
+    inherit_v = rules.inherit_v
+    if like is None and not bool(hole_child.any()) and not bool(inherit_v.any()):
         return None
     keep_lo = rules.tagged_e & (rules.child_sharp_lo_e > 0)
     keep_hi = rules.tagged_e & (rules.child_sharp_hi_e > 0)
@@ -363,10 +395,11 @@ def child_tags(
         torch.stack([edge_point_e[keep_hi], hi_e[keep_hi]], 1),
     ])
     sharpness = torch.cat([rules.child_sharp_lo_e[keep_lo], rules.child_sharp_hi_e[keep_hi]])
-    corners = torch.nonzero(rules.child_corner_v > 0).flatten()
+    corner_s = torch.where(inherit_v, INFINITELY_SHARP, rules.child_corner_v)
+    corners = torch.nonzero(corner_s > 0).flatten()
     real = sharpness.dtype if like is None else like.crease_sharpness.dtype
     return SubdivisionTags(
-        creases, sharpness.to(real), corners, rules.child_corner_v[corners].to(real),
+        creases, sharpness.to(real), corners, corner_s[corners].to(real),
         torch.nonzero(hole_child).flatten(),
     )
 
@@ -386,9 +419,8 @@ def limit_rules(topo, num_vertices, num_faces, tags, boundary, dtype):
     """
     if boundary == "none":
         boundary = "edge_only"
-    _, _, sharp_e, sharp_v, _ = _effective_sharpness(
-        topo, tags, num_vertices, num_faces, boundary, dtype
-    )
+    found = _effective_sharpness(topo, tags, num_vertices, num_faces, boundary, dtype)
+    sharp_e, sharp_v = found.sharp_e, found.sharp_v
     semi = ((sharp_e > 0) & (sharp_e < INFINITELY_SHARP)).any() | (
         (sharp_v > 0) & (sharp_v < INFINITELY_SHARP)).any()
     if bool(semi):

@@ -10,6 +10,11 @@ edges (back-to-back or repeated triangles, whose edge points coincide). The oper
 give such sides of their child faces a nonzero tag per corner (``child_edge_tags``), which
 :func:`~torchgeo_cg.mesh.subdivision._topology.mesh_topology` keeps apart; ``None`` when
 there are none, the common case.
+
+The same tags carry what OpenSubdiv's children inherit from a non-manifold edge with two
+or more faces: its two children stay non-manifold (infinitely sharp) even where their
+faces look manifold, as the children of an edge a 2-gon or a face ``[a, a, b]`` uses
+twice do. Their sides get the tag ``-1``.
 """
 
 from __future__ import annotations
@@ -17,15 +22,18 @@ from __future__ import annotations
 import torch
 
 
-def catmark_child_edge_tags(topo) -> torch.Tensor | None:
+def catmark_child_edge_tags(topo, inherit_e: torch.Tensor) -> torch.Tensor | None:
     """``(C1,)`` tags of the child quads' corners (child ``c`` is the quad at corner ``c``):
-    the far half of a degenerate edge (corner 3 of the next child) gets 1. Inner edges
-    end at the face point, unique to the face, so they need none."""
+    the far half of a degenerate edge (corner 3 of the next child) gets 1, the halves of
+    an ``inherit_e`` edge ``-1``. Inner edges end at the face point, unique to the face,
+    so they need none."""
     degenerate_e = topo.edge_lo_e == topo.edge_hi_e
-    if not bool(degenerate_e.any()):
+    if not (bool(degenerate_e.any()) or bool(inherit_e.any())):
         return None
+    mark_e = degenerate_e.long() - inherit_e.long()  # a degenerate edge has one face
     tags = torch.zeros(topo.vert_c.numel(), 4, dtype=torch.long, device=topo.vert_c.device)
-    tags[:, 3] = degenerate_e[topo.edge_c[topo.prev_corner_c]].long()
+    tags[:, 0] = -inherit_e[topo.edge_c].long()
+    tags[:, 3] = mark_e[topo.edge_c[topo.prev_corner_c]]
     return tags.flatten()
 
 
@@ -41,20 +49,23 @@ def _shares_vertices(faces_f3: torch.Tensor) -> torch.Tensor:
     return counts[inverse] > 1
 
 
-def loop_child_edge_tags(faces_f3: torch.Tensor, topo) -> torch.Tensor | None:
+def loop_child_edge_tags(faces_f3: torch.Tensor, topo,
+                         inherit_e: torch.Tensor) -> torch.Tensor | None:
     """``(12 F,)`` tags of the child triangles' corners (children ``4 f + k``: the corner
-    triangles, then the middle one): the far half of a degenerate edge gets 1, and the
-    inner edges of a face sharing its vertices with another face get ``2 + f``."""
+    triangles, then the middle one): the far half of a degenerate edge gets 1, the halves
+    of an ``inherit_e`` edge ``-1``, and the inner edges of a face sharing its vertices
+    with another face get ``2 + f``."""
     F = faces_f3.shape[0]
     degenerate_e = topo.edge_lo_e == topo.edge_hi_e
     shared_f = _shares_vertices(faces_f3)
-    if not (bool(degenerate_e.any()) or bool(shared_f.any())):
+    if not (bool(degenerate_e.any()) or bool(shared_f.any()) or bool(inherit_e.any())):
         return None
     dev = faces_f3.device
     tags = torch.zeros(F, 4, 3, dtype=torch.long, device=dev)
     edge_fk = topo.edge_c.reshape(F, 3)  # e01, e12, e20
-    far_half = degenerate_e[edge_fk[:, [2, 0, 1]]].long()  # corner k's in-edge
-    tags[:, :3, 2] = far_half
+    mark_e = degenerate_e.long() - inherit_e.long()  # a degenerate edge has one face
+    tags[:, :3, 0] = -inherit_e[edge_fk].long()  # corner k's out-edge
+    tags[:, :3, 2] = mark_e[edge_fk[:, [2, 0, 1]]]  # corner k's in-edge
     inner = torch.where(shared_f, 2 + torch.arange(F, device=dev), 0)
     tags[:, :3, 1] = inner[:, None]
     tags[:, 3, :] = inner[:, None]

@@ -33,6 +33,7 @@ class Topology(NamedTuple):
     num_faces_v: torch.Tensor  # (V,) number of incident faces
     kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
     repeat_e: torch.Tensor | None = None  # (E,) bool: a face uses its pair twice (None: none)
+    inherited_e: torch.Tensor | None = None  # (E,) bool: non-manifold by the parent level
 
 
 def check_crease_method(crease_method: str) -> str:
@@ -88,7 +89,11 @@ def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "ed
     face that repeats a vertex), which is an edge of its own, and sides whose corners
     carry different ``edge_tag_c`` (``(C,)`` long, ``0`` by default): a refined level's
     sides between the same two vertices that OpenSubdiv keeps apart (the two halves of
-    a degenerate edge, the inner edges of back-to-back triangles).
+    a degenerate edge, the inner edges of back-to-back triangles). A negative tag marks
+    a side of a child of a non-manifold edge: OpenSubdiv's children of a non-manifold
+    edge stay non-manifold whatever their faces (``inherited_e``), and such a level is
+    a refined one, whose vertices inherit their sharpness instead of deriving it from
+    the topology (:mod:`~torchgeo_cg.mesh.subdivision._creasing`).
 
     Example:
         >>> topo = mesh_topology(torch.tensor([[0, 1, 2]]), 3)
@@ -113,8 +118,15 @@ def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "ed
     ordered = torch.sort(faces_fk, dim=1).values
     repeats = bool(((ordered[:, 1:] == ordered[:, :-1]) & (ordered[:, 1:] >= 0)).any()
                    | (size_f < 3).any())  # a 2-gon uses its pair twice
+    inherit_c = None
+    if edge_tag_c is not None and bool((edge_tag_c < 0).any()):
+        inherit_c = edge_tag_c.to(faces_fk.device) < 0
+        edge_tag_c = edge_tag_c.clamp(min=0)  # every side of such an edge is marked
     edge_c, edge_lo_e, edge_hi_e, repeat_e = _edges(lo_c, hi_c, face_c, V, edge_tag_c, repeats)
     E = edge_lo_e.numel()
+    inherited_e = None
+    if inherit_c is not None:
+        inherited_e = torch.bincount(edge_c[inherit_c], minlength=E) > 0
     sharp_e = torch.bincount(edge_c, minlength=E) != 2
     ends = torch.cat([edge_lo_e, edge_hi_e])
     valence_v = torch.bincount(ends, minlength=V)
@@ -128,5 +140,5 @@ def mesh_topology(faces_fk: torch.Tensor, num_vertices: int, boundary: str = "ed
     kind_v[valence_v == 0] = 0
     return Topology(
         face_c, pos_c, vert_c, next_c, prev_corner_c, size_c, edge_c, edge_lo_e, edge_hi_e,
-        sharp_e, valence_v, num_faces_v, kind_v, repeat_e,
+        sharp_e, valence_v, num_faces_v, kind_v, repeat_e, inherited_e,
     )

@@ -173,7 +173,7 @@ def catmull_clark_operator(
     visible = faces_q4 if tags_1 is None or tags_1.holes.numel() == 0 else faces_q4[~hole_child]
     return SubdivisionOperator(
         stencils, visible, V0, V1, F0, E0, boundary, "catmark", faces_q4, tags_1,
-        catmark_child_edge_tags(topo),
+        catmark_child_edge_tags(topo, rules.inherit_e),
     )
 
 

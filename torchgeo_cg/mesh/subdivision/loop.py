@@ -163,7 +163,7 @@ def loop_operator(
     )
     return SubdivisionOperator(
         stencils, visible, V0, V1, F0, E0, boundary, "loop", faces_f3_all, tags_1,
-        loop_child_edge_tags(faces_f3, topo),
+        loop_child_edge_tags(faces_f3, topo, rules.inherit_e),
     )
 
 

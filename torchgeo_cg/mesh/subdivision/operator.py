@@ -44,7 +44,9 @@ class SubdivisionOperator(NamedTuple):
         child_edge_tags: ``(C1,)`` long per corner of ``child_faces`` (face-major): sides
             between the same two vertices that are distinct edges (the halves of a
             degenerate edge, the inner edges of back-to-back triangles) carry different
-            tags; ``None`` where there are none. The next level's builder takes them as
+            tags; the sides of the children of a non-manifold edge with two or more
+            faces carry ``-1`` (OpenSubdiv keeps them non-manifold, infinitely sharp);
+            ``None`` where there are none. The next level's builder takes them as
             ``edge_tags``.
 
     The properties ``matrix`` and ``matrix_t`` give ``S`` and ``S^T`` as
