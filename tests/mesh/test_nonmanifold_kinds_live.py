@@ -19,7 +19,8 @@ from torchgeo_cg.mesh import (
 )
 from torchgeo_cg.mesh.subdivision.operator import apply_operator
 
-CASES = [(name, boundary) for name in KINDS for boundary in ("edge_only", "edge_and_corner")
+CASES = [pytest.param(name, boundary, marks=[pytest.mark.slow] if name.endswith("360") else [])
+         for name in KINDS for boundary in ("edge_only", "edge_and_corner")
          if not (name.endswith("360") and boundary == "edge_and_corner")]  # the slow one once
 
 
