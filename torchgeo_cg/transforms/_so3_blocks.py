@@ -2,9 +2,9 @@
 
 A conversion is a few dozen elementwise steps. On a whole batch of a million
 rotations every step streams a fresh 8 MB temporary through memory (strided, for
-the columns of a matrix); on blocks of 16384 rows the temporaries stay in cache
-and the allocator reuses them, and each block is stacked straight into its rows
-of the one output. The entries are the functions of :mod:`._so3` that the
+the columns of a matrix); on blocks of 16384 rows per thread the temporaries stay
+in cache and the allocator reuses them, and each block is stacked straight into
+its rows of the one output. The entries are the functions of :mod:`._so3` that the
 whole-batch path stacks, with their rare branches (series near 0, the sign rule at
 π) evaluated only on the rows that need them: the matrix and quaternion results
 are the same bits as the whole-batch path, the rotation vectors of matrices agree
@@ -38,7 +38,8 @@ def blockwise(entries: Callable, x: torch.Tensor, width: int) -> torch.Tensor:
     """
     rows = x.reshape(-1, x.shape[-1])
     out = torch.empty(rows.shape[0], width, dtype=x.dtype, device=x.device)
-    for start in range(0, rows.shape[0], BLOCK):
-        block = rows[start:start + BLOCK]
-        torch.stack(entries(block.unbind(-1)), -1, out=out[start:start + BLOCK])
+    size = BLOCK * max(1, torch.get_num_threads())  # each thread gets one block's worth
+    for start in range(0, rows.shape[0], size):
+        block = rows[start:start + size]
+        torch.stack(entries(block.unbind(-1)), -1, out=out[start:start + size])
     return out.reshape(*x.shape[:-1], width)
