@@ -36,10 +36,33 @@ def _tolerance(low: torch.dtype) -> float:
     return 64 * float(torch.finfo(working_dtype(low)).eps)
 
 
-def rigid_3d(cs, cd, ps, qs, w, with_scale: bool, allow_reflection: bool, low):
-    """Kabsch (``with_scale=False``) or Umeyama through Horn's quaternion matrix."""
+def rigid_moments(src, dst, w, uniform: bool = False):
+    """Centroids ``cs, cd`` (*, 3), centered ``src`` (*, N, 3), the correlation
+    ``S = Σ wn p̃ q̃ᵀ`` (*, 3, 3) and the normalized weights ``wn`` (*, N).
+
+    The centroids are weighted matrix-vector products, and ``S`` is formed as
+    ``Σ wn p̃ qᵀ - (Σ wn p̃) cdᵀ`` from the *uncentered* ``dst`` (equal in exact
+    arithmetic, since ``Σ wn p̃ = 0``; the second term removes what rounding
+    left of it), so ``dst`` is never copied centered. Its rounding error is that of
+    centering ``dst``: ``eps |cd|`` per point, as with a centered copy. ``uniform``
+    (no weights given) scales ``p̃ᵀ q`` by ``1/N`` instead of weighting each point.
+    """
     wn = w / w.sum(-1, keepdim=True)
-    s = (ps * wn[..., None]).mT @ qs  # (*, 3, 3) Σ w p̃ q̃ᵀ
+    wrow = wn[..., None, :]  # (*, 1, N)
+    cs, cd = (wrow @ src)[..., 0, :], (wrow @ dst)[..., 0, :]
+    ps = src - cs[..., None, :]
+    residual = (wrow @ ps)[..., 0, :]  # Σ wn p̃, zero up to rounding
+    if uniform:
+        s = (ps.mT @ dst) / src.shape[-2]
+    else:
+        s = (ps * wn[..., None]).mT @ dst
+    s = s - residual[..., :, None] * cd[..., None, :]
+    return cs, cd, ps, s, wn
+
+
+def rigid_3d(cs, cd, ps, s, wn, with_scale: bool, allow_reflection: bool, low):
+    """Kabsch (``with_scale=False``) or Umeyama through Horn's quaternion matrix, from
+    :func:`rigid_moments`."""
     sol = horn_solve(s, allow_reflection)
     rot = quaternion_to_matrix(sol.quaternion)
     rot = torch.where(sol.improper[..., None, None], -rot, rot)

@@ -50,6 +50,8 @@ def _attached(k, vals, vecs, index: int):
     non-unique optimum, flagged by the caller) contribute no derivative.
     """
     v, lam = vecs[..., index], vals[..., index]
+    if not (k.requires_grad and torch.is_grad_enabled()):
+        return v, lam
     others = [j for j in range(4) if j != index % 4]
     gaps = lam[..., None] - vals[..., others]  # (*, 3)
     nonzero = gaps != 0
@@ -57,8 +59,6 @@ def _attached(k, vals, vecs, index: int):
                       torch.zeros_like(gaps))
     basis = vecs[..., others]  # (*, 4, 3)
     pinv = (basis * inv[..., None, :]) @ basis.mT  # (*, 4, 4)
-    if not k.requires_grad:
-        return v, lam
     dk = k - k.detach()  # zero, carries the gradient
     dkv = (dk @ v[..., None])[..., 0]
     return v + (pinv @ dkv[..., None])[..., 0], lam + (v * dkv).sum(-1)

@@ -29,7 +29,7 @@ from __future__ import annotations
 import torch
 
 from torchgeo_cg.core.numerics import cast_back
-from torchgeo_cg.transforms._closed_3d import affine_3d, rigid_3d, translation_fit
+from torchgeo_cg.transforms._closed_3d import affine_3d, rigid_3d, rigid_moments, translation_fit
 from torchgeo_cg.transforms._correspondences import (
     TransformFit,
     check_pair,
@@ -196,8 +196,10 @@ def find_similarity(
     weights = check_pair(src, dst, weights, dims=(2, 3))
     low = src.dtype
     if src.shape[-1] == 3:
-        w, cs, cd, ps, qs = _centered_stats(*to_working(src, dst, weights))
-        return _fit(*rigid_3d(cs, cd, ps, qs, w, True, allow_reflection, low), low)
+        uniform = weights is None
+        src, dst, weights = to_working(src, dst, weights)
+        moments = rigid_moments(src, dst, effective_weights(src, weights), uniform)
+        return _fit(*rigid_3d(*moments, True, allow_reflection, low), low)
     cs, cd, dot, cross, var, bound = _rotation_scale(*to_working(src, dst, weights))
     ok = var != 0  # NaN passes through
     var_safe = torch.where(ok, var, torch.ones_like(var))
@@ -253,8 +255,10 @@ def find_euclidean(
     weights = check_pair(src, dst, weights, dims=(2, 3))
     low = src.dtype
     if src.shape[-1] == 3:
-        w, cs, cd, ps, qs = _centered_stats(*to_working(src, dst, weights))
-        return _fit(*rigid_3d(cs, cd, ps, qs, w, False, allow_reflection, low), low)
+        uniform = weights is None
+        src, dst, weights = to_working(src, dst, weights)
+        moments = rigid_moments(src, dst, effective_weights(src, weights), uniform)
+        return _fit(*rigid_3d(*moments, False, allow_reflection, low), low)
     cs, cd, dot, cross, _, bound = _rotation_scale(*to_working(src, dst, weights))
     length = point_norm(dot, cross)  # scale-free: only exactly (0, 0) is undefined
     ok = length != 0  # NaN passes through

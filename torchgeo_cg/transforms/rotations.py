@@ -33,11 +33,16 @@ from torchgeo_cg.transforms._so3 import (
     left_jacobian_inverse,
     matrix_from_quat,
     qmul,
+    quat_entries,
     quat_from_matrix,
     quat_from_rotvec,
+    quat_matrix_entries,
+    rodrigues_entries_lazy,
+    rotvec_entries,
     rotvec_from_quat,
     sinc,
 )
+from torchgeo_cg.transforms._so3_blocks import blocks_apply, blockwise
 from torchgeo_cg.transforms.averaging import rotation_mean
 from torchgeo_cg.transforms.euler import euler_to_matrix, matrix_to_euler
 
@@ -79,6 +84,30 @@ def _mat(x: torch.Tensor, size: int, name: str) -> torch.Tensor:
     check_shape(x, ["*", str(size), str(size)], name)
     check_float(x, name)
     return x.to(working_dtype(x.dtype))
+
+
+def _exp(w: torch.Tensor) -> torch.Tensor:
+    if blocks_apply(w):
+        return blockwise(rodrigues_entries_lazy, w, 9).unflatten(-1, (3, 3))
+    return exp_map(w)
+
+
+def _quat_of(m: torch.Tensor) -> torch.Tensor:
+    if blocks_apply(m):
+        return blockwise(lambda c: quat_entries(c, lazy=True), m.flatten(-2), 4)
+    return quat_from_matrix(m)
+
+
+def _log(m: torch.Tensor) -> torch.Tensor:
+    if blocks_apply(m):
+        return blockwise(rotvec_entries, m.flatten(-2), 3)
+    return rotvec_from_quat(quat_from_matrix(m))
+
+
+def _matrix_of(q: torch.Tensor) -> torch.Tensor:
+    if blocks_apply(q):
+        return blockwise(quat_matrix_entries, q, 9).unflatten(-1, (3, 3))
+    return matrix_from_quat(q)
 
 
 def so3_hat(omega: torch.Tensor) -> torch.Tensor:
@@ -127,7 +156,7 @@ def so3_exp(omega: torch.Tensor) -> torch.Tensor:
                 [ 0.,  0.,  1.]])
     """
     w = _vec(omega, 3, "omega")
-    return cast_back(exp_map(w), omega.dtype)
+    return cast_back(_exp(w), omega.dtype)
 
 
 def axis_angle_to_matrix(axis_angle: torch.Tensor) -> torch.Tensor:
@@ -149,7 +178,7 @@ def axis_angle_to_matrix(axis_angle: torch.Tensor) -> torch.Tensor:
                 [0., 0., 1.]])
     """
     w = _vec(axis_angle, 3, "axis_angle")
-    return cast_back(exp_map(w), axis_angle.dtype)
+    return cast_back(_exp(w), axis_angle.dtype)
 
 
 def matrix_to_quaternion(matrix: torch.Tensor) -> torch.Tensor:
@@ -175,7 +204,7 @@ def matrix_to_quaternion(matrix: torch.Tensor) -> torch.Tensor:
         tensor([0., 0., 1., 0.])
     """
     m = _mat(matrix, 3, "matrix")
-    return cast_back(quat_from_matrix(m), matrix.dtype)
+    return cast_back(_quat_of(m), matrix.dtype)
 
 
 def quaternion_to_matrix(quaternion: torch.Tensor) -> torch.Tensor:
@@ -199,7 +228,7 @@ def quaternion_to_matrix(quaternion: torch.Tensor) -> torch.Tensor:
                 [ 0.,  0., -1.]])
     """
     q = _vec(quaternion, 4, "quaternion")
-    return cast_back(matrix_from_quat(q), quaternion.dtype)
+    return cast_back(_matrix_of(q), quaternion.dtype)
 
 
 def axis_angle_to_quaternion(axis_angle: torch.Tensor) -> torch.Tensor:
@@ -266,7 +295,7 @@ def matrix_to_axis_angle(matrix: torch.Tensor) -> torch.Tensor:
         tensor([0.0000, 3.1416, 0.0000])
     """
     m = _mat(matrix, 3, "matrix")
-    return cast_back(rotvec_from_quat(quat_from_matrix(m)), matrix.dtype)
+    return cast_back(_log(m), matrix.dtype)
 
 
 def so3_log(matrix: torch.Tensor) -> torch.Tensor:
@@ -286,7 +315,7 @@ def so3_log(matrix: torch.Tensor) -> torch.Tensor:
         tensor([ 0.1000, -0.2000,  0.3000])
     """
     m = _mat(matrix, 3, "matrix")
-    return cast_back(rotvec_from_quat(quat_from_matrix(m)), matrix.dtype)
+    return cast_back(_log(m), matrix.dtype)
 
 
 def rotation_6d_to_matrix(d6: torch.Tensor) -> torch.Tensor:
