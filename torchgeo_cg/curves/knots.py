@@ -148,15 +148,28 @@ def _batched(knots: torch.Tensor, t: torch.Tensor) -> tuple[torch.Tensor, torch.
 def find_spans(knots: torch.Tensor, t: torch.Tensor, degree: int) -> torch.Tensor:
     """Span index ``s`` in ``[p, n]`` of every parameter (right-continuous, see above)."""
     knots, t = knots.detach(), t.detach()
+    low, high = span_limits(knots, degree)
+    span = torch.searchsorted(knots.contiguous(), t.contiguous(), right=True) - 1
+    return torch.minimum(torch.maximum(span, low), high)
+
+
+def span_limits(knots: torch.Tensor, degree: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The first and last non-empty spans ``(*, 1)`` of the domain, in ``[p, n]``.
+
+    The lowest ``s`` with ``u_s <= u_p`` and the highest with ``u_{s+1} >= u_{n+1}``:
+    parameters outside the domain use them (extrapolation). The clamp to ``[p, n]`` only
+    acts for NaN knots (a NaN stroke of a fit): indices stay valid.
+
+    Example:
+        >>> span_limits(torch.tensor([0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0]), 2)
+        (tensor([2]), tensor([4]))
+    """
+    knots = knots.detach()
     last = knots.shape[-1] - degree - 2  # n
     seq = knots.contiguous()
-    # the non-empty spans nearest the two ends: lowest s with u_s <= u_p, highest with
-    # u_{s+1} >= u_{n+1}
     low = torch.searchsorted(seq, knots[..., degree:degree + 1].contiguous(), right=True) - 1
     high = torch.searchsorted(seq, knots[..., last + 1:last + 2].contiguous(), right=False) - 1
-    span = torch.searchsorted(seq, t.contiguous(), right=True) - 1
-    # the outer clamp only acts for NaN knots (a NaN stroke of a fit): indices stay valid
-    return torch.minimum(torch.maximum(span, low), high).clamp(degree, last)
+    return low.clamp(degree, last), high.clamp(degree, last)
 
 
 def bspline_basis(t: torch.Tensor, degree: int, knots: torch.Tensor | None = None,
