@@ -285,13 +285,15 @@ def _segment_values(columns, rows, t, dims: int, out=None) -> torch.Tensor:
         xs.append(xs[-1] * x)
         ys.append(ys[-1] * y)
     weights = [ys[q]] + [xs[m] * ys[q - m] for m in range(1, q)] + [xs[q]]
+    planes = []
+    for d in range(dims):  # loop over coordinates (into ``out`` in place, if given)
+        acc = torch.mul(picked[d], weights[0], out=None if out is None else out[d])
+        for m in range(1, q + 1):  # loop over the q + 1 Bernstein terms: same rounding
+            acc = (acc.addcmul_ if out is not None else acc.addcmul)(picked[m * dims + d],
+                                                                     weights[m])
+        planes.append(acc)
     if out is None:
-        return torch.stack([sum(picked[m * dims + d] * weights[m] for m in range(q + 1))
-                            for d in range(dims)])
-    for d in range(dims):  # loop over coordinates, each plane written in place
-        acc = torch.mul(picked[d], weights[0], out=out[d])
-        for m in range(1, q + 1):  # loop over the q + 1 Bernstein terms
-            acc.addcmul_(picked[m * dims + d], weights[m])
+        return torch.stack(planes)
     return out
 
 

@@ -253,7 +253,7 @@ def local_basis_list(knots, t, spans, degree: int, order: int) -> list[list[torc
             continue
         values = levels[degree - k]
         for d in range(degree - k + 1, degree + 1):  # raise degree d - 1 -> d (eq. 2.9)
-            values = _raise(knots, spans, values, d)
+            values = _raise(knots, spans, values, d, d == degree)
         out.append(values)
     return out
 
@@ -264,13 +264,18 @@ def _inplace(*tensors: torch.Tensor) -> bool:
 
 
 def _gather1(knots: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
-    return knots[index] if knots.dim() == 1 else knots.gather(-1, index)
+    if knots.dim() == 1:
+        return knots.index_select(0, index.reshape(-1)).view(index.shape)
+    return knots.gather(-1, index)
 
 
-def _raise(knots, spans, values, d: int) -> list[torch.Tensor]:
+def _raise(knots, spans, values, d: int, top: bool) -> list[torch.Tensor]:
     """``d (N_{i,d-1} / (u_{i+d} - u_i) - N_{i+1,d-1} / (u_{i+d+1} - u_{i+1}))`` locally."""
     scaled = []
     for j in range(d):  # in-index j is i' = s - d + 1 + j
         gap = _gather1(knots, spans + 1 + j) - _gather1(knots, spans - d + 1 + j)
+        if top:  # d = p: the gap contains the span, which is never empty: positive
+            scaled.append(values[j] / gap * d)
+            continue
         scaled.append(torch.where(gap > 0, values[j] / torch.where(gap > 0, gap, 1.0), 0.0) * d)
     return [-scaled[0]] + [scaled[j - 1] - scaled[j] for j in range(1, d)] + [scaled[-1]]
