@@ -140,7 +140,8 @@ def _tensor_product(grid, u, v, knots_u, knots_v, p, q, derivatives: bool):
     planes = grid.movedim(-1, 0)  # (e, *, M, N)
     if derivatives:  # one more plane: |P|_1, for the rounding bounds
         planes = torch.cat([planes, grid.detach().abs().sum(-1)[None]])
-    planes = planes.expand(planes.shape[0], *batch, rows, cols).flatten(-2)
+    planes = planes.movedim(0, -1).expand(*batch, rows, cols, planes.shape[0])
+    planes = planes.movedim(-1, 0).flatten(-2)  # (E, *, M N)
     knots_u = knots_u.expand(*batch, knots_u.shape[-1])
     knots_v = knots_v.expand(*batch, knots_v.shape[-1])
     u, v = u.expand(*batch, n), v.expand(*batch, n)
