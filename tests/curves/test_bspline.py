@@ -92,6 +92,55 @@ def test_per_curve_knots_and_parameters_match_a_loop():
         assert torch.allclose(ours[b], _scipy(knots[b], cp[b], degree, t[b], 1), atol=1e-12)
 
 
+@pytest.mark.parametrize("degree", range(0, 8))
+@pytest.mark.parametrize("kind", ["clamped", "unclamped", "repeated"])
+@pytest.mark.parametrize("many", [True, False])  # by Bezier segments / by the basis
+def test_per_curve_knots_match_scipy_on_both_paths(degree, kind, many, monkeypatch):
+    bspline_module = __import__("torchgeo_cg.curves.bspline", fromlist=["CHUNK"])
+    monkeypatch.setattr(bspline_module, "CHUNK", 40)  # several chunks of curves
+    g = torch.Generator().manual_seed(100 + degree)
+    count, curves = degree + 6, 5
+    knots = torch.stack([_knots(kind, count, degree, g) for _ in range(curves)])
+    cp = torch.randn(curves, count, 3, generator=g, dtype=F64)
+    lo, hi = knots[:, degree:degree + 1], knots[:, count:count + 1]
+    size = 37 if many else 1
+    assert (size * bspline_module.SEGMENT_RATIO >= count - degree) == many
+    t = lo + (hi - lo) * torch.rand(curves, size, generator=g, dtype=F64)
+    if many:  # every knot of the domain, where spans change
+        t = torch.cat([t, knots[:, degree:count + 1]], -1)
+    for order in range(degree + 2):
+        ours = bspline_derivative(cp, t, degree, order, knots)
+        for b in range(curves):
+            ref = _scipy(knots[b], cp[b], degree, t[b], order)
+            scale = max(1.0, float(ref.abs().max()))
+            assert (ours[b] - ref).abs().max() <= 1e-13 * scale, (order, b)
+    outside = torch.cat([t[:, :-1], hi + 0.1 * (hi - lo)], -1)  # extrapolation: by the basis
+    ours = bspline(cp, outside, degree, knots)
+    for b in range(curves):
+        ref = _scipy(knots[b], cp[b], degree, outside[b], 0)
+        assert (ours[b] - ref).abs().max() <= 1e-13 * max(1.0, float(ref.abs().max()))
+    shared_t = torch.linspace(0.2, 0.8, 24, dtype=F64)  # one t for all: as a loop
+    ours = bspline(cp, shared_t, degree, knots if kind != "unclamped" else None)
+    for b in range(curves):
+        ref = _scipy(knots[b] if kind != "unclamped" else uniform_knots(count, degree, dtype=F64),
+                     cp[b], degree, shared_t, 0)
+        assert (ours[b] - ref).abs().max() <= 1e-13 * max(1.0, float(ref.abs().max()))
+
+
+@pytest.mark.grad
+@pytest.mark.parametrize("size", [12, 1])  # by Bezier segments / by the basis
+def test_gradcheck_per_curve_knots(size):
+    g = torch.Generator().manual_seed(5)
+    knots = torch.tensor([[-0.3, -0.2, -0.1, 0.3, 0.45, 0.7, 1.1, 1.2, 1.3],
+                          [-0.2, -0.1, 0.0, 0.2, 0.25, 0.6, 1.0, 1.05, 1.2]], dtype=F64,
+                         requires_grad=True)
+    cp = torch.randn(2, 6, 2, generator=g, dtype=F64, requires_grad=True)
+    t = (torch.rand(2, size, generator=g, dtype=F64) * 0.9 + 0.05).requires_grad_(True)
+    for order in (0, 1, 2):
+        assert torch.autograd.gradcheck(
+            lambda c, x, k, order=order: bspline_derivative(c, x, 2, order, k), (cp, t, knots))
+
+
 def test_default_knots_give_the_bezier_curve_for_n_equals_p():
     cp = torch.randn(5, 6, 3, dtype=F64)
     t = torch.rand(13, dtype=F64)

@@ -29,6 +29,7 @@ Convention:
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import torch
@@ -41,8 +42,18 @@ from torchgeo_cg.curves.knots import (
     check_bspline_knots,
     find_spans,
     local_basis_list,
+    span_limits,
     uniform_knots,
 )
+
+#: per-curve knots or parameters: evaluate the values (not derivatives, whose forward
+#: differences lose digits on short spans) by Bezier segments (one table row per span,
+#: then a few operations per parameter) when ``T * SEGMENT_RATIO >= S`` spans and every
+#: parameter is inside the domain (the Bernstein form extrapolates badly); else by the
+#: basis recurrence at every parameter
+SEGMENT_RATIO = 4
+#: parameters per chunk of :func:`evaluate_table` (its intermediates stay in cache)
+CHUNK = 16384
 
 __all__ = ["BSplineControls", "BSplineCurve", "bspline", "bspline_derivative"]
 
@@ -179,10 +190,120 @@ def _evaluate(control_points, t, knots, degree: int, order: int) -> torch.Tensor
         return control_points.new_zeros(*batch, t.shape[-1], control_points.shape[-1])
     if knots.dim() > 1 or t.dim() > 1:
         batch = torch.broadcast_shapes(knots.shape[:-1], t.shape[:-1])
+        if order == 0 and t.shape[-1] * SEGMENT_RATIO >= control_points.shape[-2] - degree \
+                and _inside(t, knots, degree, control_points.shape[-2]):
+            table = bezier_table(control_points, knots, degree)
+            return evaluate_table(table, knots, t, degree, control_points.shape[-1])
         knots, t = knots.expand(*batch, knots.shape[-1]), t.expand(*batch, t.shape[-1])
     spans = find_spans(knots, t, degree)
     basis = local_basis_list(knots, t, spans, degree, order)[order]
     return evaluate_local(control_points, basis, spans, degree)
+
+
+def bezier_table(control_points, knots, degree: int) -> torch.Tensor:
+    """Every knot span as a scaled Bezier segment: ``(W, *, S)``, ``W = (p + 1) D + 2``.
+
+    For the ``S = n - p + 1`` spans ``s = p..n``: the first ``(p + 1) D`` rows hold
+    ``C(p, m) b_m`` (``b_m`` the span's Bezier points, coordinate-minor), then ``u_s`` and
+    ``h = u_{s+1} - u_s``; so ``C(t) = sum_m x^m (1 - x)^(p - m) row_m`` with ``x = (t -
+    u_s) / h``. The Bezier points are blossoms ``b(u_{s+1}^m, u_s^(p-m))`` by de Boor's
+    algorithm, sharing the common prefixes of their arguments: convex combinations, as
+    stable as the basis recurrence. Empty spans (repeated knots) get finite unused rows.
+    """
+    count, d = control_points.shape[-2:]
+    spans = count - degree
+    batch = torch.broadcast_shapes(control_points.shape[:-2], knots.shape[:-1])
+    knots = knots.expand(*batch, knots.shape[-1])
+    start, end = knots[..., degree:count], knots[..., degree + 1:count + 1]  # (*, S)
+    # layout (state, point, D, *, S): every operation runs along the spans, contiguously
+    cp = control_points.expand(*batch, count, d).movedim(-1, 0)  # (D, *, n + 1)
+    points = torch.stack([cp[..., i:i + spans] for i in range(degree + 1)])[None]
+    for r in range(1, degree + 1):  # loop over blossom levels: (r, p + 2 - r, D, *, S)
+        lo = torch.stack([knots[..., r + i:r + i + spans] for i in range(degree + 1 - r)])
+        hi = torch.stack([knots[..., degree + 1 + i:degree + 1 + i + spans]
+                          for i in range(degree + 1 - r)])
+        gap = hi - lo  # (p + 1 - r, *, S), >= h > 0 on a non-empty span
+        args = torch.stack([start] * r + [end])  # r prefixes keep u_s, one adds u_{s+1}
+        alpha = (args[:, None] - lo) / torch.where(gap > 0, gap, 1.0)
+        alpha = torch.where(gap > 0, alpha, 0.0)[:, :, None]  # (r + 1, p + 1 - r, 1, *, S)
+        points = torch.cat([points, points[-1:]])
+        points = torch.lerp(points[:, :-1], points[:, 1:], alpha)
+    points = points[:, 0]  # (p + 1, D, *, S)
+    binomials = torch.tensor([math.comb(degree, m) for m in range(degree + 1)],
+                             dtype=points.dtype, device=points.device)
+    points = points * binomials.view(-1, *([1] * (points.dim() - 1)))
+    columns = torch.cat([points.flatten(0, 1), start[None], (end - start)[None]])  # (W, *, S)
+    return columns
+
+
+def evaluate_table(table, knots, t, degree: int, dims: int) -> torch.Tensor:
+    """Curve (or derivative) values ``(*, T, D)`` from :func:`bezier_table` rows.
+
+    ``table`` is ``(W, *, S)``, ``knots`` ``(K,)`` or ``(*, K)``, ``t`` ``(T,)`` or ``(*, T)``
+    (batches broadcast). One row is gathered per parameter; the parameters are processed a
+    few curves at a time, so that every intermediate stays in cache (one pass, out of
+    place, where autograd records). The result is a view of a ``(D, *, T)`` tensor, one
+    contiguous plane per coordinate.
+    """
+    spans = table.shape[-1]
+    batch = torch.broadcast_shapes(table.shape[1:-1], knots.shape[:-1], t.shape[:-1])
+    columns = table.reshape(table.shape[0], -1)  # (W, curves * S)
+    base = torch.arange(columns.shape[1] // spans, device=t.device).reshape(table.shape[1:-1])
+    base = (base * spans - degree).expand(batch).reshape(-1, 1)  # row of span 0, each curve
+    t_flat = t.expand(*batch, t.shape[-1]).reshape(-1, t.shape[-1])
+    if knots.dim() > 1:
+        knots = knots.expand(*batch, knots.shape[-1]).reshape(-1, knots.shape[-1])
+    low, high = span_limits(knots, degree)  # (curves or 1, 1)
+    count, length = t_flat.shape
+    record = torch.is_grad_enabled() and (table.requires_grad or t.requires_grad)
+    step = count if record else max(1, CHUNK // max(length, 1))
+    out = table.new_empty(dims, count, length)
+    for c in range(0, count, step):  # loop over chunks of curves
+        t_c = t_flat[c:c + step].contiguous()
+        k_c = knots if knots.dim() == 1 else knots[c:c + step]
+        lo, hi = (low, high) if knots.dim() == 1 else (low[c:c + step], high[c:c + step])
+        first = base[c:c + step]
+        rows = torch.searchsorted(k_c.contiguous(), t_c.detach(), right=True).add_(first - 1)
+        rows = torch.minimum(torch.maximum(rows, lo + first), hi + first).view(-1)
+        if record:
+            return _segment_values(columns, rows, t_c.view(-1), dims).view(
+                dims, *batch, length).movedim(0, -1)
+        _segment_values(columns, rows, t_c.view(-1), dims, out[:, c:c + step].view(dims, -1))
+    return out.view(dims, *batch, length).movedim(0, -1)
+
+
+def _segment_values(columns, rows, t, dims: int, out=None) -> torch.Tensor:
+    """``sum_m x^m (1 - x)^(q - m) row_m`` at every parameter: ``(D, N)`` (into ``out``)."""
+    picked = columns.gather(1, rows.expand(columns.shape[0], -1))  # (W, N), contiguous rows
+    q = (columns.shape[0] - 2) // dims - 1
+    if q == 0:
+        return picked[:dims] if out is None else out.copy_(picked[:dims])
+    x = (t - picked[-2]) / picked[-1]
+    y = 1 - x
+    xs, ys = [None, x], [None, y]
+    for _ in range(2, q + 1):  # loop over powers
+        xs.append(xs[-1] * x)
+        ys.append(ys[-1] * y)
+    weights = [ys[q]] + [xs[m] * ys[q - m] for m in range(1, q)] + [xs[q]]
+    planes = []
+    for d in range(dims):  # loop over coordinates (into ``out`` in place, if given)
+        acc = torch.mul(picked[d], weights[0], out=None if out is None else out[d])
+        for m in range(1, q + 1):  # loop over the q + 1 Bernstein terms: same rounding
+            acc = (acc.addcmul_ if out is not None else acc.addcmul)(picked[m * dims + d],
+                                                                     weights[m])
+        planes.append(acc)
+    if out is None:
+        return torch.stack(planes)
+    return out
+
+
+def _inside(t, knots, degree: int, count: int) -> bool:
+    """Every parameter is inside its curve's domain ``[u_p, u_{n+1}]``."""
+    t = t.detach()
+    low, high = t.amin(-1, keepdim=True), t.amax(-1, keepdim=True)
+    knots = knots.detach()
+    return bool(((low >= knots[..., degree:degree + 1])
+                 & (high <= knots[..., count:count + 1])).all())
 
 
 def bspline(control_points: torch.Tensor, t: torch.Tensor, degree: int,

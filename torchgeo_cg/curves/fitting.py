@@ -277,7 +277,10 @@ def _newton(cp, t, points_d, degree: int) -> tuple[torch.Tensor, torch.Tensor]:
     """One safeguarded Newton step on every ``t_k`` for ``|B(t_k) - x_k|^2`` (float64).
 
     ``points_d`` is ``(D, *, M)``. Newton where ``f'' > 0``, else Gauss-Newton
-    (``f'' ~ |B'|^2``); the step is halved up to 4 times until the residual decreases.
+    (``f'' ~ |B'|^2``). The trials are 2, 1, 1/2 and 1/4 Newton steps, the best that
+    decreases the residual is kept: alternating with the solve, a plain Newton step
+    under-corrects ``t`` (the control points follow each move), so the doubled trial is the
+    one usually kept and the alternation converges in fewer iterations.
     Returns the new parameters and the squared residuals ``(*, M)`` at the old ones.
     """
     a = _power_coefficients(cp)
@@ -288,7 +291,7 @@ def _newton(cp, t, points_d, degree: int) -> tuple[torch.Tensor, torch.Tensor]:
     speed2 = (d1 * d1).sum(0)
     hess = speed2 + (r * d2).sum(0)
     hess = torch.where(hess > 0, hess, speed2)
-    step = torch.where(hess > 0, -grad / torch.where(hess > 0, hess, 1.0), 0.0)
+    step = torch.where(hess > 0, -2 * grad / torch.where(hess > 0, hess, 1.0), 0.0)
     best_t, best_r2 = t, r.square().sum(0)
     for _ in range(4):  # backtracking halvings (a loop over attempts, not samples)
         trial = (t + step).clamp(0, 1)
@@ -345,7 +348,7 @@ def fit_bezier(
     degree: int,
     parametrization: str = "chord",
     correct_parameters: bool = False,
-    tol: float = 1e-6,
+    tol: float = 3e-5,
     max_iterations: int = 100,
     weights=None,
     lengths=None,

@@ -148,15 +148,28 @@ def _batched(knots: torch.Tensor, t: torch.Tensor) -> tuple[torch.Tensor, torch.
 def find_spans(knots: torch.Tensor, t: torch.Tensor, degree: int) -> torch.Tensor:
     """Span index ``s`` in ``[p, n]`` of every parameter (right-continuous, see above)."""
     knots, t = knots.detach(), t.detach()
+    low, high = span_limits(knots, degree)
+    span = torch.searchsorted(knots.contiguous(), t.contiguous(), right=True) - 1
+    return torch.minimum(torch.maximum(span, low), high)
+
+
+def span_limits(knots: torch.Tensor, degree: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The first and last non-empty spans ``(*, 1)`` of the domain, in ``[p, n]``.
+
+    The lowest ``s`` with ``u_s <= u_p`` and the highest with ``u_{s+1} >= u_{n+1}``:
+    parameters outside the domain use them (extrapolation). The clamp to ``[p, n]`` only
+    acts for NaN knots (a NaN stroke of a fit): indices stay valid.
+
+    Example:
+        >>> span_limits(torch.tensor([0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0]), 2)
+        (tensor([2]), tensor([4]))
+    """
+    knots = knots.detach()
     last = knots.shape[-1] - degree - 2  # n
     seq = knots.contiguous()
-    # the non-empty spans nearest the two ends: lowest s with u_s <= u_p, highest with
-    # u_{s+1} >= u_{n+1}
     low = torch.searchsorted(seq, knots[..., degree:degree + 1].contiguous(), right=True) - 1
     high = torch.searchsorted(seq, knots[..., last + 1:last + 2].contiguous(), right=False) - 1
-    span = torch.searchsorted(seq, t.contiguous(), right=True) - 1
-    # the outer clamp only acts for NaN knots (a NaN stroke of a fit): indices stay valid
-    return torch.minimum(torch.maximum(span, low), high).clamp(degree, last)
+    return low.clamp(degree, last), high.clamp(degree, last)
 
 
 def bspline_basis(t: torch.Tensor, degree: int, knots: torch.Tensor | None = None,
@@ -240,7 +253,7 @@ def local_basis_list(knots, t, spans, degree: int, order: int) -> list[list[torc
             continue
         values = levels[degree - k]
         for d in range(degree - k + 1, degree + 1):  # raise degree d - 1 -> d (eq. 2.9)
-            values = _raise(knots, spans, values, d)
+            values = _raise(knots, spans, values, d, d == degree)
         out.append(values)
     return out
 
@@ -251,13 +264,18 @@ def _inplace(*tensors: torch.Tensor) -> bool:
 
 
 def _gather1(knots: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
-    return knots[index] if knots.dim() == 1 else knots.gather(-1, index)
+    if knots.dim() == 1:
+        return knots.index_select(0, index.reshape(-1)).view(index.shape)
+    return knots.gather(-1, index)
 
 
-def _raise(knots, spans, values, d: int) -> list[torch.Tensor]:
+def _raise(knots, spans, values, d: int, top: bool) -> list[torch.Tensor]:
     """``d (N_{i,d-1} / (u_{i+d} - u_i) - N_{i+1,d-1} / (u_{i+d+1} - u_{i+1}))`` locally."""
     scaled = []
     for j in range(d):  # in-index j is i' = s - d + 1 + j
         gap = _gather1(knots, spans + 1 + j) - _gather1(knots, spans - d + 1 + j)
+        if top:  # d = p: the gap contains the span, which is never empty: positive
+            scaled.append(values[j] / gap * d)
+            continue
         scaled.append(torch.where(gap > 0, values[j] / torch.where(gap > 0, gap, 1.0), 0.0) * d)
     return [-scaled[0]] + [scaled[j - 1] - scaled[j] for j in range(1, d)] + [scaled[-1]]

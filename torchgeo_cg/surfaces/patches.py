@@ -40,7 +40,12 @@ import torch
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_div, safe_norm
 from torchgeo_cg.curves.bernstein import check_degree
-from torchgeo_cg.curves.knots import check_bspline_knots, find_spans, local_basis, uniform_knots
+from torchgeo_cg.curves.knots import (
+    check_bspline_knots,
+    find_spans,
+    local_basis_list,
+    uniform_knots,
+)
 from torchgeo_cg.curves.nurbs import check_weights
 
 __all__ = [
@@ -116,44 +121,89 @@ def _knots(knots, count, degree, name, like):
     return knots.to(like.dtype)
 
 
-def _direction(knots, x, degree, batch):
-    """Spans ``(*, N)`` and basis ``(2, *, N, p + 1)`` (values, first derivatives)."""
-    knots = knots.expand(*batch, knots.shape[-1])
-    x = x.expand(*batch, x.shape[-1])
-    spans = find_spans(knots, x, degree)
-    return spans, local_basis(knots, x, spans, degree, 1)
+#: parameters per chunk of a patch evaluation (its intermediates stay in cache)
+CHUNK = 8192
 
 
 def _tensor_product(grid, u, v, knots_u, knots_v, p, q, derivatives: bool):
     """``S_ab`` for ``(a, b)`` in ``(0,0), (1,0), (0,1), (1,1)`` (only ``(0,0)`` if not
-    ``derivatives``), and the same sums with absolute basis values on ``|P|``."""
+    ``derivatives``), and the same sums with absolute basis values on ``|P|``.
+
+    The points are processed in chunks (one pass where autograd records); within one, the
+    ``(p + 1)(q + 1)`` local control points are gathered one at a time from coordinate
+    planes, so every operation runs contiguously along the parameters.
+    """
     rows, cols, e = grid.shape[-3:]
     batch = torch.broadcast_shapes(grid.shape[:-3], u.shape[:-1], v.shape[:-1],
                                    knots_u.shape[:-1], knots_v.shape[:-1])
-    su, bu = _direction(knots_u, u, p, batch)
-    sv, bv = _direction(knots_v, v, q, batch)
-    i = su[..., None] - p + torch.arange(p + 1, device=su.device)  # (*, N, p + 1)
-    j = sv[..., None] - q + torch.arange(q + 1, device=sv.device)
-    flat = (i[..., :, None] * cols + j[..., None, :]).reshape(*batch, -1)  # (*, N (p+1)(q+1))
-    source = grid.expand(*batch, rows, cols, e).reshape(*batch, rows * cols, e)
-    local = source.gather(-2, flat[..., None].expand(*flat.shape, e))
-    local = local.reshape(*batch, u.shape[-1], p + 1, q + 1, e)
-    along_v = [torch.einsum("...nj,...nije->...nie", bv[b], local) for b in range(2)]
-    out = {(0, 0): torch.einsum("...ni,...nie->...ne", bu[0], along_v[0])}
-    if derivatives:
-        out[1, 0] = torch.einsum("...ni,...nie->...ne", bu[1], along_v[0])
-        out[0, 1] = torch.einsum("...ni,...nie->...ne", bu[0], along_v[1])
-        out[1, 1] = torch.einsum("...ni,...nie->...ne", bu[1], along_v[1])
-        with torch.no_grad():
-            size = local.detach().abs().sum(-1)  # (*, N, p + 1, q + 1)
-            abs_u, abs_v = bu.detach().abs(), bv.detach().abs()
-            out["bound_u"] = torch.einsum("...ni,...nj,...nij->...n", abs_u[1], abs_v[0], size)
-            out["bound_v"] = torch.einsum("...ni,...nj,...nij->...n", abs_u[0], abs_v[1], size)
+    n = u.shape[-1]
+    planes = grid.movedim(-1, 0)  # (e, *, M, N)
+    if derivatives:  # one more plane: |P|_1, for the rounding bounds
+        planes = torch.cat([planes, grid.detach().abs().sum(-1)[None]])
+    planes = planes.movedim(0, -1).expand(*batch, rows, cols, planes.shape[0])
+    planes = planes.movedim(-1, 0).flatten(-2)  # (E, *, M N)
+    knots_u = knots_u.expand(*batch, knots_u.shape[-1])
+    knots_v = knots_v.expand(*batch, knots_v.shape[-1])
+    u, v = u.expand(*batch, n), v.expand(*batch, n)
+    record = torch.is_grad_enabled() and any(
+        x.requires_grad for x in (grid, u, v, knots_u, knots_v))
+    step = n if record else max(1, CHUNK // max(1, batch.numel()))
+    keys = [(0, 0), (1, 0), (0, 1), (1, 1)] if derivatives else [(0, 0)]
+    out = {}
+    for c in range(0, n, step):  # loop over chunks of parameters
+        part = _patch_chunk(planes, knots_u, knots_v, u[..., c:c + step], v[..., c:c + step],
+                            p, q, cols, e, derivatives)
+        if record:
+            out = part
+            break
+        if not out:
+            out = {key: x.new_empty(*x.shape[:-1], n) for key, x in part.items()}
+        for key, x in part.items():
+            out[key][..., c:c + step] = x
+    out = {key: (x.movedim(0, -1) if key in keys else x) for key, x in out.items()}
     ends_u = (knots_u[..., p:p + 1], knots_u[..., rows:rows + 1])
     ends_v = (knots_v[..., q:q + 1], knots_v[..., cols:cols + 1])
     out["sign_u"] = _end_sign(u, *ends_u)
     out["sign_v"] = _end_sign(v, *ends_v)
     return out
+
+
+def _patch_chunk(planes, knots_u, knots_v, u, v, p, q, cols, e, derivatives):
+    """:func:`_tensor_product` on one chunk: ``(e, *, n)`` sums and ``(*, n)`` bounds."""
+    order = 1 if derivatives else 0
+    su = find_spans(knots_u, u, p)
+    sv = find_spans(knots_v, v, q)
+    bu = local_basis_list(knots_u, u, su, p, order)  # [order][i] (*, n)
+    bv = local_basis_list(knots_v, v, sv, q, order)
+    base = (su - p) * cols + (sv - q)  # flat index of the local corner
+    inplace = not (torch.is_grad_enabled() and (planes.requires_grad or u.requires_grad
+                                                or v.requires_grad or knots_u.requires_grad
+                                                or knots_v.requires_grad))
+    sums: dict = {}
+    for i in range(p + 1):  # loop over the p + 1 local rows
+        along = [None] * (order + 1)
+        size_v = [None] * (order + 1)
+        for j in range(q + 1):  # loop over the q + 1 local control points of a row
+            index = base + (i * cols + j) if i or j else base
+            point = planes.gather(-1, index.expand(planes.shape[0], *index.shape))
+            for b in range(order + 1):
+                along[b] = _accumulate(along[b], point[:e], bv[b][j], inplace)
+                if derivatives:
+                    size_v[b] = _accumulate(size_v[b], point[e], bv[b][j].abs(), True)
+        for a in range(order + 1):
+            for b in range(order + 1):
+                sums[a, b] = _accumulate(sums.get((a, b)), along[b], bu[a][i], inplace)
+        if derivatives:
+            sums["bound_u"] = _accumulate(sums.get("bound_u"), size_v[0], bu[1][i].abs(), True)
+            sums["bound_v"] = _accumulate(sums.get("bound_v"), size_v[1], bu[0][i].abs(), True)
+    return sums
+
+
+def _accumulate(total, x, weight, inplace: bool):
+    """``total + x * weight`` (``x * weight`` when ``total`` is None), in place if allowed."""
+    if total is None:
+        return x * weight
+    return total.addcmul_(x, weight) if inplace else torch.addcmul(total, x, weight)
 
 
 def _end_sign(x, low, high):
