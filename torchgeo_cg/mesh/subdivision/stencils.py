@@ -39,11 +39,13 @@ class StencilMatrix(NamedTuple):
     """A sparse ``(R, C)`` matrix and its transpose as plain CSR tensors.
 
     Attributes:
-        crow: ``(R + 1,)`` long row offsets.
-        col: ``(nnz,)`` long column of each entry.
+        crow: ``(R + 1,)`` long row offsets (int32 in the limit stencils, where the
+            sizes fit: MKL's faster sparse path; ``crow`` and ``col`` share a dtype, as
+            do ``crow_t`` and ``col_t``).
+        col: ``(nnz,)`` long (or int32) column of each entry.
         weights: ``(nnz,)`` float value of each entry.
-        crow_t: ``(C + 1,)`` long row offsets of the transpose.
-        col_t: ``(nnz,)`` long columns of the transpose (rows of the matrix).
+        crow_t: ``(C + 1,)`` long (or int32) row offsets of the transpose.
+        col_t: ``(nnz,)`` long (or int32) columns of the transpose (rows of the matrix).
         weights_t: ``(nnz,)`` float values of the transpose.
 
     Example:

@@ -99,6 +99,8 @@ class LimitSurfaceSample(NamedTuple):
 class LimitStencils(NamedTuple):
     """Sparse ``(N, V0)`` stencils of the limit positions and derivatives at N points.
 
+    Their indices are int32 where the sizes fit (MKL's faster sparse product).
+
     Attributes:
         positions: :class:`~torchgeo_cg.mesh.subdivision.stencils.StencilMatrix`.
         du: the same for the ``u`` derivative.
@@ -312,8 +314,12 @@ def _emit_triangles(out, level, topo, twin, sharp_e, sample, face, s, t, jac, nu
     rule, _ = phantom_rules(present)
     slots = torch.where(present, slots, slots[:, :1])  # phantoms: weight 0 after folding
     C, cols = _face_matrices(slots, (level.chain,), num_cols, s.dtype)
-    rule, present = rule[face_local], present[face_local]
-    w, ws, wt = (fold_phantoms(x, rule, present) for x in box_spline_weights(s, t))
+    w, ws, wt = box_spline_weights(s, t)
+    partial = torch.nonzero(~present.all(1)[face_local]).flatten()  # faces with phantoms
+    if partial.numel():  # folding is the identity where every slot is present
+        f = face_local[partial]
+        w, ws, wt = (x.index_put((partial,), fold_phantoms(x[partial], rule[f], present[f]))
+                     for x in (w, ws, wt))
     wu, wv = _chain_rule(ws, wt, jac)
     _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
 
