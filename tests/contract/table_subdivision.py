@@ -60,6 +60,13 @@ def _sharpness(shape, g, dtype):
     return 0.3 + 2.5 * torch.rand(shape, generator=g, dtype=torch.float64)
 
 
+def _buffer(v: torch.Tensor, rows: int) -> torch.Tensor:
+    """A fresh ``(*, rows, D)`` output buffer for data ``v`` (the ``out=`` entries), NaN
+    where it is floating, so that a result not written into it fails the laws."""
+    fill = float("nan") if v.dtype.is_floating_point else 0
+    return torch.full((*v.shape[:-2], rows, v.shape[-1]), fill, dtype=v.dtype, device=v.device)
+
+
 def _wdtype(v: torch.Tensor) -> dict:
     """Operator weights in the data's dtype (``None``: the default, for integer data)."""
     return {"dtype": v.dtype if v.is_floating_point() else None}
@@ -161,6 +168,15 @@ ENTRIES: list[Entry] = [
           empty=((0, 0), (0, -1)), bad=BADV8),
     Entry("mesh.apply_operator[batch0d]", lambda v: M.apply_operator(_CC_CUBE, v),
           (Arg("verts", (8, 2), CUBE_V),), empty=(0, -1), bad=((7, 2), (2,))),
+    Entry("mesh.apply_operator[out]",
+          lambda v: M.apply_operator(_CC_CUBE, v, out=_buffer(v, _CC_CUBE.num_vertices_out)),
+          (VERTS8,), empty=((0, 0), (0, -1)), bad=BADV8),
+    Entry("mesh.CatmullClark[out]",
+          lambda v: M.CatmullClark(CUBE_F, 8, levels=2, **_wdtype(v))(v, out=_buffer(v, 98)),
+          (VERTS8,), empty=(0, 0), bad=BADV8),
+    Entry("mesh.LoopSubdivision[out]",
+          lambda v: M.LoopSubdivision(OCTA_F, 6, levels=1, **_wdtype(v))(v, out=_buffer(v, 18)),
+          (Arg("verts", (2, 6, 3), OCTA_V),), empty=(0, 0), bad=((2, 5, 3), (3,))),
     Entry("mesh.apply_stencils", lambda x: M.apply_stencils(_CC_CUBE.stencils, x),
           (Arg("x", (2, 8, 3), CUBE_V),), empty=((0, 0), (0, -1)), bad=((2, 7, 3), (3,))),
     Entry("mesh.limit_positions", lambda v: M.limit_positions(_CC_CUBE, v), (VERTS8,),

@@ -11,7 +11,7 @@ from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.subdivision._topology import check_boundary, check_crease_method, check_verts
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils
+from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, check_out
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 
@@ -103,11 +103,18 @@ class SubdivisionModule(nn.Module):
     def _stencils(self, level: int) -> StencilMatrix:
         return StencilMatrix(*(getattr(self, f"{f}_{level}") for f in StencilMatrix._fields))
 
-    def forward(self, verts: torch.Tensor) -> torch.Tensor:
+    def forward(self, verts: torch.Tensor, out: torch.Tensor | None = None) -> torch.Tensor:
+        """Refine ``(*, V, D)`` -> ``(*, V_L, D)``; ``out`` (optional, ``(*, V_L, D)``) takes
+        the last level's result as in
+        :func:`~torchgeo_cg.mesh.subdivision.apply_operator` (outside autograd)."""
         check_module_dtype(self, verts, "verts", exclude=("tags_",))  # tags built the operators
         check_verts(verts, self.num_vertices_in)
+        if out is not None and self.levels == 0:
+            check_out(out, tuple(verts.shape), verts)
+            return out.copy_(verts)
         for level in range(self.levels):
-            verts = apply_stencils(self._stencils(level), verts)
+            last = level == self.levels - 1
+            verts = apply_stencils(self._stencils(level), verts, out=out if last else None)
         return verts
 
     def extra_repr(self) -> str:

@@ -336,6 +336,9 @@ class CatmullClark(SubdivisionModule):
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
         - forward output: ``(*, V_L, D)``; ``.faces``: ``(F_L, 4)`` long (the input
           faces, padded, when ``levels = 0``).
+        - forward ``out`` (optional): a ``(*, V_L, D)`` buffer of ``verts``' dtype and
+          device that takes the result (outside autograd, eager only; see
+          :func:`~torchgeo_cg.mesh.subdivision.apply_operator`).
 
     Example:
         >>> cc = CatmullClark([[0, 1, 2, 3]], 4, levels=2)

@@ -190,6 +190,9 @@ class LoopSubdivision(SubdivisionModule):
     Shape:
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
         - forward output: ``(*, V_L, D)``; ``.faces``: ``(4^L F, 3)`` long.
+        - forward ``out`` (optional): a ``(*, V_L, D)`` buffer of ``verts``' dtype and
+          device that takes the result (outside autograd, eager only; see
+          :func:`~torchgeo_cg.mesh.subdivision.apply_operator`).
 
     Example:
         >>> loop = LoopSubdivision([[0, 1, 2]], 3, levels=2)

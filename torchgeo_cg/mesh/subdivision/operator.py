@@ -82,7 +82,8 @@ class SubdivisionOperator(NamedTuple):
         return self.stencils.sparse_t()
 
 
-def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.Tensor:
+def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor, *,
+                   out: torch.Tensor | None = None) -> torch.Tensor:
     """Refine per-vertex data with one operator: ``(*, V0, D) -> (*, V1, D)``.
 
     Convention:
@@ -91,13 +92,24 @@ def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.
         ``verts``; backward applies ``S^T`` from ``operator.stencils``. The
         weights are cast to ``verts``' dtype and device when they differ. Works
         under ``torch.compile(fullgraph=True)``, ``torch.func.vmap`` and ``jacrev``.
+        ``out`` writes the result into a caller's buffer (no output allocation, which
+        for large batches is mostly page faults); like torch's ``out=`` it is outside
+        autograd (an error where grad mode is on and ``verts`` or ``out`` requires
+        grad) and eager only (see
+        :func:`~torchgeo_cg.mesh.subdivision.stencils.apply_stencils`).
 
     Args:
         operator: from :func:`catmull_clark_operator`.
         verts: ``(*, V0, D)`` float.
+        out: optional ``(*, V1, D)`` buffer of ``verts``' dtype and device.
 
     Returns:
-        ``(*, V1, D)``.
+        ``(*, V1, D)`` (``out`` itself when given).
+
+    Raises:
+        ShapeError: ``verts`` is not ``(*, V0, D)``, or ``out`` not ``(*, V1, D)``.
+        TypeError: ``verts`` is not floating, or ``out`` has another dtype.
+        ValueError: ``out`` on another device, needing autograd, or under a transform.
 
     Example:
         >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
@@ -105,6 +117,9 @@ def apply_operator(operator: SubdivisionOperator, verts: torch.Tensor) -> torch.
         >>> apply_operator(op, torch.tensor([[0., 0.], [3., 0.], [0., 3.]]))[3:5]
         tensor([[1.0000, 1.0000],
                 [1.5000, 0.0000]])
+        >>> buffer = torch.empty(7, 2)
+        >>> apply_operator(op, torch.tensor([[0., 0.], [3., 0.], [0., 3.]]), out=buffer)[3]
+        tensor([1., 1.])
     """
     check_verts(verts, operator.num_vertices_in)
-    return apply_stencils(operator.stencils, verts)
+    return apply_stencils(operator.stencils, verts, out=out)

@@ -27,7 +27,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchgeo_cg.core.check import check_float, check_shape, check_tensor
+from torchgeo_cg.core.check import ShapeError, check_float, check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
 __all__ = ["StencilMatrix", "apply_stencils"]
@@ -39,11 +39,13 @@ class StencilMatrix(NamedTuple):
     """A sparse ``(R, C)`` matrix and its transpose as plain CSR tensors.
 
     Attributes:
-        crow: ``(R + 1,)`` long row offsets.
-        col: ``(nnz,)`` long column of each entry.
+        crow: ``(R + 1,)`` long row offsets (int32 in the limit stencils, where the
+            sizes fit: MKL's faster sparse path; ``crow`` and ``col`` share a dtype, as
+            do ``crow_t`` and ``col_t``).
+        col: ``(nnz,)`` long (or int32) column of each entry.
         weights: ``(nnz,)`` float value of each entry.
-        crow_t: ``(C + 1,)`` long row offsets of the transpose.
-        col_t: ``(nnz,)`` long columns of the transpose (rows of the matrix).
+        crow_t: ``(C + 1,)`` long (or int32) row offsets of the transpose.
+        col_t: ``(nnz,)`` long (or int32) columns of the transpose (rows of the matrix).
         weights_t: ``(nnz,)`` float values of the transpose.
 
     Example:
@@ -155,31 +157,45 @@ def stencil_matrix(
     return StencilMatrix(crow, cols_u, values_u, crow_t, rows_u[order_t], values_u[order_t])
 
 
-def _spmm_batched(matrix: Tensor, x_bvd: Tensor) -> Tensor:
-    """``(R, V)`` sparse times each ``(V, D)`` item of ``(B, V, D)`` -> contiguous ``(B, R, D)``.
+def _spmm_batched(matrix: Tensor, x_bvd: Tensor, out_brd: Tensor | None = None) -> Tensor:
+    """``(R, V)`` sparse times each ``(V, D)`` item of ``(B, V, D)`` -> contiguous ``(B, R, D)``,
+    written into ``out_brd`` when given (contiguous, ``x``'s dtype and device).
 
     Items are grouped so that each sparse matmul sees about ``_CHUNK_COLUMNS``
     dense columns (a loop over batch chunks, not elements): one very wide
-    product thrashes the cache, many narrow ones waste the stencil reads.
+    product thrashes the cache, many narrow ones waste the stencil reads. The chunks'
+    products share one scratch buffer (fresh memory per chunk would fault its pages in
+    again every time).
     """
     B, V, D = x_bvd.shape
     R = matrix.shape[0]
     if B == 1:
-        return (matrix @ x_bvd[0]).unsqueeze(0)
+        if out_brd is None:
+            return (matrix @ x_bvd[0]).unsqueeze(0)
+        torch.mm(matrix, x_bvd[0], out=out_brd[0])
+        return out_brd
     per = max(1, _CHUNK_COLUMNS // max(D, 1))
-    out_brd = x_bvd.new_empty(B, R, D)
+    if out_brd is None:
+        out_brd = x_bvd.new_empty(B, R, D)
+    scratch = x_bvd.new_empty(R * min(per, B) * D)
     for b0 in range(0, B, per):  # loop over batch chunks
         x2d = x_bvd[b0:b0 + per].movedim(1, 0).reshape(V, -1)  # (V, b*D)
-        out_brd[b0:b0 + per] = (matrix @ x2d).view(R, -1, D).movedim(0, 1)
+        y2d = scratch[:R * x2d.shape[1]].view(R, x2d.shape[1])
+        torch.mm(matrix, x2d, out=y2d)
+        out_brd[b0:b0 + per] = y2d.view(R, -1, D).movedim(0, 1)
     return out_brd
 
 
-def _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd: Tensor) -> Tensor:
-    """``(R, C)`` stencils times ``(B, C, D)`` data -> ``(B, R, D)`` (weights in x's dtype)."""
+def _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd: Tensor,
+                          out_brd: Tensor | None = None) -> Tensor:
+    """``(R, C)`` stencils times ``(B, C, D)`` data -> ``(B, R, D)`` (weights in x's dtype),
+    into ``out_brd`` when given."""
     if x_bvd.shape[1] == 0 or crow.numel() == 1 or x_bvd.shape[0] * x_bvd.shape[2] == 0:
+        if out_brd is not None:
+            return out_brd.zero_()
         return x_bvd.new_zeros(x_bvd.shape[0], crow.numel() - 1, x_bvd.shape[2])
     matrix = _csr(crow, col, weights, crow_t.numel() - 1)
-    return _spmm_batched(matrix, x_bvd.contiguous())
+    return _spmm_batched(matrix, x_bvd.contiguous(), out_brd)
 
 
 @torch.library.custom_op("torchgeo_cg::stencil_matmul", mutates_args=())
@@ -256,7 +272,36 @@ def _plain_eager() -> bool:
     return not (torch.compiler.is_compiling() or torch._C._are_functorch_transforms_active())
 
 
-def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
+def check_out(out: Tensor, shape: tuple[int, ...], like: Tensor) -> None:
+    """Validate a caller's output buffer ``out``: a tensor of ``shape`` with ``like``'s dtype
+    and device, written outside autograd (like torch's ``out=``: an error where grad mode
+    is on and ``like`` or ``out`` requires grad), in plain eager mode.
+
+    Raises:
+        ShapeError: ``out`` has another shape.
+        TypeError: ``out`` is not a tensor, or of another dtype.
+        ValueError: ``out`` on another device, autograd would be needed, or a
+            ``torch.compile`` / ``torch.func`` transform is active.
+
+    Example:
+        >>> check_out(torch.empty(2, 3), (2, 3), torch.zeros(1))
+    """
+    check_tensor(out, "out")
+    if tuple(out.shape) != tuple(shape):
+        raise ShapeError(f"out: expected shape {tuple(shape)}, got {tuple(out.shape)}")
+    if out.dtype != like.dtype:
+        raise TypeError(f"out: expected dtype {like.dtype} (the input's), got {out.dtype}")
+    if out.device != like.device:
+        raise ValueError(f"out: expected device {like.device} (the input's), got {out.device}")
+    if torch.is_grad_enabled() and (like.requires_grad or out.requires_grad):
+        raise ValueError("out: writing into a buffer does not support autograd (an input or "
+                         "out requires grad); call without out=, or under torch.no_grad()")
+    if not _plain_eager():
+        raise ValueError("out: not supported under torch.compile or torch.func transforms; "
+                         "call without out=")
+
+
+def apply_stencils(stencils: StencilMatrix, x: Tensor, *, out: Tensor | None = None) -> Tensor:
     """Multiply ``(*, C, D)`` data by the ``(R, C)`` stencils -> ``(*, R, D)``.
 
     Convention:
@@ -264,34 +309,61 @@ def apply_stencils(stencils: StencilMatrix, x: Tensor) -> Tensor:
         ``x`` (backward applies the transpose through the same op); works under
         ``torch.compile(fullgraph=True)``, ``torch.func.vmap`` and ``jacrev``. The
         weights are cast to ``x``'s dtype and device when they differ; float16 and
-        bfloat16 ``x`` are computed in float32 and the result cast back.
+        bfloat16 ``x`` are computed in float32 and the result cast back. With ``out``,
+        the result is written into that buffer and returned (no allocation when it is
+        contiguous and not half precision); like torch's ``out=`` it is outside
+        autograd: an error where grad mode is on and ``x`` or ``out`` requires grad,
+        and in plain eager mode only. ``out`` must not overlap ``x``.
 
     Args:
         stencils: :class:`StencilMatrix` of shape ``(R, C)``.
         x: ``(*, C, D)`` float.
+        out: optional ``(*, R, D)`` buffer of ``x``'s dtype and device.
 
     Returns:
-        ``(*, R, D)``, same dtype and device as ``x``.
+        ``(*, R, D)``, same dtype and device as ``x`` (``out`` itself when given).
 
     Raises:
-        ShapeError: ``x`` is not ``(*, C, D)`` with the stencils' ``C`` columns.
-        TypeError: ``x`` is not a floating tensor.
+        ShapeError: ``x`` is not ``(*, C, D)`` with the stencils' ``C`` columns, or
+            ``out`` is not ``(*, R, D)``.
+        TypeError: ``x`` is not a floating tensor, or ``out`` has another dtype.
+        ValueError: ``out`` on another device, needing autograd, or under a transform.
 
     Example:
         >>> s = stencil_matrix(torch.tensor([0, 0]), torch.tensor([0, 1]),
         ...                    torch.tensor([0.5, 0.5]), (1, 2))
         >>> apply_stencils(s, torch.tensor([[0., 2.], [4., 6.]]))
         tensor([[2., 4.]])
+        >>> buffer = torch.empty(1, 2)
+        >>> apply_stencils(s, torch.tensor([[0., 2.], [4., 6.]]), out=buffer) is buffer
+        True
     """
     check_tensor(x, "x")
     check_shape(x, ["*", "C", "D"], "x", {"C": stencils.shape[1]})
     check_float(x, "x")
     batch, (C, D) = x.shape[:-2], x.shape[-2:]
+    if out is not None:
+        check_out(out, (*batch, stencils.shape[0], D), x)
     dtype = working_dtype(x.dtype)
     parts = list(stencils)
     if parts[2].dtype != dtype or parts[2].device != x.device:
         parts = [p.to(x.device) for p in parts]
         parts[2], parts[5] = parts[2].to(dtype), parts[5].to(dtype)
+    x_bcd = x.to(dtype).reshape(math.prod(batch), C, D)
+    if out is not None:
+        return _apply_into(parts, x_bcd, out)
     function = _StencilApplyEager if _plain_eager() else _StencilApply
-    y_brd = function.apply(*parts, x.to(dtype).reshape(math.prod(batch), C, D))
+    y_brd = function.apply(*parts, x_bcd)
     return cast_back(y_brd.reshape(*batch, y_brd.shape[1], D), x.dtype)
+
+
+def _apply_into(parts, x_bcd: Tensor, out: Tensor) -> Tensor:
+    """The product written into ``out``: directly when it is contiguous in the working
+    dtype, else through a temporary and one copy."""
+    B, R, D = x_bcd.shape[0], parts[0].numel() - 1, x_bcd.shape[2]
+    direct = out.dtype == x_bcd.dtype and out.is_contiguous()
+    target = out.view(B, R, D) if direct else x_bcd.new_empty(B, R, D)
+    _stencil_matmul_eager(parts[0], parts[1], parts[2], parts[3], x_bcd, target)
+    if not direct:
+        out.copy_(target.reshape(out.shape))
+    return out

@@ -99,6 +99,8 @@ class LimitSurfaceSample(NamedTuple):
 class LimitStencils(NamedTuple):
     """Sparse ``(N, V0)`` stencils of the limit positions and derivatives at N points.
 
+    Their indices are int32 where the sizes fit (MKL's faster sparse product).
+
     Attributes:
         positions: :class:`~torchgeo_cg.mesh.subdivision.stencils.StencilMatrix`.
         du: the same for the ``u`` derivative.
@@ -174,7 +176,8 @@ def _emit(out, sample, face_local, weights, C, cols):
     for lo in range(0, sample.numel(), _CHUNK):  # bounded memory: chunks of points
         sl = slice(lo, lo + _CHUNK)
         f = face_local[sl]
-        out.append((sample[sl], cols[f], torch.bmm(weights[sl], C[f])))  # (n,), (n, K), (n, 3, K)
+        values = torch.bmm(weights[sl], C[f]).transpose(1, 2)
+        out.append((sample[sl], cols[f], values))  # (n,), (n, K), (n, K, 3)
 
 
 def _chain_rule(ws, wt, jac):
@@ -311,8 +314,12 @@ def _emit_triangles(out, level, topo, twin, sharp_e, sample, face, s, t, jac, nu
     rule, _ = phantom_rules(present)
     slots = torch.where(present, slots, slots[:, :1])  # phantoms: weight 0 after folding
     C, cols = _face_matrices(slots, (level.chain,), num_cols, s.dtype)
-    rule, present = rule[face_local], present[face_local]
-    w, ws, wt = (fold_phantoms(x, rule, present) for x in box_spline_weights(s, t))
+    w, ws, wt = box_spline_weights(s, t)
+    partial = torch.nonzero(~present.all(1)[face_local]).flatten()  # faces with phantoms
+    if partial.numel():  # folding is the identity where every slot is present
+        f = face_local[partial]
+        w, ws, wt = (x.index_put((partial,), fold_phantoms(x[partial], rule[f], present[f]))
+                     for x in (w, ws, wt))
     wu, wv = _chain_rule(ws, wt, jac)
     _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
 
@@ -464,30 +471,65 @@ def _build(operator, face_ids, uv, crease_method, max_level):
     return _assemble(out, face_ids.numel(), V0, dtype, faces.device)
 
 
+def _index_dtype(num_rows: int, num_cols: int, nnz: int) -> torch.dtype:
+    """int32 where every index and offset fits (MKL's faster sparse path), else int64."""
+    return torch.int32 if max(num_rows, num_cols, nnz) < 2**31 - 1 else torch.long
+
+
 def _assemble(blocks, num_rows, num_cols, dtype, device) -> LimitStencils:
-    """The three CSR stencil matrices from the per-point blocks (each point is in exactly
-    one block, so rows need no sort: the padded ``(N, K)`` layout is already CSR order)."""
+    """The three CSR stencil matrices from the per-point blocks, with no sort of the rows:
+    each point is in exactly one block, whose row lists its face's columns in increasing
+    order (padded with zero weights), so the padded ``(N, K)`` layout with its zero
+    weights dropped is CSR order. The transposes share one stable sort by column (rows
+    stay increasing within each column)."""
     K = max([c.shape[1] for _, c, _ in blocks] + [1])
-    cols = torch.full((num_rows, K), num_cols, dtype=torch.long, device=device)
-    vals = torch.zeros(3, num_rows, K, dtype=dtype, device=device)
+    index = _index_dtype(num_rows, num_cols, num_rows * K)
+    cols = torch.zeros(num_rows, K, dtype=index, device=device)
+    vals = torch.zeros(num_rows, K, 3, dtype=dtype, device=device)  # the three interleaved
     for sample, c, v in blocks:  # one block per level and chunk
-        cols[sample, :c.shape[1]] = c
-        vals[:, sample, :c.shape[1]] = v.permute(1, 0, 2)
-    out = []
-    for i in range(3):
-        key = torch.where(vals[i] != 0, cols, num_cols)  # zeros sort last, then drop
-        key, order = torch.sort(key, dim=1)
-        w = torch.gather(vals[i], 1, order)
-        keep = key < num_cols
-        crow = torch.zeros(num_rows + 1, dtype=torch.long, device=device)
-        crow[1:] = torch.cumsum(keep.sum(1), 0)
-        col, weights = key[keep], w[keep]
-        rows = torch.repeat_interleave(torch.arange(num_rows, device=device), crow[1:] - crow[:-1])
-        order_t = torch.sort(col.to(torch.int32), stable=True).indices
-        crow_t = torch.zeros(num_cols + 1, dtype=torch.long, device=device)
-        crow_t[1:] = torch.cumsum(torch.bincount(col, minlength=num_cols), 0)
-        out.append(StencilMatrix(crow, col, weights, crow_t, rows[order_t], weights[order_t]))
-    return LimitStencils(*out)
+        cols[sample, :c.shape[1]] = c.to(index)
+        vals[sample, :c.shape[1]] = v
+    union = (vals != 0).any(-1)
+    col, w3 = cols[union], vals[union]  # (nnz,), (nnz, 3): CSR order of the union
+    row = torch.repeat_interleave(torch.arange(num_rows, dtype=index, device=device),
+                                  union.sum(1))
+    key = col.to(torch.int16) if num_cols <= 2**15 else col
+    order = torch.sort(key, stable=True).indices
+    if not bool((w3 != 0).all()):  # some matrix has zeros where another has not
+        return LimitStencils(*(_drop_zeros(row, col, w3[:, i], order, num_rows, num_cols)
+                               for i in range(3)))
+    crow = _offsets(row, num_rows)
+    crow_t = _offsets(col, num_cols)
+    packed = torch.cat([row[:, None].view(torch.uint8), w3.view(torch.uint8)], 1)
+    moved = packed.index_select(0, order)  # one gather of (row, three weights) per entry
+    cut = row.element_size()
+    row_t = _bytes_as(moved[:, :cut], index).flatten()
+    w3_t = _bytes_as(moved[:, cut:], dtype)
+    return LimitStencils(*(StencilMatrix(crow, col, w3[:, i].contiguous(), crow_t, row_t,
+                                         w3_t[:, i].contiguous()) for i in range(3)))
+
+
+def _bytes_as(columns: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    """Byte columns ``(n, k)`` reinterpreted as ``dtype`` (a fresh contiguous copy, so the
+    view is aligned)."""
+    return columns.clone(memory_format=torch.contiguous_format).view(dtype)
+
+
+def _offsets(index: torch.Tensor, n: int) -> torch.Tensor:
+    """CSR offsets ``(n + 1,)`` of sorted (or only counted) entry indices."""
+    out = torch.zeros(n + 1, dtype=index.dtype, device=index.device)
+    out[1:] = torch.cumsum(torch.bincount(index, minlength=n), 0)
+    return out
+
+
+def _drop_zeros(row, col, w, order, num_rows, num_cols) -> StencilMatrix:
+    """One matrix of the union pattern ``(row, col)`` without its zero weights ``w``;
+    ``order`` sorts the union by column, stably."""
+    kept = w != 0
+    pick = order[kept[order]]
+    at = (torch.cumsum(kept, 0) - 1)[pick]
+    r, c, v = row[kept], col[kept], w[kept]
+    return StencilMatrix(_offsets(r, num_rows), c, v, _offsets(c, num_cols), row[pick], v[at])
 
 
 def limit_surface(
