@@ -356,22 +356,11 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
         if a0 == a1:
             continue
         with torch.no_grad():
-            own_id, own_case = cell_id[a0:a1], cases_a[a0:a1]
-            welded = weld(cell_id[a0:a2], cases_a[a0:a2], (X, Y, Z))
+            own_id = cell_id[a0:a1]
             n_own = v_at[n + 1] - v_at[n]
-            rows, n_tri, tri_table, centre = cell_rows(det_vol, det_iso, None, own_id,
-                                                       own_case, ambiguity)
-            faces, cell_of_face, tri_row = triangulate(
-                own_id, rows, n_tri, tri_table, welded.key, (X, Y, Z), B,
-                layers=(bounds[n], bounds[n + 1]))
-            centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
-            faces[centre_slot] = 0
-            centres = None
-            if centre is not None:
-                centres = find_centres(own_id, rows, *centre, welded.key, cell_of_face,
-                                       centre_slot, faces, (X, Y, Z))
-            b_sub = idiv(take(cell_id[a0:a2], welded.cell), XYZ) if B > 1 else None
-            verts, normals = interpolate(det_vol, welded, b_sub, args, to_world)
+            faces, cell_of_face, centres, verts, normals = _slab_mesh(
+                det_vol, det_iso, cell_id[a0:a2], cases_a[a0:a2], a1 - a0,
+                (bounds[n], bounds[n + 1]), ambiguity, args, to_world)
             V_sub = verts.shape[0]
             n_c = 0
             if centres is not None:
@@ -385,7 +374,7 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
                 del both_v, both_n
             verts_w.append(verts[:n_own])
             normals_w.append(normals[:n_own])
-            del verts, normals, welded
+            del verts, normals
             # ids: welded sub index i -> v_at[n] + i; centre V_sub + k -> W + n_centres + k
             is_c = faces >= V_sub
             faces += v_at[n]
@@ -399,7 +388,7 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
                 b_f_parts.append(b_f)
             n_centres += n_c
             face_parts.append(faces.to(id_dtype) if W + n_centres < 2**31 else faces)
-            del faces, is_c, cell_of_face, tri_row, centre_slot, rows, n_tri
+            del faces, is_c, cell_of_face
     del cell_id, cases_a
     with torch.no_grad():
         faces = torch.cat(face_parts).long() if face_parts else torch.zeros(
@@ -427,6 +416,30 @@ def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
     out = vol.dtype
     return MarchingCubesResult(cast_back(verts, out), faces, cast_back(normals, out),
                                cast_back(face_weights, out), *counts)
+
+
+def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_world):
+    """One slab's faces ``(F, 3)`` (welded ids local to the slab, centres from ``V``), their
+    cells, its :class:`Centres` (or None) and its welded vertices and normals ``(V, 3)``.
+
+    ``cell_id``/``cases`` are the slab's active cells followed by those of the next layer
+    (whose vertices its faces use); the first ``n_own`` are the slab's own.
+    """
+    B, X, Y, Z = vol.shape
+    own_id, own_case = cell_id[:n_own], cases[:n_own]
+    welded = weld(cell_id, cases, (X, Y, Z))
+    rows, n_tri, tri_table, centre = cell_rows(vol, iso, None, own_id, own_case, ambiguity)
+    faces, cell_of_face, tri_row = triangulate(own_id, rows, n_tri, tri_table, welded.key,
+                                               (X, Y, Z), B, layers=layers)
+    centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
+    faces[centre_slot] = 0
+    centres = None
+    if centre is not None:
+        centres = find_centres(own_id, rows, *centre, welded.key, cell_of_face, centre_slot,
+                               faces, (X, Y, Z))
+    b_sub = idiv(take(cell_id, welded.cell), X * Y * Z) if B > 1 else None
+    verts, normals = interpolate(vol, welded, b_sub, args, to_world)
+    return faces, cell_of_face, centres, verts, normals
 
 
 def _cat(parts: list, args) -> torch.Tensor:
