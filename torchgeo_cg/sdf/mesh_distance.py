@@ -441,8 +441,12 @@ class MeshSDF(nn.Module):
         self.register_buffer("faces", tris.clone())
         self._search_key = (None, -1)
 
-    @torch.compiler.disable  # bookkeeping (a weakref finalizer), not part of any graph
     def _cache_key(self) -> int:
+        # bookkeeping (a weakref finalizer), not part of any graph: a compiled call
+        # searches without the cache (torch.compiler.disable here would import Dynamo,
+        # 1.9 s, with the package)
+        if torch.compiler.is_compiling():
+            return -1
         if self._search_key[0] != id(self):  # first use, or a deepcopy
             self._search_key = (id(self), new_cache_key(self))
         return self._search_key[1]
