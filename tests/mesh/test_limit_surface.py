@@ -267,6 +267,12 @@ def test_bad_input_raises():
         limit_surface(holed, v, torch.tensor([3]), uv)
     with pytest.raises(ValueError, match="max_level"):
         limit_stencils(op, torch.tensor([0]), uv, max_level=0)
+    module = CatmullClark(torch.tensor(CUBE_F), 8)  # holds per-level operators, not one
+    for call in (lambda: limit_surface(module, v, torch.tensor([0]), uv),
+                 lambda: limit_stencils(module, torch.tensor([0]), uv),
+                 lambda: sample_limit_surface(module, v, 4)):
+        with pytest.raises(TypeError, match="operator: expected a SubdivisionOperator"):
+            call()
     empty = limit_surface(op, v, torch.zeros(0, dtype=torch.long), torch.zeros(0, 2, dtype=F64))
     assert empty.positions.shape == (0, 3)
 

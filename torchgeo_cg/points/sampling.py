@@ -36,6 +36,13 @@ class SampleResult(NamedTuple):
     Attributes:
         points: ``(*, k, D)`` the picked points, in pick order (zero where padded).
         indices: ``(*, k)`` long, their rows in ``points`` (``-1`` where padded).
+
+    Example:
+        >>> pts = torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.1, 0.0], [3.0, 0.0]])
+        >>> picked = farthest_point_sampling(pts, 2)
+        >>> picked.indices, picked.points
+        (tensor([0, 3]), tensor([[0., 0.],
+                [3., 0.]]))
     """
 
     points: torch.Tensor

@@ -51,6 +51,16 @@ class TransformFit(NamedTuple):
             covariance. Euclidean and similarity in 3D: the spread of Horn's
             4x4 matrix over the gap of its chosen eigenvalue; in 2D
             ``Σ w |p̃||q̃| / |Σ w (p̃·q̃, p̃×q̃)|``. Translation: 1.
+
+    Example:
+        >>> from torchgeo_cg.transforms import find_euclidean
+        >>> src = torch.tensor([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0],
+        ...                     [0.0, 0.0, 3.0]])
+        >>> fit = find_euclidean(src, src + torch.tensor([1.0, 2.0, 3.0]))
+        >>> fit.matrix[:3, 3], fit.rank_ok
+        (tensor([1.0000, 2.0000, 3.0000]), tensor(True))
+        >>> find_euclidean(src[:2], src[:2]).rank_ok  # two points leave a spin free
+        tensor(False)
     """
 
     matrix: torch.Tensor

@@ -88,6 +88,18 @@ class LimitSurfaceSample(NamedTuple):
         dv: ``(*, N, D)`` derivative along ptex ``v``.
         normals: ``(*, N, 3)`` unit ``du x dv`` (zero where it vanishes), or ``None`` when
             ``D != 3``.
+
+    Example:
+        >>> from torchgeo_cg.mesh import catmull_clark_operator
+        >>> x = torch.arange(4.0)
+        >>> grid = torch.stack(torch.meshgrid(x, x, indexing="xy"), -1).reshape(-1, 2)
+        >>> verts = torch.cat([grid, torch.zeros(16, 1)], 1)  # a flat 4x4 grid of points
+        >>> faces = torch.tensor([[4 * r + c, 4 * r + c + 1, 4 * r + c + 5, 4 * r + c + 4]
+        ...                       for r in range(3) for c in range(3)])
+        >>> sample = limit_surface(catmull_clark_operator(faces, 16), verts, torch.tensor([4]),
+        ...                        torch.tensor([[0.5, 0.5]]))
+        >>> sample.positions, sample.normals
+        (tensor([[1.5000, 1.5000, 0.0000]]), tensor([[0., 0., 1.]]))
     """
 
     positions: torch.Tensor
@@ -352,7 +364,14 @@ def _check_level(max_level) -> int:
     return max_level
 
 
+def _check_operator(operator) -> None:
+    if not isinstance(operator, SubdivisionOperator):
+        raise TypeError("operator: expected a SubdivisionOperator (catmull_clark_operator, "
+                        f"loop_operator), got {type(operator).__name__}")
+
+
 def _check_points(operator, face_ids, uv):
+    _check_operator(operator)
     if operator.scheme not in ("catmark", "loop"):
         raise ValueError(f"operator: the limit surface needs a 'catmark' or 'loop' operator, "
                          f"got one of scheme {operator.scheme!r}")
@@ -405,6 +424,9 @@ def limit_stencils(
         operator's weights dtype.
 
     Raises:
+        TypeError: ``operator`` is not a :class:`SubdivisionOperator` (a module such as
+            :class:`~torchgeo_cg.mesh.CatmullClark` holds one per level, not one of the
+            control mesh), or ``face_ids``/``uv`` have a wrong dtype.
         ValueError: an operator of another scheme, ``face_ids`` out of range, ``uv``
             outside ``[0, 1]`` (Loop: or ``u + v > 1``), a point on a hole, or a bad
             ``max_level``.
@@ -583,6 +605,7 @@ def limit_surface(
         ...               torch.tensor([0]), centre).positions
         tensor([[0.2352, 0.2352, 0.2352]], dtype=torch.float64)
     """
+    _check_operator(operator)
     check_verts(verts, operator.num_vertices_in)
     st = limit_stencils(operator, face_ids, uv, crease_method=crease_method,
                         max_level=max_level)
@@ -645,6 +668,7 @@ def sample_limit_surface(
         >>> out.positions.shape, bool(((out.positions - 0.5).norm(dim=-1) < 0.5).all())
         (torch.Size([1000, 3]), True)
     """
+    _check_operator(operator)
     check_verts(verts, operator.num_vertices_in)
     if isinstance(num_samples, bool) or not isinstance(num_samples, int) or num_samples < 0:
         raise ValueError(f"num_samples: expected an int >= 0, got {num_samples!r}")
