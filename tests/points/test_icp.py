@@ -126,10 +126,13 @@ def test_gradcheck_given_the_last_correspondences(method):
         source = source + 1e-3 * torch.randn(source.shape, dtype=torch.float64,
                                              generator=torch.Generator().manual_seed(0))
     normals = estimate_normals(target, 8)  # constants
+    # Started at the noise-free solution, each perturbed run converges in one or two
+    # iterations; the derivative of the converged transform given the last matches does not
+    # depend on init, so this checks the same thing as a start from the identity, 4x cheaper.
 
     def f(src, tgt):
-        out = icp(src, tgt, method=method, target_normals=normals, max_iterations=100,
-                  tol=1e-12)
+        out = icp(src, tgt, method=method, init=truth, target_normals=normals,
+                  max_iterations=100, tol=1e-12)
         if method == "point_to_plane":  # zero residuals: the RMSE has a kink there
             return out.transform[:3]
         return out.transform[:3], out.rmse
