@@ -410,7 +410,8 @@ class MeshSDF(nn.Module):
 
     The mesh is stored as buffers (``verts``, ``faces``: the triangles), so the module
     follows ``.to()``, ``state_dict`` and ``deepcopy``; the structure is rebuilt only when
-    the vertices change (new data or an in-place edit) or move.
+    the vertices change (new data or an in-place edit) or move. Under ``torch.compile`` the
+    structure is built in each call (the cache's bookkeeping is not part of a graph).
 
     Convention:
         As :func:`mesh_sdf` (negative inside, outward counter-clockwise faces, same
