@@ -250,6 +250,31 @@ def test_stencil_rows_sum_to_one_and_regular_rows_have_16_entries():
     assert (st.positions.crow[1:] - st.positions.crow[:-1]).tolist() == [16] * 20
 
 
+@pytest.mark.parametrize("lattice", [False, True])
+def test_stencils_hold_their_transposes_and_no_zeros(lattice):
+    """The three matrices against a dense brute force of their own entries: rows in CSR order
+    with increasing columns, the transposes equal to the transposed matrices, no explicit
+    zero (on knot lines, ``lattice``, some weights of the derivatives vanish: each matrix
+    drops its own), on the rabbit (patches of several levels and end caps)."""
+    verts, faces = rabbit()
+    op = catmull_clark_operator(faces, len(verts), dtype=F64)
+    fid, uv = random_points(faces, 400, 8, margin=0.0)
+    if lattice:  # corners, edge middles and centres of the child patches
+        uv = torch.randint(0, 5, uv.shape, generator=torch.Generator().manual_seed(1)) / 4.0
+        uv = uv.to(F64)
+    st = limit_stencils(op, fid, uv)
+    for m in st:
+        dense = m.dense()
+        assert bool((m.weights != 0).all()) and bool((m.weights_t != 0).all())
+        assert m.col.numel() == int((dense != 0).sum())
+        torch.testing.assert_close(m.sparse_t().to_dense(), dense.t(), rtol=0, atol=0)
+        for r in torch.randint(0, 400, (20,)).tolist():  # each row's columns increase
+            cols = m.col[m.crow[r]:m.crow[r + 1]]
+            assert bool((cols[1:] > cols[:-1]).all())
+    if lattice:
+        assert st.du.col.numel() < st.positions.col.numel()
+
+
 def test_bad_input_raises():
     op = catmull_clark_operator(CUBE_F, 8, dtype=F64)
     v = torch.tensor(CUBE_V, dtype=F64)

@@ -14,8 +14,8 @@ Convention (OpenSubdiv's ``Far::PatchBuilder`` for Loop with ``useInfSharpPatch`
     crease or boundary is a phantom: the point reflection ``B1 + B2 - I`` of a lattice
     triangle ``(B1, B2, I)`` of real slots through the midpoint of its crease edge
     ``B1 B2`` (or ``2 B - I`` through a crease vertex where no such edge is next to it),
-    which makes the patch's boundary the crease rule's cubic B-spline; the basis absorbs
-    the phantoms.
+    which makes the patch's boundary the crease rule's cubic B-spline; the phantoms are
+    folded into the patch's map from slots to vertices.
 """
 
 from __future__ import annotations
@@ -143,12 +143,15 @@ def phantom_rules(present: torch.Tensor):
     return rule, found.all(-1)
 
 
-def fold_phantoms(w: torch.Tensor, rule: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
-    """Weights ``(n, 12)`` with each phantom ``B1 + B2 - I`` folded into its slots."""
-    ghost = torch.where(present, 0.0, w)
-    out = torch.where(present, w, 0.0)
-    out = out.scatter_add(1, rule[..., 0], ghost).scatter_add(1, rule[..., 1], ghost)
-    return out.scatter_add(1, rule[..., 2], -ghost)
+def phantom_fold_loop(present: torch.Tensor, rule: torch.Tensor, dtype) -> torch.Tensor:
+    """``(m, 12, 12)``: each slot as a combination of slots, a missing one as its
+    reflection ``B1 + B2 - I`` (``rule (m, 12, 3)``)."""
+    m = present.shape[0]
+    eye = torch.eye(12, dtype=dtype, device=present.device).expand(m, 12, 12)
+    fold = torch.where(present[:, :, None], eye, 0.0)
+    ghost = (~present).to(dtype)[:, :, None].expand(m, 12, 1)
+    fold = fold.scatter_add(2, rule[..., 0:1], ghost).scatter_add(2, rule[..., 1:2], ghost)
+    return fold.scatter_add(2, rule[..., 2:3], -ghost)
 
 
 def regular_triangles(topo, faces_f3, sharp_e, sharp_v, hole_f, twin) -> torch.Tensor:

@@ -1,5 +1,5 @@
 """Regular Catmark patches of an all-quad mesh level: which faces are regular, their 4 x 4
-B-spline control grids, and the basis with boundary (phantom) rows folded in.
+B-spline control grids, their phantom rows, and the cubic B-spline basis.
 
 Convention (OpenSubdiv's ``Far::PatchBuilder`` with ``useInfSharpPatch``):
     A quad is regular when it is not a hole and each of its corners is one of: a smooth
@@ -9,7 +9,7 @@ Convention (OpenSubdiv's ``Far::PatchBuilder`` with ``useInfSharpPatch``):
     sharp vertex) of valence 2 with one face. No semi-sharp edge or vertex may touch
     the quad's corners. Infinitely sharp edges of the quad are the patch's boundary: the
     row of points beyond is the phantom ``2 P_edge - P_inner`` (the crease rule's cubic
-    B-spline), which the basis absorbs.
+    B-spline), folded into the patch's map from grid slots to vertices.
 
     Grid ``G[j][k]`` has ``k`` along ``u`` and ``j`` along ``v``; the quad's corners
     0-3 sit at ``G[1][1], G[1][2], G[2][2], G[2][1]`` ((0,0), (1,0), (1,1), (0,1)).
@@ -120,28 +120,19 @@ def bspline_basis(t: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return basis / 6.0, deriv / 6.0
 
 
-def fold_phantoms(w: torch.Tensor, low: torch.Tensor, high: torch.Tensor) -> torch.Tensor:
-    """Basis weights ``(n, 4)`` with the phantom rows folded in: where ``low``, point 0 is
-    ``2 P1 - P2``; where ``high``, point 3 is ``2 P2 - P1``."""
-    lo, hi = low[:, None].to(w.dtype), high[:, None].to(w.dtype)
-    w0, w1, w2, w3 = w.unbind(-1)
-    w0, w3 = w0[:, None], w3[:, None]
-    out = w.clone()
-    out[:, 0:1] = w0 * (1 - lo)
-    out[:, 1:2] = w1[:, None] + lo * 2 * w0 - hi * w3
-    out[:, 2:3] = w2[:, None] - lo * w0 + hi * 2 * w3
-    out[:, 3:4] = w3 * (1 - hi)
-    return out
+def phantom_fold(phantom: torch.Tensor, dtype) -> torch.Tensor:
+    """``(m, 16, 16)``: each grid slot as a combination of grid slots, with the phantom
+    rows beyond infinitely sharp edges ``2 P_edge - P_inner`` (``phantom (m, 4)``: edges
+    0-3 of the quad; edges 3 and 1 bound ``u`` below and above, 0 and 2 bound ``v``)."""
+    m = phantom.shape[0]
+    eye = torch.eye(4, dtype=dtype, device=phantom.device)
+    low = torch.tensor([0.0, 2.0, -1.0, 0.0], dtype=dtype, device=phantom.device)
 
+    def axis(lo, hi):  # (m, 4, 4): one axis's map
+        f = eye.expand(m, 4, 4).clone()
+        f[:, 0] = torch.where(lo[:, None], low, eye[0])
+        f[:, 3] = torch.where(hi[:, None], low.flip(0), eye[3])
+        return f
 
-def patch_weights(s, t, phantom) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Weights ``(n, 4, 4)`` of the grid for the position and the ``s``, ``t`` derivatives
-    at local ``(s, t)``; ``phantom (n, 4)`` marks the quad's boundary edges."""
-    bu, du = bspline_basis(s)
-    bv, dv = bspline_basis(t)
-    bu, du = fold_phantoms(bu, phantom[:, 3], phantom[:, 1]), fold_phantoms(du, phantom[:, 3],
-                                                                            phantom[:, 1])
-    bv, dv = fold_phantoms(bv, phantom[:, 0], phantom[:, 2]), fold_phantoms(dv, phantom[:, 0],
-                                                                            phantom[:, 2])
-    outer = lambda a, b: a[:, :, None] * b[:, None, :]  # noqa: E731  (j along v, k along u)
-    return outer(bv, bu), outer(bv, du), outer(dv, bu)
+    fu, fv = axis(phantom[:, 3], phantom[:, 1]), axis(phantom[:, 0], phantom[:, 2])
+    return torch.einsum("mjJ,mkK->mjkJK", fv, fu).reshape(m, 16, 16)

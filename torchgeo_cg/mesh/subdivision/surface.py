@@ -42,18 +42,24 @@ import torch
 from torchgeo_cg.core.check import check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.subdivision._creasing import effective_sharpness
+from torchgeo_cg.mesh.subdivision._limit_assembly import (
+    Patches,
+    PointBlock,
+    assemble_limit_stencils,
+)
 from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils, loop_limit_stencils
 from torchgeo_cg.mesh.subdivision._loop_patches import (
     box_spline_weights,
-    fold_phantoms,
+    phantom_fold_loop,
     phantom_rules,
     regular_triangles,
     triangle_slots,
 )
 from torchgeo_cg.mesh.subdivision._normals import unit_normals
 from torchgeo_cg.mesh.subdivision._patches import (
+    bspline_basis,
     patch_grids,
-    patch_weights,
+    phantom_fold,
     quad_twins,
     regular_quads,
 )
@@ -68,8 +74,6 @@ __all__ = [
     "LimitSurfaceSample", "LimitStencils", "SurfaceSamples", "limit_stencils", "limit_surface",
     "sample_limit_surface",
 ]
-
-_CHUNK = 1 << 16  # points per batched product (bounds the gathered per-face matrices)
 
 # child quad p of a quad: its local (s', t') = A_p (s, t) + b_p (module docstring's layout)
 _CHILD_A = ((2, 0, 0, 2), (0, 2, -2, 0), (-2, 0, 0, -2), (0, -2, 2, 0))
@@ -160,12 +164,19 @@ def _expand(rows, cols, vals, csr):
     return rows[rep], col[k], vals[rep] * val[k]
 
 
-def _face_matrices(slots: torch.Tensor, chains, num_cols: int, dtype):
-    """Per face, its ``S`` slot vertices ``(m, S)`` composed through ``chains`` (CSR
-    matrices applied right to left): ``(C (m, S, K) dense, cols (m, K))``."""
+def _face_matrices(slots: torch.Tensor, fold: torch.Tensor | None, chains, num_cols: int,
+                   dtype) -> Patches:
+    """Per face, its ``S`` slots ``(m, S)`` (each ``sum_j fold[s, j] * vertex(slots[j])``,
+    the vertex itself without ``fold``) composed through ``chains`` (CSR matrices applied
+    right to left): :class:`Patches` with ``C (m, S, K)`` dense over ``cols (m, K)``."""
     m, S = slots.shape
-    rows = torch.arange(m * S, device=slots.device)
-    cols, vals = slots.reshape(-1), torch.ones(m * S, dtype=dtype, device=slots.device)
+    dev = slots.device
+    if fold is None:
+        rows = torch.arange(m * S, device=dev)
+        cols, vals = slots.reshape(-1), torch.ones(m * S, dtype=dtype, device=dev)
+    else:
+        face, s, j = torch.nonzero(fold, as_tuple=True)
+        rows, cols, vals = face * S + s, slots[face, j], fold[face, s, j].to(dtype)
     for csr in chains:
         rows, cols, vals = _expand(rows, cols, vals, csr)
     face = rows // S
@@ -173,30 +184,34 @@ def _face_matrices(slots: torch.Tensor, chains, num_cols: int, dtype):
     ukey_face = key // num_cols
     count = torch.bincount(ukey_face, minlength=m)
     first = torch.cumsum(count, 0) - count
-    k_u = torch.arange(key.numel(), device=slots.device) - first[ukey_face]
+    k_u = torch.arange(key.numel(), device=dev) - first[ukey_face]
     K = int(count.max()) if m else 0
-    C = torch.zeros(m, S, K, dtype=dtype, device=slots.device)
+    C = torch.zeros(m, S, K, dtype=dtype, device=dev)
     C.index_put_((face, rows % S, k_u[inverse]), vals, accumulate=True)
-    out_cols = torch.zeros(m, K, dtype=torch.long, device=slots.device)
+    out_cols = torch.zeros(m, K, dtype=torch.long, device=dev)
     out_cols[ukey_face, k_u] = key % num_cols
-    return C, out_cols
+    return Patches(C, out_cols, count)
 
 
-def _emit(out, sample, face_local, weights, C, cols):
-    """Append the blocks of points ``sample`` whose slot weights are ``weights (n, 3, S)``
-    on faces ``face_local`` of the per-face matrices ``C``, ``cols``."""
-    for lo in range(0, sample.numel(), _CHUNK):  # bounded memory: chunks of points
-        sl = slice(lo, lo + _CHUNK)
-        f = face_local[sl]
-        values = torch.bmm(weights[sl], C[f]).transpose(1, 2)
-        out.append((sample[sl], cols[f], values))  # (n,), (n, K), (n, K, 3)
+def _local_faces(face: torch.Tensor, num_faces: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(faces used (m,) increasing, each point's index among them (n,))``, by marking
+    (no sort of the points)."""
+    mark = torch.zeros(num_faces, dtype=torch.bool, device=face.device)
+    mark[face] = True
+    local = torch.cumsum(mark, 0) - 1
+    return torch.nonzero(mark).flatten(), local[face]
 
 
-def _chain_rule(ws, wt, jac):
-    """Weights of d/du and d/dv from those of d/ds, d/dt and ``jac = d(s, t)/d(u, v)``."""
-    a, b = jac[:, 0, 0, None], jac[:, 1, 0, None]
-    c, d = jac[:, 0, 1, None], jac[:, 1, 1, None]
+def _chain_rule(ws, wt, st):
+    """Weights of d/du and d/dv from those of d/ds, d/dt and the Jacobian
+    ``d(s, t)/d(u, v)`` in columns 2-5 of the packed points ``st`` (row-major)."""
+    a, c, b, d = (st[:, i, None] for i in range(2, 6))
     return ws * a + wt * b, ws * c + wt * d
+
+
+def _packed(s, t, jac) -> torch.Tensor:
+    """``(n, 6)``: each point's ``(s, t)`` and its Jacobian, the weights' arguments."""
+    return torch.cat([s[:, None], t[:, None], jac.reshape(-1, 4)], 1)
 
 
 def _to_child(s, t, jac, scheme="catmark"):
@@ -309,53 +324,70 @@ def _sharp_tags(tags: SubdivisionTags) -> SubdivisionTags:
                          corner_sharpness=inf(tags.corner_sharpness))
 
 
+def _tensor_weights(st):
+    """``(n, 3, 16)`` bicubic B-spline weights of the position and ``d/du``, ``d/dv``."""
+    bu, du = bspline_basis(st[:, 0])
+    bv, dv = bspline_basis(st[:, 1])
+    outer = lambda a, b: (a[:, :, None] * b[:, None, :]).reshape(-1, 16)  # noqa: E731
+    wu, wv = _chain_rule(outer(bv, du), outer(dv, bu), st)
+    return torch.stack([outer(bv, bu), wu, wv], 1)
+
+
+def _box_weights(st):
+    """``(n, 3, 12)`` quartic box-spline weights of the position and ``d/du``, ``d/dv``."""
+    w, ws, wt = box_spline_weights(st[:, 0], st[:, 1])
+    wu, wv = _chain_rule(ws, wt, st)
+    return torch.stack([w, wu, wv], 1)
+
+
+def _bilinear_weights(st):
+    """``(n, 3, 4)`` bilinear weights of a quad's corners and their derivatives."""
+    s, t = st[:, 0], st[:, 1]
+    a, b = 1 - s, 1 - t
+    ws, wt = torch.stack([-b, b, t, -t], -1), torch.stack([-a, -s, s, a], -1)
+    wu, wv = _chain_rule(ws, wt, st)
+    return torch.stack([torch.stack([a * b, s * b, s * t, a * t], -1), wu, wv], 1)
+
+
+def _linear_weights(st):
+    """``(n, 3, 3)`` linear weights of a triangle's corners and their derivatives."""
+    s, t = st[:, 0], st[:, 1]
+    one, zero = torch.ones_like(s), torch.zeros_like(s)
+    ws, wt = torch.stack([-one, one, zero], -1), torch.stack([-one, zero, one], -1)
+    wu, wv = _chain_rule(ws, wt, st)
+    return torch.stack([torch.stack([1 - s - t, s, t], -1), wu, wv], 1)
+
+
 def _emit_patches(out, level, topo, twin, sharp_e, sample, face, s, t, jac, num_cols):
-    """Triplets of the points ``sample`` in regular quads ``face`` of ``level``."""
-    fu, face_local = torch.unique(face, return_inverse=True)
+    """The block of the points ``sample`` in regular quads ``face`` of ``level``."""
+    fu, face_local = _local_faces(face, level.faces.shape[0])
     grid, phantom = patch_grids(topo, twin, sharp_e, fu)
-    C, cols = _face_matrices(grid.reshape(-1, 16), (level.chain,), num_cols, s.dtype)
-    w, ws, wt = (x.reshape(-1, 16) for x in patch_weights(s, t, phantom[face_local]))
-    wu, wv = _chain_rule(ws, wt, jac)
-    _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
+    patches = _face_matrices(grid.reshape(-1, 16), phantom_fold(phantom, s.dtype),
+                             (level.chain,), num_cols, s.dtype)
+    out.append(PointBlock(sample, face_local, _packed(s, t, jac), _tensor_weights, patches))
 
 
 def _emit_triangles(out, level, topo, twin, sharp_e, sample, face, s, t, jac, num_cols):
-    """Triplets of the points ``sample`` in regular triangles ``face`` of ``level``."""
-    fu, face_local = torch.unique(face, return_inverse=True)
+    """The block of the points ``sample`` in regular triangles ``face`` of ``level``."""
+    fu, face_local = _local_faces(face, level.faces.shape[0])
     slots, present, _, _ = triangle_slots(topo, twin, sharp_e >= INFINITELY_SHARP, fu)
     rule, _ = phantom_rules(present)
-    slots = torch.where(present, slots, slots[:, :1])  # phantoms: weight 0 after folding
-    C, cols = _face_matrices(slots, (level.chain,), num_cols, s.dtype)
-    w, ws, wt = box_spline_weights(s, t)
-    partial = torch.nonzero(~present.all(1)[face_local]).flatten()  # faces with phantoms
-    if partial.numel():  # folding is the identity where every slot is present
-        f = face_local[partial]
-        w, ws, wt = (x.index_put((partial,), fold_phantoms(x[partial], rule[f], present[f]))
-                     for x in (w, ws, wt))
-    wu, wv = _chain_rule(ws, wt, jac)
-    _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
+    patches = _face_matrices(slots, phantom_fold_loop(present, rule, s.dtype), (level.chain,),
+                             num_cols, s.dtype)
+    out.append(PointBlock(sample, face_local, _packed(s, t, jac), _box_weights, patches))
 
 
 def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
-    """Triplets of the points ``sample`` in irregular faces at the last level: the bilinear
-    (Loop: linear) patch through the exact limit positions of the face's corners."""
-    fu, face_local = torch.unique(face, return_inverse=True)
+    """The block of the points ``sample`` in irregular faces at the last level: the
+    bilinear (Loop: linear) patch through the exact limit positions of its corners."""
+    fu, face_local = _local_faces(face, level.faces.shape[0])
     masks = catmark_limit_stencils if level.faces.shape[1] == 4 else loop_limit_stencils
     limit = masks(level.faces, level.num_vertices, boundary, s.dtype, _sharp_tags(level.tags),
                   level.edge_tags)
-    C, cols = _face_matrices(level.faces[fu], ((limit.crow, limit.col, limit.weights),
-                                               level.chain), num_cols, s.dtype)
-    a, b = 1 - s, 1 - t
-    if level.faces.shape[1] == 3:
-        w = torch.stack([1 - s - t, s, t], -1)
-        ws = torch.stack([-torch.ones_like(s), torch.ones_like(s), torch.zeros_like(s)], -1)
-        wt = torch.stack([-torch.ones_like(s), torch.zeros_like(s), torch.ones_like(s)], -1)
-    else:
-        w = torch.stack([a * b, s * b, s * t, a * t], -1)
-        ws = torch.stack([-b, b, t, -t], -1)
-        wt = torch.stack([-a, -s, s, a], -1)
-    wu, wv = _chain_rule(ws, wt, jac)
-    _emit(out, sample, face_local, torch.stack([w, wu, wv], 1), C, cols)
+    patches = _face_matrices(level.faces[fu], None, ((limit.crow, limit.col, limit.weights),
+                                                      level.chain), num_cols, s.dtype)
+    weights = _linear_weights if level.faces.shape[1] == 3 else _bilinear_weights
+    out.append(PointBlock(sample, face_local, _packed(s, t, jac), weights, patches))
 
 
 def _check_level(max_level) -> int:
@@ -490,68 +522,8 @@ def _build(operator, face_ids, uv, crease_method, max_level):
                                      V0)
         p, s, t, jac = _to_child(s, t, jac, operator.scheme)
         face = 4 * fmap[face] + p
-    return _assemble(out, face_ids.numel(), V0, dtype, faces.device)
-
-
-def _index_dtype(num_rows: int, num_cols: int, nnz: int) -> torch.dtype:
-    """int32 where every index and offset fits (MKL's faster sparse path), else int64."""
-    return torch.int32 if max(num_rows, num_cols, nnz) < 2**31 - 1 else torch.long
-
-
-def _assemble(blocks, num_rows, num_cols, dtype, device) -> LimitStencils:
-    """The three CSR stencil matrices from the per-point blocks, with no sort of the rows:
-    each point is in exactly one block, whose row lists its face's columns in increasing
-    order (padded with zero weights), so the padded ``(N, K)`` layout with its zero
-    weights dropped is CSR order. The transposes share one stable sort by column (rows
-    stay increasing within each column)."""
-    K = max([c.shape[1] for _, c, _ in blocks] + [1])
-    index = _index_dtype(num_rows, num_cols, num_rows * K)
-    cols = torch.zeros(num_rows, K, dtype=index, device=device)
-    vals = torch.zeros(num_rows, K, 3, dtype=dtype, device=device)  # the three interleaved
-    for sample, c, v in blocks:  # one block per level and chunk
-        cols[sample, :c.shape[1]] = c.to(index)
-        vals[sample, :c.shape[1]] = v
-    union = (vals != 0).any(-1)
-    col, w3 = cols[union], vals[union]  # (nnz,), (nnz, 3): CSR order of the union
-    row = torch.repeat_interleave(torch.arange(num_rows, dtype=index, device=device),
-                                  union.sum(1))
-    key = col.to(torch.int16) if num_cols <= 2**15 else col
-    order = torch.sort(key, stable=True).indices
-    if not bool((w3 != 0).all()):  # some matrix has zeros where another has not
-        return LimitStencils(*(_drop_zeros(row, col, w3[:, i], order, num_rows, num_cols)
-                               for i in range(3)))
-    crow = _offsets(row, num_rows)
-    crow_t = _offsets(col, num_cols)
-    packed = torch.cat([row[:, None].view(torch.uint8), w3.view(torch.uint8)], 1)
-    moved = packed.index_select(0, order)  # one gather of (row, three weights) per entry
-    cut = row.element_size()
-    row_t = _bytes_as(moved[:, :cut], index).flatten()
-    w3_t = _bytes_as(moved[:, cut:], dtype)
-    return LimitStencils(*(StencilMatrix(crow, col, w3[:, i].contiguous(), crow_t, row_t,
-                                         w3_t[:, i].contiguous()) for i in range(3)))
-
-
-def _bytes_as(columns: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
-    """Byte columns ``(n, k)`` reinterpreted as ``dtype`` (a fresh contiguous copy, so the
-    view is aligned)."""
-    return columns.clone(memory_format=torch.contiguous_format).view(dtype)
-
-
-def _offsets(index: torch.Tensor, n: int) -> torch.Tensor:
-    """CSR offsets ``(n + 1,)`` of sorted (or only counted) entry indices."""
-    out = torch.zeros(n + 1, dtype=index.dtype, device=index.device)
-    out[1:] = torch.cumsum(torch.bincount(index, minlength=n), 0)
-    return out
-
-
-def _drop_zeros(row, col, w, order, num_rows, num_cols) -> StencilMatrix:
-    """One matrix of the union pattern ``(row, col)`` without its zero weights ``w``;
-    ``order`` sorts the union by column, stably."""
-    kept = w != 0
-    pick = order[kept[order]]
-    at = (torch.cumsum(kept, 0) - 1)[pick]
-    r, c, v = row[kept], col[kept], w[kept]
-    return StencilMatrix(_offsets(r, num_rows), c, v, _offsets(c, num_cols), row[pick], v[at])
+    return LimitStencils(*assemble_limit_stencils(out, face_ids.numel(), V0, dtype,
+                                                 faces.device))
 
 
 def limit_surface(

@@ -1,0 +1,170 @@
+"""The limit stencils' sparse matrices, assembled from patches without sorting the entries.
+
+Convention:
+    Every point lies in one *patch*: a face of some refinement level whose limit is a
+    fixed linear map ``C_p (S, K_p)`` from ``S`` slot weights to the patch's ``K_p``
+    control-vertex columns ``cols_p`` (increasing). The point's three rows (position,
+    ``d/du``, ``d/dv``) are ``W (3, S) @ C_p`` over those columns, so once each row's
+    offset is known (a cumulative sum of the patches' ``K_p``) its entries are already
+    in CSR order. The transpose is placed by counting too: for each column, the runs of
+    points of each patch holding it, runs ordered by patch and points within a run by
+    row. So each row of the transpose lists its entries grouped by patch, not sorted;
+    the sparse products the stencils feed (forward, backward and double backward) do
+    not depend on that order. The three matrices share their index tensors; where some
+    weight is exactly zero (a point on a patch's knot line), each matrix drops its own
+    zeros, keeping the order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import torch
+
+from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix
+
+_CHUNK = 1 << 13  # points per batched product: the gathered patch matrices stay in cache
+
+
+class Patches(NamedTuple):
+    """Linear maps of one level's patches: ``C (P, S, K)`` from slot weights to columns
+    ``cols (P, K)`` (increasing in the first ``size (P,)`` entries, then padding)."""
+
+    C: torch.Tensor
+    cols: torch.Tensor
+    size: torch.Tensor
+
+
+class PointBlock(NamedTuple):
+    """Points ``sample (n,)`` (their rows) in patches ``patch (n,)`` of ``patches``, at
+    coordinates ``params (n, P)``; ``weights(params[i])`` gives the slot weights ``(m, 3,
+    S)`` of the position and the two derivatives (called on chunks of points, so the
+    weights of all points never exist at once)."""
+
+    sample: torch.Tensor
+    patch: torch.Tensor
+    params: torch.Tensor
+    weights: Callable[[torch.Tensor], torch.Tensor]
+    patches: Patches
+
+
+def _index_dtype(*sizes: int) -> torch.dtype:
+    """int32 where every index and offset fits (MKL's faster sparse path), else int64."""
+    return torch.int32 if max(sizes) < 2**31 - 1 else torch.long
+
+
+def _offsets(counts: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    out = torch.zeros(counts.numel() + 1, dtype=dtype, device=counts.device)
+    out[1:] = torch.cumsum(counts, 0)
+    return out
+
+
+def _run_starts(blocks, num_cols: int):
+    """Where each (patch, slot column) run of points starts in the transpose, per block
+    ``(P_b, K_b)``, and the transpose's row offsets' counts ``(num_cols,)``."""
+    dev = blocks[0].sample.device
+    cols, lens, shapes = [], [], []
+    for b in blocks:  # a loop over levels
+        P, K = b.patches.cols.shape
+        valid = torch.arange(K, device=dev) < b.patches.size[:, None]
+        npts = torch.bincount(b.patch, minlength=P)
+        cols.append(b.patches.cols[valid])
+        lens.append(npts[:, None].expand(P, K)[valid])
+        shapes.append(valid)
+    col, length = torch.cat(cols), torch.cat(lens)
+    order = torch.sort(col, stable=True).indices  # runs by column, then by patch
+    sorted_len = length[order]
+    start = torch.empty_like(length)
+    start[order] = torch.cumsum(sorted_len, 0) - sorted_len
+    counts = torch.zeros(num_cols, dtype=torch.long, device=dev).index_add_(0, col, length)
+    starts, at = [], 0
+    for valid in shapes:
+        s = torch.zeros(valid.shape, dtype=torch.long, device=dev)
+        n = int(valid.sum())
+        s[valid] = start[at:at + n]
+        starts.append(s)
+        at += n
+    return starts, counts
+
+
+def assemble_limit_stencils(blocks: list[PointBlock], num_rows: int, num_cols: int,
+                            dtype: torch.dtype, device) -> tuple[StencilMatrix, ...]:
+    """The three ``(num_rows, num_cols)`` stencil matrices (position, ``du``, ``dv``) of
+    the points in ``blocks`` (each row in exactly one block; module docstring)."""
+    blocks = [b for b in blocks if b.sample.numel()]
+    if not blocks:
+        empty = _empty(num_rows, num_cols, dtype, device)
+        return empty, empty, empty
+    row_len = torch.zeros(num_rows, dtype=torch.long, device=device)
+    for b in blocks:  # a loop over levels
+        row_len[b.sample] = b.patches.size[b.patch]
+    nnz = int(row_len.sum())
+    index = _index_dtype(num_rows, num_cols, nnz)
+    crow = _offsets(row_len, index)
+    starts, col_len = _run_starts(blocks, num_cols)
+    crow_t = _offsets(col_len, index)
+    col = torch.empty(nnz + 1, dtype=index, device=device)  # entry nnz: a sink for padding
+    row_t = torch.empty(nnz + 1, dtype=index, device=device)
+    w = torch.empty(3, nnz + 1, dtype=dtype, device=device)
+    w_t = torch.empty(3, nnz + 1, dtype=dtype, device=device)
+    for b, start in zip(blocks, starts):  # a loop over levels
+        _place(b, start, crow, nnz, col, row_t, w, w_t)
+    col, row_t, w, w_t = col[:nnz], row_t[:nnz], w[:, :nnz], w_t[:, :nnz]
+    if bool((w != 0).all()):
+        return tuple(StencilMatrix(crow, col, w[i], crow_t, row_t, w_t[i]) for i in range(3))
+    return tuple(_drop_zeros(crow, col, w[i], crow_t, row_t, w_t[i]) for i in range(3))
+
+
+def _place(b: PointBlock, start, crow, nnz, col, row_t, w, w_t) -> None:
+    """Write the entries of block ``b``: rows at ``crow[row] + k``, transposed entries at
+    their run's start plus the point's rank among the patch's points. The chunks reuse
+    one workspace (fresh memory per chunk would fault its pages in every time)."""
+    dev = b.sample.device
+    C = b.patches.C
+    P, S, K = C.shape
+    order = torch.sort(b.patch, stable=True).indices  # the block's points by patch, then row
+    npts = torch.bincount(b.patch, minlength=P)
+    first = torch.cumsum(npts, 0) - npts
+    k = torch.arange(K, device=dev)
+    sink = torch.tensor(nnz, device=dev)
+    n_ws = min(_CHUNK, order.numel())
+    C_ws = C.new_empty(n_ws, S, K)
+    values_ws = C.new_empty(n_ws, 3, K)
+    for lo in range(0, order.numel(), _CHUNK):  # bounded memory: chunks of points
+        idx = order[lo:lo + _CHUNK]
+        n = idx.numel()
+        f, r = b.patch[idx], b.sample[idx]
+        rank = torch.arange(lo, lo + n, device=dev) - first[f]
+        valid = k < b.patches.size[f][:, None]
+        dest = torch.where(valid, crow[r].long()[:, None] + k, sink).flatten()
+        dest_t = torch.where(valid, start[f] + rank[:, None], sink).flatten()
+        values = torch.bmm(b.weights(b.params[idx]), torch.index_select(C, 0, f, out=C_ws[:n]),
+                           out=values_ws[:n])  # (n, 3, K)
+        col.scatter_(0, dest, b.patches.cols[f].flatten().to(col.dtype))
+        row_t.scatter_(0, dest_t, r.to(row_t.dtype)[:, None].expand(-1, K).flatten())
+        for i in range(3):  # position, d/du, d/dv
+            flat = values[:, i].flatten()
+            w[i].scatter_(0, dest, flat)
+            w_t[i].scatter_(0, dest_t, flat)
+
+
+def _drop_zeros(crow, col, w, crow_t, row_t, w_t) -> StencilMatrix:
+    """One matrix without its zero weights, its entries' order kept."""
+    keep, keep_t = w != 0, w_t != 0
+    return StencilMatrix(_kept_offsets(crow, keep), col[keep], w[keep],
+                         _kept_offsets(crow_t, keep_t), row_t[keep_t], w_t[keep_t])
+
+
+def _kept_offsets(crow: torch.Tensor, keep: torch.Tensor) -> torch.Tensor:
+    kept_before = torch.zeros(keep.numel() + 1, dtype=crow.dtype, device=crow.device)
+    kept_before[1:] = torch.cumsum(keep, 0)
+    return kept_before[crow.long()]
+
+
+def _empty(num_rows, num_cols, dtype, device) -> StencilMatrix:
+    index = _index_dtype(num_rows, num_cols)
+    zero = torch.zeros(0, dtype=index, device=device)
+    empty_w = torch.zeros(0, dtype=dtype, device=device)
+    return StencilMatrix(torch.zeros(num_rows + 1, dtype=index, device=device), zero, empty_w,
+                         torch.zeros(num_cols + 1, dtype=index, device=device), zero, empty_w)
