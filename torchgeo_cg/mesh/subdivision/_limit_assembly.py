@@ -10,9 +10,10 @@ Convention:
     points of each patch holding it, runs ordered by patch and points within a run by
     row. So each row of the transpose lists its entries grouped by patch, not sorted;
     the sparse products the stencils feed (forward, backward and double backward) do
-    not depend on that order. The three matrices share their index tensors; where some
-    weight is exactly zero (a point on a patch's knot line), each matrix drops its own
-    zeros, keeping the order.
+    not depend on that order. The three matrices share their index tensors: the pattern
+    is the union of their nonzeros, so a derivative may hold explicit zeros (a box-spline
+    basis function ``u^4 / 12`` has no ``v`` derivative); entries zero in all three
+    (points on a patch's knot lines) are dropped, the order kept.
 """
 
 from __future__ import annotations
@@ -111,9 +112,11 @@ def assemble_limit_stencils(blocks: list[PointBlock], num_rows: int, num_cols: i
     for b, start in zip(blocks, starts):  # a loop over levels
         _place(b, start, crow, nnz, col, row_t, w, w_t)
     col, row_t, w, w_t = col[:nnz], row_t[:nnz], w[:, :nnz], w_t[:, :nnz]
-    if bool((w != 0).all()):
-        return tuple(StencilMatrix(crow, col, w[i], crow_t, row_t, w_t[i]) for i in range(3))
-    return tuple(_drop_zeros(crow, col, w[i], crow_t, row_t, w_t[i]) for i in range(3))
+    keep, keep_t = (w != 0).any(0), (w_t != 0).any(0)
+    if not bool(keep.all()):  # points on knot lines: entries zero in all three matrices
+        crow, col, w = _kept_offsets(crow, keep), col[keep], w[:, keep]
+        crow_t, row_t, w_t = _kept_offsets(crow_t, keep_t), row_t[keep_t], w_t[:, keep_t]
+    return tuple(StencilMatrix(crow, col, w[i], crow_t, row_t, w_t[i]) for i in range(3))
 
 
 def _place(b: PointBlock, start, crow, nnz, col, row_t, w, w_t) -> None:
@@ -147,13 +150,6 @@ def _place(b: PointBlock, start, crow, nnz, col, row_t, w, w_t) -> None:
             flat = values[:, i].flatten()
             w[i].scatter_(0, dest, flat)
             w_t[i].scatter_(0, dest_t, flat)
-
-
-def _drop_zeros(crow, col, w, crow_t, row_t, w_t) -> StencilMatrix:
-    """One matrix without its zero weights, its entries' order kept."""
-    keep, keep_t = w != 0, w_t != 0
-    return StencilMatrix(_kept_offsets(crow, keep), col[keep], w[keep],
-                         _kept_offsets(crow_t, keep_t), row_t[keep_t], w_t[keep_t])
 
 
 def _kept_offsets(crow: torch.Tensor, keep: torch.Tensor) -> torch.Tensor:
