@@ -115,7 +115,11 @@ class LimitSurfaceSample(NamedTuple):
 class LimitStencils(NamedTuple):
     """Sparse ``(N, V0)`` stencils of the limit positions and derivatives at N points.
 
-    Their indices are int32 where the sizes fit (MKL's faster sparse product).
+    Their indices are int32 where the sizes fit (MKL's faster sparse product). The three
+    matrices share one pattern, the union of their nonzeros (so a derivative may hold
+    explicit zeros), and its index tensors. Rows list increasing columns; the rows of the
+    transposes list their entries grouped by patch, not sorted (the products the stencils
+    feed do not need the order).
 
     Attributes:
         positions: :class:`~torchgeo_cg.mesh.subdivision.stencils.StencilMatrix`.
