@@ -121,31 +121,38 @@ def assemble_limit_stencils(blocks: list[PointBlock], num_rows: int, num_cols: i
 
 def _place(b: PointBlock, start, crow, nnz, col, row_t, w, w_t) -> None:
     """Write the entries of block ``b``: rows at ``crow[row] + k``, transposed entries at
-    their run's start plus the point's rank among the patch's points. The chunks reuse
-    one workspace (fresh memory per chunk would fault its pages in every time)."""
+    their run's start plus the point's rank among the patch's points. Points go by patch
+    size, then patch, then row, so that a chunk's products and writes cover its patches'
+    columns with little padding; the chunks reuse one workspace (fresh memory per chunk
+    would fault its pages in every time)."""
     dev = b.sample.device
-    C = b.patches.C
+    C, size = b.patches.C, b.patches.size
     P, S, K = C.shape
-    order = torch.sort(b.patch, stable=True).indices  # the block's points by patch, then row
-    npts = torch.bincount(b.patch, minlength=P)
-    first = torch.cumsum(npts, 0) - npts
+    patch_order = torch.sort(size, stable=True).indices
+    patch_rank = torch.empty_like(patch_order)
+    patch_rank[patch_order] = torch.arange(P, device=dev)
+    order = torch.sort(patch_rank[b.patch], stable=True).indices
+    npts = torch.bincount(b.patch, minlength=P)[patch_order]
+    first = torch.empty_like(npts)
+    first[patch_order] = torch.cumsum(npts, 0) - npts  # a patch's first place in ``order``
     k = torch.arange(K, device=dev)
     sink = torch.tensor(nnz, device=dev)
     n_ws = min(_CHUNK, order.numel())
-    C_ws = C.new_empty(n_ws, S, K)
-    values_ws = C.new_empty(n_ws, 3, K)
+    C_ws, values_ws = C.new_empty(n_ws * S * K), C.new_empty(n_ws * 3 * K)
     for lo in range(0, order.numel(), _CHUNK):  # bounded memory: chunks of points
         idx = order[lo:lo + _CHUNK]
         n = idx.numel()
         f, r = b.patch[idx], b.sample[idx]
+        kc = int(size[f[-1]])  # the chunk's widest patch: sizes increase along ``order``
         rank = torch.arange(lo, lo + n, device=dev) - first[f]
-        valid = k < b.patches.size[f][:, None]
-        dest = torch.where(valid, crow[r].long()[:, None] + k, sink).flatten()
-        dest_t = torch.where(valid, start[f] + rank[:, None], sink).flatten()
-        values = torch.bmm(b.weights(b.params[idx]), torch.index_select(C, 0, f, out=C_ws[:n]),
-                           out=values_ws[:n])  # (n, 3, K)
-        col.scatter_(0, dest, b.patches.cols[f].flatten().to(col.dtype))
-        row_t.scatter_(0, dest_t, r.to(row_t.dtype)[:, None].expand(-1, K).flatten())
+        valid = k[:kc] < size[f][:, None]
+        dest = torch.where(valid, crow[r].long()[:, None] + k[:kc], sink).flatten()
+        dest_t = torch.where(valid, start[f, :kc] + rank[:, None], sink).flatten()
+        C_f = torch.index_select(C[:, :, :kc], 0, f, out=C_ws[:n * S * kc].view(n, S, kc))
+        values = torch.bmm(b.weights(b.params[idx]), C_f,
+                           out=values_ws[:n * 3 * kc].view(n, 3, kc))
+        col.scatter_(0, dest, b.patches.cols[f, :kc].flatten().to(col.dtype))
+        row_t.scatter_(0, dest_t, r.to(row_t.dtype)[:, None].expand(-1, kc).flatten())
         for i in range(3):  # position, d/du, d/dv
             flat = values[:, i].flatten()
             w[i].scatter_(0, dest, flat)
