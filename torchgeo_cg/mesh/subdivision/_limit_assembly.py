@@ -151,12 +151,12 @@ def _place(b: PointBlock, start, crow, nnz, col, row_t, w, w_t) -> None:
         C_f = torch.index_select(C[:, :, :kc], 0, f, out=C_ws[:n * S * kc].view(n, S, kc))
         values = torch.bmm(b.weights(b.params[idx]), C_f,
                            out=values_ws[:n * 3 * kc].view(n, 3, kc))
-        col.scatter_(0, dest, b.patches.cols[f, :kc].flatten().to(col.dtype))
-        row_t.scatter_(0, dest_t, r.to(row_t.dtype)[:, None].expand(-1, kc).flatten())
+        col.index_copy_(0, dest, b.patches.cols[f, :kc].flatten().to(col.dtype))
+        row_t.index_copy_(0, dest_t, r.to(row_t.dtype)[:, None].expand(-1, kc).flatten())
         for i in range(3):  # position, d/du, d/dv
             flat = values[:, i].flatten()
-            w[i].scatter_(0, dest, flat)
-            w_t[i].scatter_(0, dest_t, flat)
+            w[i].index_copy_(0, dest, flat)
+            w_t[i].index_copy_(0, dest_t, flat)
 
 
 def _kept_offsets(crow: torch.Tensor, keep: torch.Tensor) -> torch.Tensor:
