@@ -12,6 +12,7 @@ import torch
 from torchgeo_cg.core import ShapeError
 from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
+    FaceVaryingSubdivision,
     LoopSubdivision,
     apply_operator,
     apply_stencils,
@@ -72,6 +73,27 @@ def test_modules_forward_out():
     identity = CatmullClark(CUBE_F, 8, levels=0, dtype=torch.float64)
     out0 = torch.empty(3, 8, 3, dtype=torch.float64)
     assert identity(verts, out=out0) is out0 and torch.equal(out0, verts)
+
+
+def test_face_varying_forward_out():
+    """Two levels into a buffer against the dense products of its own stencils; levels 0
+    copies; a buffer of the wrong size names ``out``."""
+    fv = FaceVaryingSubdivision(CUBE_F, CUBE_F, 8, 8, levels=2, dtype=torch.float64)
+    uvs = _data(3, 8, 2)
+    out = torch.full((3, fv.num_uvs_out, 2), float("nan"), dtype=torch.float64)
+    assert fv(uvs, out=out) is out
+    ref = uvs
+    for level in range(2):
+        dense = torch.sparse_csr_tensor(getattr(fv, f"crow_{level}"), getattr(fv, f"col_{level}"),
+                                        getattr(fv, f"weights_{level}")).to_dense()
+        ref = torch.einsum("rc,...cd->...rd", dense, ref)
+    torch.testing.assert_close(out, ref, rtol=1e-13, atol=1e-15)
+    assert torch.equal(out, fv(uvs))
+    identity = FaceVaryingSubdivision(CUBE_F, CUBE_F, 8, 8, levels=0, dtype=torch.float64)
+    out0 = torch.empty(3, 8, 2, dtype=torch.float64)
+    assert identity(uvs, out=out0) is out0 and torch.equal(out0, uvs)
+    with pytest.raises(ShapeError, match="out: expected shape"):
+        fv(uvs, out=torch.empty(3, fv.num_uvs_out + 1, 2, dtype=torch.float64))
 
 
 def test_apply_stencils_out_on_limit_stencils():

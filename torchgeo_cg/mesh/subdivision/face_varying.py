@@ -66,6 +66,7 @@ from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
 from torchgeo_cg.mesh.subdivision.stencils import (
     StencilMatrix,
     apply_stencils,
+    check_out,
     stencil_matrix,
     weights_dtype,
 )
@@ -468,14 +469,21 @@ class FaceVaryingSubdivision(nn.Module):
         """``(F_L, K)`` long child value faces of the last level."""
         return getattr(self, f"faces_{self.levels}")
 
-    def forward(self, uvs: torch.Tensor) -> torch.Tensor:
+    def forward(self, uvs: torch.Tensor, out: torch.Tensor | None = None) -> torch.Tensor:
+        """Refine ``(*, T, D)`` -> ``(*, T_L, D)``; ``out`` (optional, ``(*, T_L, D)``) takes
+        the last level's result as in
+        :func:`~torchgeo_cg.mesh.subdivision.apply_operator` (outside autograd)."""
         check_module_dtype(self, uvs, "uvs")
         check_float(uvs, "uvs")
         check_shape(uvs, ["*", self.num_uvs_in, "D"], "uvs")
+        if out is not None and self.levels == 0:
+            check_out(out, tuple(uvs.shape), uvs)
+            return out.copy_(uvs)
         for level in range(self.levels):
             stencils = StencilMatrix(
                 *(getattr(self, f"{f}_{level}") for f in StencilMatrix._fields))
-            uvs = apply_stencils(stencils, uvs)
+            last = level == self.levels - 1
+            uvs = apply_stencils(stencils, uvs, out=out if last else None)
         return uvs
 
     def extra_repr(self) -> str:
