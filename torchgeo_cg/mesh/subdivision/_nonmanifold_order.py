@@ -141,59 +141,77 @@ def nonmanifold_neighbourhoods(operator, edge1_c: torch.Tensor, sharp1_e: torch.
     cs = _base_corners(operator)
     V0, E0, V1 = operator.num_vertices_in, operator.num_edges_in, operator.num_vertices_out
     catmark = operator.scheme == "catmark"
-    K1 = 4 if catmark else 3
     row_edge = V1 - E0
     nm_v, nm_e, first_e = _nonmanifold(cs, V0, E0)
-    dev = cs.vert.device
     sharp_at = lambda corner1: sharp1_e[edge1_c[corner1]]  # noqa: E731
-    # children of non-manifold vertices: the edge children by edge number, each end once
-    e_all = torch.arange(E0, device=dev)
-    c_e = first_e
-    ends = torch.cat([cs.vert[c_e], cs.vert[cs.nxt[c_e]]])
-    ev_key = torch.cat([2 * c_e, 2 * c_e + 1])
-    ev_other = torch.cat([row_edge + e_all, row_edge + e_all])
-    ev_sharp = torch.cat([sharp_at(cs.child[c_e] * K1), sharp_at(cs.child[cs.nxt[c_e]] * K1
-                                                                  + K1 - 1)])
-    keep = nm_v[ends]
-    vert_e, key_e = [ends[keep]], [ev_key[keep]]
-    other_e, sharp_e = [ev_other[keep]], [ev_sharp[keep]]
-    # children of non-manifold edges: per side, in face-major order
-    side = torch.nonzero(nm_e[cs.edge]).flatten()
-    e_s = cs.edge[side]
-    i_s = _ranks(e_s, side)  # the side's position among its edge's sides
-    ep = row_edge + e_s
-    first = i_s == 0
-    f0, n0 = side[first], cs.nxt[side[first]]
-    if catmark:
-        fp = V0 + cs.face[side]
-        vert_e += [ep[first], ep[first], ep[first], ep[~first]]
-        key_e += [torch.zeros_like(f0), torch.ones_like(f0), torch.full_like(f0, 2),
-                  i_s[~first] + 2]
-        other_e += [cs.vert[n0], fp[first], cs.vert[f0], fp[~first]]
-        sharp_e += [sharp_at(cs.child[n0] * 4 + 3), sharp_at(cs.child[f0] * 4 + 1),
-                    sharp_at(cs.child[f0] * 4), sharp_at(cs.child[side[~first]] * 4 + 1)]
-    else:
-        mid = (4 * cs.face[side] + 3) * 3  # the middle child's first corner
-        after, before = row_edge + cs.edge[cs.nxt[side]], row_edge + cs.edge[cs.prv[side]]
-        s_after = sharp_at(mid + cs.pos[side])
-        s_before = sharp_at(mid + cs.pos[cs.prv[side]])
-        vert_e += [ep[first], ep, ep, ep[first]]
-        key_e += [torch.zeros_like(f0), torch.where(first, 1, 2 * i_s + 2),
-                  torch.where(first, 2, 2 * i_s + 3), torch.full_like(f0, 3)]
-        other_e += [cs.vert[n0], after, before, cs.vert[f0]]
-        sharp_e += [sharp_at(cs.child[n0] * 3 + 2), s_after, s_before, sharp_at(cs.child[f0] * 3)]
-    vert_e_t = torch.cat(vert_e)
-    rank_e = _ranks(vert_e_t, torch.cat(key_e))
-    mask = torch.zeros(V1, dtype=torch.bool, device=dev)
+    side = torch.nonzero(nm_e[cs.edge]).flatten()  # sides of non-manifold edges
+    i_s = _ranks(cs.edge[side], side)  # the side's position among its edge's sides
+    edge_rows = _edge_child_rows_catmark if catmark else _edge_child_rows_loop
+    rows = [_vertex_child_rows(cs, nm_v, first_e, row_edge, 4 if catmark else 3, sharp_at),
+            *edge_rows(cs, side, i_s, V0, row_edge, sharp_at)]
+    vert_e, key_e, other_e, sharp_e = (torch.cat(part) for part in zip(*rows))
+    mask = torch.zeros(V1, dtype=torch.bool, device=cs.vert.device)
     mask[:V0] = nm_v
     mask[row_edge:] = nm_e
-    empty = torch.zeros(0, dtype=torch.long, device=dev)
-    vert_f = rank_f = diag_f = empty
+    vert_f = rank_f = diag_f = torch.zeros(0, dtype=torch.long, device=cs.vert.device)
     if catmark:
-        corner = torch.nonzero(nm_v[cs.vert]).flatten()
-        vert_f = torch.cat([cs.vert[corner], ep, ep])
-        rank_f = torch.cat([_ranks(cs.vert[corner], corner), 2 * i_s, 2 * i_s + 1])
-        diag_f = torch.cat([V0 + cs.face[corner], row_edge + cs.edge[cs.nxt[side]],
-                            row_edge + cs.edge[cs.prv[side]]])
-    return Neighbourhoods(mask, vert_e_t, rank_e, torch.cat(other_e), torch.cat(sharp_e),
+        vert_f, rank_f, diag_f = _child_faces_catmark(cs, nm_v, side, i_s, V0, row_edge)
+    return Neighbourhoods(mask, vert_e, _ranks(vert_e, key_e), other_e, sharp_e,
                           vert_f, rank_f, diag_f)
+
+
+def _vertex_child_rows(cs, nm_v, first_e, row_edge, K1, sharp_at):
+    """``(vertex, key, other, sharp)`` edge rows of the children of non-manifold vertices:
+    each base edge's two ends in edge-number order (its first side's corner, then end)."""
+    c_e = first_e
+    e_all = torch.arange(c_e.numel(), device=c_e.device)
+    ends = torch.cat([cs.vert[c_e], cs.vert[cs.nxt[c_e]]])
+    key = torch.cat([2 * c_e, 2 * c_e + 1])
+    other = torch.cat([row_edge + e_all, row_edge + e_all])
+    sharp = torch.cat([sharp_at(cs.child[c_e] * K1), sharp_at(cs.child[cs.nxt[c_e]] * K1
+                                                               + K1 - 1)])
+    keep = nm_v[ends]
+    return ends[keep], key[keep], other[keep], sharp[keep]
+
+
+def _edge_child_rows_catmark(cs, side, i_s, V0, row_edge, sharp_at):
+    """Edge rows of Catmark edge points: ``b_0``, face point 0, ``a_0``, face points 1..
+    (child quad of corner ``c``: vertex point, edge point, face point, edge point)."""
+    ep, fp = row_edge + cs.edge[side], V0 + cs.face[side]
+    first = i_s == 0
+    f0, n0, later = side[first], cs.nxt[side[first]], side[~first]
+    lead = torch.zeros_like(f0)
+    return [(ep[first], lead, cs.vert[n0], sharp_at(cs.child[n0] * 4 + 3)),
+            (ep[first], lead + 1, fp[first], sharp_at(cs.child[f0] * 4 + 1)),
+            (ep[first], lead + 2, cs.vert[f0], sharp_at(cs.child[f0] * 4)),
+            (ep[~first], i_s[~first] + 2, fp[~first], sharp_at(cs.child[later] * 4 + 1))]
+
+
+def _edge_child_rows_loop(cs, side, i_s, V0, row_edge, sharp_at):
+    """Edge rows of Loop edge points: ``b_0``, the edge points after and before side 0 in
+    its face, ``a_0``, then those two of each later side (child triangles of a face: one
+    per corner, vertex point first, then the middle one of its three edge points)."""
+    ep = row_edge + cs.edge[side]
+    first = i_s == 0
+    f0, n0 = side[first], cs.nxt[side[first]]
+    mid = (4 * cs.face[side] + 3) * 3  # the middle child's first corner
+    lead = torch.zeros_like(f0)
+    return [(ep[first], lead, cs.vert[n0], sharp_at(cs.child[n0] * 3 + 2)),
+            (ep, torch.where(first, 1, 2 * i_s + 2), row_edge + cs.edge[cs.nxt[side]],
+             sharp_at(mid + cs.pos[side])),
+            (ep, torch.where(first, 2, 2 * i_s + 3), row_edge + cs.edge[cs.prv[side]],
+             sharp_at(mid + cs.pos[cs.prv[side]])),
+            (ep[first], lead + 3, cs.vert[f0], sharp_at(cs.child[f0] * 3))]
+
+
+def _child_faces_catmark(cs, nm_v, side, i_s, V0, row_edge):
+    """``(vertex, rank, opposite vertex)`` face rows: a non-manifold vertex's child at each
+    of its corners (opposite: the face point); an edge point's children at the head, then
+    the tail of each side (opposite: the edge point of the next, the previous side)."""
+    corner = torch.nonzero(nm_v[cs.vert]).flatten()
+    ep = row_edge + cs.edge[side]
+    vert = torch.cat([cs.vert[corner], ep, ep])
+    rank = torch.cat([_ranks(cs.vert[corner], corner), 2 * i_s, 2 * i_s + 1])
+    diag = torch.cat([V0 + cs.face[corner], row_edge + cs.edge[cs.nxt[side]],
+                      row_edge + cs.edge[cs.prv[side]]])
+    return vert, rank, diag
