@@ -9,12 +9,26 @@ Convention:
     base mesh: an open fan starts at its leading boundary edge; a closed fan of a
     vertex point or a face point at the out-edge of its corner in its lowest-numbered
     child face; a closed fan of an edge point at its out-edge towards the far end of
-    the edge in the edge's lowest-numbered parent face. So ``(tangent_u, tangent_v)``
-    equal OpenSubdiv's ``(du, dv)`` from ``Far::PrimvarRefiner::Limit`` after one
-    level of refinement of the operator's input mesh. ``tangent_u`` follows edge 0
-    (along the crease for crease vertices), ``tangent_v`` is rotated
-    counter-clockwise from it, and ``normals = normalize(tangent_u x tangent_v)`` points
-    outward. Tangent magnitudes are OpenSubdiv's (not unit, not parametric derivatives).
+    the edge in the edge's lowest-numbered parent face. Around the children of the
+    input mesh's non-manifold vertices and edges (a non-manifold edge, a degenerate
+    side, a face using a pair twice, faces in more than one fan) OpenSubdiv keeps the
+    order it built the lists in, and the masks take edges and faces by position in
+    them: the child of such a vertex lists the edge points of its edges by edge number
+    (edges numbered by their first side, faces in order) and its child faces corner by
+    corner; the child of such an edge lists, for its first side ``a -> b``, ``b``, the
+    side's face point (Loop: the edge points of the sides after and before it), ``a``,
+    then each later side's face point (Loop: its two edge points). A corner takes
+    edges 0 and 1, a crease its first and last sharp edge and the edges and faces
+    ranked between them. Loop's smooth masks hold down to two faces (Catmark takes the
+    corner masks there). So ``(tangent_u, tangent_v)`` equal OpenSubdiv's ``(du, dv)``
+    from ``Far::PrimvarRefiner::Limit`` after one level of refinement of the
+    operator's input mesh, except where OpenSubdiv's mask buffers are too short (at
+    an edge point of an edge with ``m >= 3`` faces, ``2 m`` above the level's maximum
+    valence, its first tangent's last face weights overlap the second tangent's mask;
+    not copied here). ``tangent_u`` follows edge 0 (along the crease for crease
+    vertices), ``tangent_v`` is rotated counter-clockwise from it, and
+    ``normals = normalize(tangent_u x tangent_v)`` points outward. Tangent magnitudes
+    are OpenSubdiv's (not unit, not parametric derivatives).
 """
 
 from __future__ import annotations
@@ -26,6 +40,7 @@ import torch
 
 from torchgeo_cg.mesh.subdivision._creasing import component_labels, limit_rules
 from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils, loop_limit_stencils
+from torchgeo_cg.mesh.subdivision._nonmanifold_order import nonmanifold_neighbourhoods
 from torchgeo_cg.mesh.subdivision._normals import power_of_two_scaled, unit_normals
 from torchgeo_cg.mesh.subdivision._topology import check_verts, mesh_topology
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator, apply_operator
@@ -204,8 +219,8 @@ def _tangent_stencils(faces, V, operator, dtype) -> tuple[StencilMatrix, Stencil
     def add(r, c, a, b):
         rows.append(r), cols.append(c), wu.append(a.to(dtype)), wv.append(b.to(dtype))
 
-    # smooth (interior) vertices
-    smooth_c = (rule_v[v_c] == 0) & ~is_open & (faces_v[v_c] > 2)
+    # smooth (interior) vertices; Catmark takes the corner masks at two faces, Loop not
+    smooth_c = (rule_v[v_c] == 0) & ~is_open & (faces_v[v_c] > (2 if catmark else 1))
     theta = 2 * math.pi / n_c.clamp(min=1)
     if catmark:
         lam = 5 / 16 + (torch.cos(theta) + torch.cos(theta / 2)
@@ -223,9 +238,60 @@ def _tangent_stencils(faces, V, operator, dtype) -> tuple[StencilMatrix, Stencil
                     smooth_c, dtype)
     _crease_entries(add, topo, rule_v, sharp_e, faces_v, rank, is_open, out_nbr, in_nbr,
                     diag_c, last_c, catmark, dtype)
-    r, c = torch.cat(rows), torch.cat(cols)
-    return (stencil_matrix(r, c, torch.cat(wu), (V, V)),
-            stencil_matrix(r, c, torch.cat(wv), (V, V)))
+    r, c, a, b = torch.cat(rows), torch.cat(cols), torch.cat(wu), torch.cat(wv)
+    if operator.child_faces is not None:
+        nb = nonmanifold_neighbourhoods(operator, topo.edge_c, sharp_e)
+        ranked_v = nb.vertex_mask & (rule_v != 0)  # non-manifold children are never smooth
+        if bool(ranked_v.any()):
+            keep = ~ranked_v[r]
+            rows, cols, wu, wv = [r[keep]], [c[keep]], [a[keep]], [b[keep]]
+            _ranked_entries(add, nb, ranked_v, rule_v, catmark, dtype)
+            r, c, a, b = torch.cat(rows), torch.cat(cols), torch.cat(wu), torch.cat(wv)
+    return stencil_matrix(r, c, a, (V, V)), stencil_matrix(r, c, b, (V, V))
+
+
+def _ranked_entries(add, nb, ranked_v, rule_v, catmark, dtype):
+    """Corner and crease masks of the vertices in ``ranked_v`` from OpenSubdiv's ranked
+    edge and face lists (:func:`nonmanifold_neighbourhoods`): a corner takes its edges
+    0 and 1; a crease its first and last sharp edges and what lies between them by rank."""
+    dev = rule_v.device
+    V = rule_v.numel()
+    m = ranked_v[nb.vert_e]
+    v_e, rank, other, sharp = nb.vert_e[m], nb.rank_e[m], nb.other_e[m], nb.sharp_e[m]
+    scale = 1.0 if catmark else 3.0
+    corner = rule_v[v_e] == 2
+    for i in (0, 1):
+        sel = corner & (rank == i)
+        one = torch.full((int(sel.sum()),), scale, dtype=dtype, device=dev)
+        add(v_e[sel], other[sel], one if i == 0 else 0 * one, 0 * one if i == 0 else one)
+    verts = torch.nonzero(ranked_v & (rule_v == 2)).flatten()
+    minus = torch.full((verts.numel(),), -scale, dtype=dtype, device=dev)
+    add(verts, verts, minus, minus)
+    crease = (rule_v[v_e] == 1) & sharp
+    big = torch.iinfo(torch.long).max
+    c0_v = torch.full((V,), big, dtype=torch.long, device=dev).scatter_reduce(
+        0, v_e[crease], rank[crease], "amin")
+    c1_v = torch.full((V,), -1, dtype=torch.long, device=dev).scatter_reduce(
+        0, v_e[crease], rank[crease], "amax")
+    k_v = (c1_v - c0_v - 1).clamp(min=0)
+    j = (rank - c0_v[v_e].clamp(max=V)).clamp(min=0)
+    inside = (rule_v[v_e] == 1) & (rank >= c0_v[v_e]) & (rank <= c1_v[v_e])
+    k = k_v[v_e].to(dtype)
+    end1, end2, inner = _crease_edge_weights(j, k, catmark, dtype)
+    last = rank == c1_v[v_e]
+    a = torch.where(j == 0, end1, torch.where(last, -end1, 0.0))
+    b = torch.where((j == 0) | last, end2, inner)
+    add(v_e[inside], other[inside], a[inside], b[inside])
+    if catmark:
+        mf = ranked_v[nb.vert_f] & (rule_v[nb.vert_f] == 1)
+        v_f, rank_f, diag = nb.vert_f[mf], nb.rank_f[mf], nb.diag_f[mf]
+        jf = rank_f - c0_v[v_f]
+        inside_f = (jf >= 0) & (jf <= k_v[v_f]) & (k_v[v_f] >= 1)
+        fw = _crease_face_weights(jf.clamp(min=0), k_v[v_f].to(dtype), dtype)
+        add(v_f[inside_f], diag[inside_f], 0 * fw[inside_f], fw[inside_f])
+    verts = torch.nonzero(ranked_v & (rule_v == 1)).flatten()
+    kk = k_v[verts].to(dtype)
+    add(verts, verts, torch.zeros_like(kk), _crease_vertex_weight(kk, catmark))
 
 
 def _first_corners(operator) -> torch.Tensor:
