@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix
+from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, index_dtype
 
 _CHUNK = 1 << 13  # points per batched product: the gathered patch matrices stay in cache
 
@@ -48,11 +48,6 @@ class PointBlock(NamedTuple):
     params: torch.Tensor
     weights: Callable[[torch.Tensor], torch.Tensor]
     patches: Patches
-
-
-def _index_dtype(*sizes: int) -> torch.dtype:
-    """int32 where every index and offset fits (MKL's faster sparse path), else int64."""
-    return torch.int32 if max(sizes) < 2**31 - 1 else torch.long
 
 
 def _offsets(counts: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
@@ -101,7 +96,7 @@ def assemble_limit_stencils(blocks: list[PointBlock], num_rows: int, num_cols: i
     for b in blocks:  # a loop over levels
         row_len[b.sample] = b.patches.size[b.patch]
     nnz = int(row_len.sum())
-    index = _index_dtype(num_rows, num_cols, nnz)
+    index = index_dtype(num_rows, num_cols, nnz)
     crow = _offsets(row_len, index)
     starts, col_len = _run_starts(blocks, num_cols)
     crow_t = _offsets(col_len, index)
@@ -166,7 +161,7 @@ def _kept_offsets(crow: torch.Tensor, keep: torch.Tensor) -> torch.Tensor:
 
 
 def _empty(num_rows, num_cols, dtype, device) -> StencilMatrix:
-    index = _index_dtype(num_rows, num_cols)
+    index = index_dtype(num_rows, num_cols)
     zero = torch.zeros(0, dtype=index, device=device)
     empty_w = torch.zeros(0, dtype=dtype, device=device)
     return StencilMatrix(torch.zeros(num_rows + 1, dtype=index, device=device), zero, empty_w,

@@ -12,16 +12,16 @@ shared), and its backward is the same operator on the cached transpose, so
 
 Convention:
     Rows are output items, columns input items: ``out[..., r, :] = sum_c S[r, c] x[..., c, :]``.
-    ``crow`` is ``(R + 1,)`` long, ``col`` and ``weights`` are ``(nnz,)``, rows sorted,
-    duplicate entries summed at build time. The weights are cast to the data's dtype
-    and device on use; float16/bfloat16 data is multiplied in float32 (sparse matmuls
-    have no half-precision kernels, and the sums would lose digits) and cast back.
+    ``crow`` is ``(R + 1,)`` int32 (int64 for sizes past int32), ``col`` and ``weights``
+    are ``(nnz,)``, rows sorted, duplicate entries summed at build time. The weights are
+    cast to the data's dtype and device on use; float16/bfloat16 data is multiplied in
+    float32 (sparse matmuls have no half-precision kernels, and the sums would lose
+    digits) and cast back.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 from typing import NamedTuple
 
 import torch
@@ -29,23 +29,22 @@ from torch import Tensor
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.mesh.subdivision._spmm import csr_tensor, spmm_batched
 
 __all__ = ["StencilMatrix", "apply_stencils"]
-
-_CHUNK_COLUMNS = 12  # dense columns per sparse matmul: keeps the gathered rows in cache
 
 
 class StencilMatrix(NamedTuple):
     """A sparse ``(R, C)`` matrix and its transpose as plain CSR tensors.
 
     Attributes:
-        crow: ``(R + 1,)`` long row offsets (int32 in the limit stencils, where the
-            sizes fit: MKL's faster sparse path; ``crow`` and ``col`` share a dtype, as
-            do ``crow_t`` and ``col_t``).
-        col: ``(nnz,)`` long (or int32) column of each entry.
+        crow: ``(R + 1,)`` int32 row offsets (int64 where the sizes do not fit in
+            int32, see :func:`index_dtype`; ``crow`` and ``col`` share a dtype, as do
+            ``crow_t`` and ``col_t``).
+        col: ``(nnz,)`` int32 (or int64) column of each entry.
         weights: ``(nnz,)`` float value of each entry.
-        crow_t: ``(C + 1,)`` long (or int32) row offsets of the transpose.
-        col_t: ``(nnz,)`` long (or int32) columns of the transpose (rows of the matrix).
+        crow_t: ``(C + 1,)`` int32 (or int64) row offsets of the transpose.
+        col_t: ``(nnz,)`` int32 (or int64) columns of the transpose (rows of the matrix).
         weights_t: ``(nnz,)`` float values of the transpose.
 
     Example:
@@ -70,30 +69,15 @@ class StencilMatrix(NamedTuple):
 
     def sparse(self) -> Tensor:
         """The matrix as a ``torch.sparse_csr`` tensor (shares memory)."""
-        return _csr(self.crow, self.col, self.weights, self.shape[1])
+        return csr_tensor(self.crow, self.col, self.weights, self.shape[1])
 
     def sparse_t(self) -> Tensor:
         """The transpose as a ``torch.sparse_csr`` tensor (shares memory)."""
-        return _csr(self.crow_t, self.col_t, self.weights_t, self.shape[0])
+        return csr_tensor(self.crow_t, self.col_t, self.weights_t, self.shape[0])
 
     def dense(self) -> Tensor:
         """The ``(R, C)`` dense matrix."""
         return self.sparse().to_dense()
-
-
-_CSR_WARNING_SEEN = False
-
-
-def _csr(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int) -> Tensor:
-    global _CSR_WARNING_SEEN
-    shape = (crow.numel() - 1, num_cols)
-    if _CSR_WARNING_SEEN:  # torch warns once per process: no filter needed afterwards
-        return torch.sparse_csr_tensor(crow, col, weights, shape, check_invariants=False)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # "sparse CSR is in beta"
-        matrix = torch.sparse_csr_tensor(crow, col, weights, shape, check_invariants=False)
-    _CSR_WARNING_SEEN = True
-    return matrix
 
 
 def weights_dtype(dtype: torch.dtype | None) -> torch.dtype:
@@ -114,6 +98,18 @@ def weights_dtype(dtype: torch.dtype | None) -> torch.dtype:
     return dtype
 
 
+def index_dtype(*sizes: int) -> torch.dtype:
+    """The index dtype of a CSR matrix with these sizes (rows, columns, entries): int32
+    where every index and offset fits (MKL's faster sparse path, half the memory
+    traffic), else int64.
+
+    Example:
+        >>> index_dtype(10, 10, 100), index_dtype(3, 2**31, 6)
+        (torch.int32, torch.int64)
+    """
+    return torch.int32 if max(sizes) < 2**31 - 1 else torch.long
+
+
 def stencil_matrix(
     rows: Tensor, cols: Tensor, weights: Tensor, shape: tuple[int, int]
 ) -> StencilMatrix:
@@ -130,7 +126,8 @@ def stencil_matrix(
         shape: ``(R, C)``.
 
     Returns:
-        :class:`StencilMatrix` on the device of ``rows``, dtype of ``weights``.
+        :class:`StencilMatrix` on the device of ``rows``, dtype of ``weights``, indices
+        of :func:`index_dtype`.
 
     Example:
         >>> s = stencil_matrix(torch.tensor([1, 1]), torch.tensor([0, 0]),
@@ -139,6 +136,7 @@ def stencil_matrix(
         ([0, 0, 1], [0], [0.75])
     """
     n_rows, n_cols = shape
+    rows, cols = rows.long(), cols.long()  # the keys row * C + col need 64 bits
     keep = weights != 0
     if not bool(keep.all()):
         rows, cols, weights = rows[keep], cols[keep], weights[keep]
@@ -154,36 +152,9 @@ def stencil_matrix(
     order_t = torch.sort(cols_u, stable=True).indices  # rows stay sorted within a column
     crow_t = cols_u.new_zeros(n_cols + 1)
     crow_t[1:] = torch.cumsum(torch.bincount(cols_u, minlength=n_cols), 0)
-    return StencilMatrix(crow, cols_u, values_u, crow_t, rows_u[order_t], values_u[order_t])
-
-
-def _spmm_batched(matrix: Tensor, x_bvd: Tensor, out_brd: Tensor | None = None) -> Tensor:
-    """``(R, V)`` sparse times each ``(V, D)`` item of ``(B, V, D)`` -> contiguous ``(B, R, D)``,
-    written into ``out_brd`` when given (contiguous, ``x``'s dtype and device).
-
-    Items are grouped so that each sparse matmul sees about ``_CHUNK_COLUMNS``
-    dense columns (a loop over batch chunks, not elements): one very wide
-    product thrashes the cache, many narrow ones waste the stencil reads. The chunks'
-    products share one scratch buffer (fresh memory per chunk would fault its pages in
-    again every time).
-    """
-    B, V, D = x_bvd.shape
-    R = matrix.shape[0]
-    if B == 1:
-        if out_brd is None:
-            return (matrix @ x_bvd[0]).unsqueeze(0)
-        torch.mm(matrix, x_bvd[0], out=out_brd[0])
-        return out_brd
-    per = max(1, _CHUNK_COLUMNS // max(D, 1))
-    if out_brd is None:
-        out_brd = x_bvd.new_empty(B, R, D)
-    scratch = x_bvd.new_empty(R * min(per, B) * D)
-    for b0 in range(0, B, per):  # loop over batch chunks
-        x2d = x_bvd[b0:b0 + per].movedim(1, 0).reshape(V, -1)  # (V, b*D)
-        y2d = scratch[:R * x2d.shape[1]].view(R, x2d.shape[1])
-        torch.mm(matrix, x2d, out=y2d)
-        out_brd[b0:b0 + per] = y2d.view(R, -1, D).movedim(0, 1)
-    return out_brd
+    index = index_dtype(n_rows, n_cols, key_u.numel())
+    return StencilMatrix(crow.to(index), cols_u.to(index), values_u, crow_t.to(index),
+                         rows_u[order_t].to(index), values_u[order_t])
 
 
 def _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd: Tensor,
@@ -194,8 +165,7 @@ def _stencil_matmul_eager(crow, col, weights, crow_t, x_bvd: Tensor,
         if out_brd is not None:
             return out_brd.zero_()
         return x_bvd.new_zeros(x_bvd.shape[0], crow.numel() - 1, x_bvd.shape[2])
-    matrix = _csr(crow, col, weights, crow_t.numel() - 1)
-    return _spmm_batched(matrix, x_bvd.contiguous(), out_brd)
+    return spmm_batched(crow, col, weights, crow_t.numel() - 1, x_bvd.contiguous(), out_brd)
 
 
 @torch.library.custom_op("torchgeo_cg::stencil_matmul", mutates_args=())
