@@ -27,10 +27,12 @@ Convention:
 
 from __future__ import annotations
 
-import math
+import ctypes
+import functools
+import mmap
+import sys
 import warnings
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import Tensor
@@ -39,8 +41,7 @@ _MKL_COLUMNS = 12  # dense columns per MKL product: the gathered rows stay in ca
 _GATHER_COLUMNS = 24  # per embedding_bag product: near its flat cost, chunks stay in L2
 _GATHER_MIN_COLUMNS = 8  # below this MKL is as fast or faster
 _GATHER_ROWS = 16384  # output rows per embedding_bag product
-_HUGE_PAGE_MIN_BYTES = 4 << 20  # numpy asks for huge pages from 4 MiB on
-_NUMPY_DTYPES = {torch.float32: np.float32, torch.float64: np.float64}
+_HUGE_PAGE_MIN_BYTES = 4 << 20  # outputs marked for huge pages (numpy's threshold)
 
 _CSR_WARNING_SEEN = False
 
@@ -68,24 +69,42 @@ def new_output(shape: tuple[int, ...], like: Tensor) -> Tensor:
     """An uninitialised tensor of ``shape`` with ``like``'s dtype and device, for an output
     that is written once, in full.
 
-    Large CPU float32/float64 outputs come from numpy, which asks the kernel for
-    transparent huge pages (``madvise(MADV_HUGEPAGE)``, its default for arrays of 4 MiB
-    and more; the system's ``transparent_hugepage`` setting decides, and numpy's own
-    switch turns it off). Such an output's first touch is mostly page faults: a fresh
-    45 MB output of 4 KiB pages takes ~11,500 faults, at 2-3 us each more than the
-    product itself, against a few dozen with 2 MiB pages. Only this buffer is concerned
-    (no process-wide allocator option); it is an ordinary tensor, freed with its last
-    reference.
+    A large CPU output (4 MiB and more) is marked for transparent huge pages
+    (``madvise(MADV_HUGEPAGE)`` on the whole pages inside it, before anything touches
+    it; numpy does the same for its large arrays). Such an output's first touch is
+    mostly page faults: a fresh 45 MB output of 4 KiB pages takes ~11,500 of them, at
+    2-3 us each more than the product itself, against ~300 with 2 MiB pages. Only this
+    buffer is concerned (no process-wide allocator option); the system's
+    ``transparent_hugepage`` setting decides whether the hint is taken, and the tensor
+    is an ordinary one from torch's allocator, freed with its last reference.
 
     Example:
         >>> new_output((2, 3), torch.zeros(1, dtype=torch.float64)).dtype
         torch.float64
     """
-    nbytes = math.prod(shape) * like.element_size()
-    numpy_dtype = _NUMPY_DTYPES.get(like.dtype)
-    if like.device.type != "cpu" or numpy_dtype is None or nbytes < _HUGE_PAGE_MIN_BYTES:
-        return like.new_empty(shape)
-    return torch.from_numpy(np.empty(shape, dtype=numpy_dtype))
+    out = like.new_empty(shape)
+    if like.device.type == "cpu" and out.nbytes >= _HUGE_PAGE_MIN_BYTES:
+        madvise = _madvise()
+        if madvise is not None:
+            page = mmap.PAGESIZE
+            start = -(-out.data_ptr() // page) * page  # whole pages of this buffer only
+            stop = (out.data_ptr() + out.nbytes) // page * page
+            madvise(start, stop - start, mmap.MADV_HUGEPAGE)  # a hint: a refusal is harmless
+    return out
+
+
+@functools.cache
+def _madvise():
+    """libc's ``madvise``, or ``None`` where there is none to call (not Linux)."""
+    if not sys.platform.startswith("linux") or not hasattr(mmap, "MADV_HUGEPAGE"):
+        return None
+    try:
+        function = ctypes.CDLL(None, use_errno=True).madvise
+    except (OSError, AttributeError):
+        return None
+    function.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    function.restype = ctypes.c_int
+    return function
 
 
 def spmm_batched(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int, x_bcd: Tensor,
@@ -109,8 +128,9 @@ def spmm_batched(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int, x_bc
     R = crow.numel() - 1
     if out_brd is None:
         out_brd = new_output((B, R, D), x_bcd)
-    if (x_bcd.device.type == "cpu" and x_bcd.dtype == torch.float32
-            and min(B * D, _GATHER_COLUMNS) >= _GATHER_MIN_COLUMNS):
+    gather = (x_bcd.device.type == "cpu" and x_bcd.dtype == torch.float32
+              and min(B * D, _GATHER_COLUMNS) >= _GATHER_MIN_COLUMNS)
+    if gather:
         blocks = _row_blocks(crow, col, weights)
         per = max(1, _GATHER_COLUMNS // D)
 
@@ -124,7 +144,7 @@ def spmm_batched(crow: Tensor, col: Tensor, weights: Tensor, num_cols: int, x_bc
 
         def product(matrix, x2d: Tensor, into: Tensor | None) -> Tensor:
             return torch.mm(matrix, x2d, out=into)
-    return _chunked(blocks, product, x_bcd, out_brd, min(per, B))
+    return _chunked(blocks, product, x_bcd, out_brd, min(per, B), writes_into=not gather)
 
 
 def _row_blocks(crow: Tensor, col: Tensor, weights: Tensor) -> list:
@@ -139,16 +159,18 @@ def _row_blocks(crow: Tensor, col: Tensor, weights: Tensor) -> list:
             for r0, r1, a0, a1 in zip(starts[:-1], starts[1:], at[:-1], at[1:])]  # blocks
 
 
-def _chunked(blocks, product, x_bcd: Tensor, out_brd: Tensor, per: int) -> Tensor:
+def _chunked(blocks, product, x_bcd: Tensor, out_brd: Tensor, per: int,
+             writes_into: bool) -> Tensor:
     """The batch in chunks of ``per`` items, d-major (see the module docstring), each
-    chunk's product in blocks of rows. A one-item chunk is the item itself, and MKL
-    writes it in place. The copies go through a trailing unit dimension: a 2-D
-    transposed copy takes torch's blocked-transpose path, several times slower for so
-    few columns."""
+    chunk's product in blocks of rows. A product that ``writes_into`` (MKL) writes into
+    one reused scratch, or a one-item chunk (the item itself) straight into ``out_brd``;
+    embedding_bag makes its own output. The copies go through a trailing unit
+    dimension: a 2-D transposed copy takes torch's blocked-transpose path, several
+    times slower for so few columns."""
     B, C, D = x_bcd.shape
     R = out_brd.shape[1]
     x_scratch = x_bcd.new_empty(C * D * per) if per > 1 else None
-    y_scratch = x_bcd.new_empty(R * D * per) if per > 1 and len(blocks) == 1 else None
+    y_scratch = x_bcd.new_empty(R * D * per) if per > 1 and writes_into else None
     for b0 in range(0, B, per):  # a loop over batch chunks
         n = min(per, B - b0)
         if n == 1:
