@@ -1,4 +1,4 @@
-"""The Bernstein basis, stable to degree 1000 and beyond (report section 1.2, eq. 2).
+"""The Bernstein basis ``C(n, k) t^k (1 - t)^(n - k)``, stable to degree 1000 and beyond.
 
 ``b_{k,n}(t) = C(n, k) t^k (1 - t)^(n - k)``, ``k = 0..n``.
 

@@ -1,6 +1,6 @@
 """Bezier curves of any degree and dimension: evaluation, calculus, split, elevation, length.
 
-Report section 1.2 (eq. 2, Appendix A eqs. 5-8). A Bezier curve of degree ``n`` in
+A Bezier curve of degree ``n`` in
 ``D`` dimensions is ``B(t) = sum_k b_{k,n}(t) P_k`` with ``n + 1`` control points
 ``P_k``.
 
@@ -122,7 +122,7 @@ def _apply_basis(basis: torch.Tensor, control_points: torch.Tensor) -> torch.Ten
 
 
 def bezier(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-    """Evaluate Bezier curves of any degree ``n`` and dimension ``D`` (report eq. 2).
+    """Evaluate Bezier curves of any degree ``n`` and dimension ``D``: ``sum_k b_{k,n}(t) P_k``.
 
     Convention:
         See the module docstring: ``(*, n + 1, D)`` control points, ``t`` shared
@@ -150,7 +150,7 @@ def bezier(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
 
 
 def cubic_bezier(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-    """Cubic Bezier through the explicit basis of Appendix A (eqs. 5-8).
+    """Cubic Bezier through the explicit cubic Bernstein basis.
 
     ``b0 = (1 - t)^3, b1 = 3 t (1 - t)^2, b2 = 3 t^2 (1 - t), b3 = t^3``.
 
@@ -183,7 +183,7 @@ def quartic_bezier(control_points: torch.Tensor, t: torch.Tensor) -> torch.Tenso
     """Quartic Bezier through the explicit degree-4 Bernstein basis.
 
     ``b0 = (1 - t)^4, b1 = 4 t (1 - t)^3, b2 = 6 t^2 (1 - t)^2, b3 = 4 t^3 (1 - t),
-    b4 = t^4`` (eq. 2 with ``n = 4``, written out like Appendix A does for ``n = 3``).
+    b4 = t^4`` (the Bernstein basis of degree 4, written out as ``cubic_bezier`` does for 3).
 
     Convention:
         As :func:`bezier`; exactly 5 control points (degree + 1).

@@ -1,6 +1,6 @@
 """Cubic Hermite curves and splines: basis, curves, C1 splines, PCHIP, Catmull-Rom.
 
-Report section 1.3 and Appendix A (eqs. 9-12). A cubic Hermite segment from
+A cubic Hermite segment from
 ``p0`` to ``p1`` with end tangents ``m0, m1`` is
 
 ``H(t) = H00(t) p0 + H10(t) m0 + H01(t) p1 + H11(t) m1``, ``t`` in ``[0, 1]``,
@@ -54,7 +54,7 @@ __all__ = [
 
 
 def hermite_basis(t: torch.Tensor) -> torch.Tensor:
-    """The four cubic Hermite basis functions of Appendix A (eqs. 9-12).
+    """The four cubic Hermite basis functions ``H00, H10, H01, H11`` (module docstring).
 
     Convention:
         Column order ``H00, H10, H01, H11``: weights of ``p0, m0, p1, m1``.

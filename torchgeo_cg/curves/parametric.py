@@ -109,7 +109,7 @@ def implicit_circle(xy: torch.Tensor, center=(0.0, 0.0), radius=1.0) -> torch.Te
 
 
 def cycloid(t: torch.Tensor, radius=1.0) -> torch.Tensor:
-    """The cycloid ``x = R (t - sin t)``, ``y = R (1 - cos t)`` (report eq. 1).
+    """The cycloid ``x = R (t - sin t)``, ``y = R (1 - cos t)``.
 
     The path of a point on a wheel of radius ``R`` rolling along the x axis;
     one arch per ``2 pi`` (report Figure 2 draws ``t`` in ``[0, 4 pi]``). Cusps

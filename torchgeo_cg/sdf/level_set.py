@@ -1,6 +1,6 @@
 """The report's zero-level-set extraction: grid samples within a tolerance of zero.
 
-Report section 1.4 samples the torus function (Appendix A(iii), eq. 13) on a 500^3
+Report section 1.4 samples the algebraic torus ``(sqrt(x²+y²) - R)² + z² - r²`` on a 500^3
 grid and keeps the samples with ``|f| < 1e-4`` (``numpy.isclose`` + ``where``), Figure 5.
 
 Why a fixed tolerance is a poor surface: a sample is kept when it falls inside the

@@ -10,7 +10,7 @@ Convention:
       call evaluates B shapes at once with ``points (B, N, 3)`` and ``radius (B,)``.
     - "Exact" means the value is the true Euclidean distance to the surface
       (``|grad f| = 1`` almost everywhere). :func:`gyroid` and ``torus(exact=False)``
-      (the report's algebraic torus, eq. 13) are *not* exact distances.
+      (the algebraic torus ``(sqrt(x²+y²) - R)² + z² - r²``) are *not* exact distances.
     - Every function is differentiable in the points and the parameters, with finite
       gradients everywhere: norms are the overflow-safe
       :func:`~torchgeo_cg.core.numerics.hypot`, exact at every scale (no threshold),
@@ -309,7 +309,7 @@ def torus(
     minor_radius: torch.Tensor | Number = 0.25,
     exact: bool = True,
 ) -> torch.Tensor:
-    """SDF of a torus around the z axis (report Appendix A(iii), eq. 13).
+    """SDF of a torus around the z axis (exact, or the algebraic torus of the course report).
 
     With ``s = sqrt((sqrt(x^2 + y^2) - R)^2 + z^2)`` the distance to the tube's core
     circle: ``exact=True`` gives ``s - r`` (the true distance), ``exact=False`` the

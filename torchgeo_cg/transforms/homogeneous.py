@@ -8,7 +8,7 @@ are in :mod:`torchgeo_cg.transforms.rotations`).
 Convention:
     - Column vectors: a point ``p = (x, y)`` maps to ``p' = M @ [x, y, 1]^T``
       followed by the perspective divide, as in kornia. Row-vector users multiply
-      ``[x, y, 1] @ M^T`` (report eq. 4); :func:`compose_trs` builds either form.
+      ``[x, y, 1] @ M^T``; :func:`compose_trs` builds either form.
     - Coordinates are ``(x, y)`` (``(x, y, z)`` in 3D) in that order, y pointing up; positive angles
       rotate counter-clockwise. Angles are in degrees unless ``degrees=False``.
     - ``compose(A, B, C) = A @ B @ C``: the right-most matrix acts first.
@@ -291,8 +291,8 @@ def compose(*matrices: torch.Tensor) -> torch.Tensor:
     """Multiply homogeneous matrices left to right: ``compose(A, B, C) = A @ B @ C``.
 
     Convention:
-        Column vectors, so the right-most matrix acts first: the report's
-        ``T·S·R`` (eq. 3) is ``compose(T, S, R)``. Batch dims broadcast. All
+        Column vectors, so the right-most matrix acts first: the compound
+        ``T·S·R`` is ``compose(T, S, R)``. Batch dims broadcast. All
         matrices share one dtype and device (else ``TypeError`` naming two of them)
         and one size: all 3x3 (2D) or all 4x4 (3D).
 
@@ -329,7 +329,7 @@ def compose_trs(
     row_vectors: bool = False,
     degrees: bool = True,
 ) -> torch.Tensor:
-    """The report's compound transform: ``T·S·R`` (eq. 3) or ``Rᵀ·Sᵀ·Tᵀ`` (eq. 4).
+    """The compound transform ``T·S·R`` (column vectors) or ``Rᵀ·Sᵀ·Tᵀ`` (row vectors).
 
     Convention:
         With ``row_vectors=False`` the result acts on column vectors,

@@ -25,7 +25,7 @@ def _register(module: nn.Module, name: str, value: torch.Tensor, learnable: bool
 
 
 class TRSTransform(nn.Module):
-    """A (learnable) compound transform ``T·S·R`` (report eq. 3) applied to points.
+    """A (learnable) compound transform ``T·S·R`` applied to points.
 
     Convention:
         Column vectors, ``p' = T(offset)·S(scale)·R(angle)·p``; angle in degrees

@@ -89,7 +89,7 @@ def _figure_eight(path: Path) -> None:
 @figure(
     "curves",
     "curves_cycloid.png",
-    "Cycloid over [0, 4 pi] (report Figure 2, eq. 1)",
+    "Cycloid over [0, 4 pi] (report Figure 2)",
     "x = R (t - sin t), y = R (1 - cos t) with R = 1: two arches, cusps where the speed "
     "vanishes (t = 0, 2 pi, 4 pi), with the rolling wheel drawn at t = 3 pi / 2.",
 )

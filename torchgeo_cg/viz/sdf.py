@@ -35,7 +35,7 @@ def _algebraic(p: torch.Tensor) -> torch.Tensor:
     "sdf",
     "sdf_zero_level_set_torus.png",
     "The report's zero-level set of the torus (Figure 5)",
-    "Report eq. 13, f = (sqrt(x²+y²) − R)² + z² − r² with R = 1, r = 0.5, sampled with "
+    "The algebraic torus f = (sqrt(x²+y²) − R)² + z² − r² with R = 1, r = 0.5, sampled with "
     "sample_grid at 500³ in bounded memory; zero_level_set keeps the samples with "
     "|f| < 1e-4, as the report did with numpy isclose and where.",
 )

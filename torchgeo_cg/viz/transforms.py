@@ -71,8 +71,8 @@ def _basic(path: Path) -> None:
     "transforms",
     "transforms_pre_post.png",
     "Pre- versus post-multiplied compounds",
-    "T·S·R acting on column vectors (report eq. 3) and Rᵀ·Sᵀ·Tᵀ acting on row vectors "
-    "(eq. 4) land on the same points (crosses on the line); applying translation before "
+    "T·S·R acting on column vectors and Rᵀ·Sᵀ·Tᵀ acting on row vectors "
+    "land on the same points (crosses on the line); applying translation before "
     "rotation instead (dashed) rotates about the wrong pivot.",
 )
 def _pre_post(path: Path) -> None:

@@ -6,8 +6,8 @@ edge points edge midpoints, and vertex points the vertices themselves. Sharpness
 effect; holes drop their children.
 
 Convention:
-    Same vertex order and face order as :func:`~torchgeo_cg.mesh.subdivision.
-    catmull_clark_operator`: ``[vertex points (V0) | face points (F0) | edge points
+    Same vertex order and face order as :func:`~torchgeo_cg.mesh.catmull_clark_operator`:
+    ``[vertex points (V0) | face points (F0) | edge points
     (E0)]``, edges sorted by ``(min, max)``; output quads keep the parent's winding.
 """
 

@@ -2,8 +2,8 @@
 
 Convention:
     Masks are OpenSubdiv's (``Sdc::Scheme::assign*LimitTangentMasks``), applied to the
-    refined mesh of an operator exactly as :func:`~torchgeo_cg.mesh.subdivision.
-    limit_positions` applies the position masks. Edges and faces around a vertex are
+    refined mesh of an operator exactly as :func:`~torchgeo_cg.mesh.limit_positions`
+    applies the position masks. Edges and faces around a vertex are
     ordered counter-clockwise (seen from outside, faces wound counter-clockwise) from
     the start OpenSubdiv's refiner gives them when the operator's input mesh is its
     base mesh: an open fan starts at its leading boundary edge; a closed fan of a
