@@ -15,7 +15,8 @@ so a new subpackage, name, figure, guide or example needs no edit here:
   object once at its public path, grouped by topic under a summary table;
 - ``inv/*.inv``: intersphinx inventories of Python, torch, numpy and scipy, written
   from the installed packages because the build is offline (``tg_inventories``);
-- ``gallery.rst``, ``examples.rst``, ``layers.svg`` (``tg_pages``).
+- ``gallery.rst``, ``examples.rst``, ``layers.svg`` and the guides' table of contents,
+  every ``guide/*.md`` in reading order (``tg_pages``).
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx.ext.intersphi
 if os.environ.get("TORCHGEO_CG_DOCS_SOURCE", "1") != "0":
     extensions.append("sphinx.ext.viewcode")
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
-exclude_patterns = ["_build", "README.md", "_ext"]
+exclude_patterns = ["_build", "_ext", "_generated/guides_toctree.md"]
 nitpicky = True
 
 html_theme = "furo"
@@ -65,7 +66,7 @@ autodoc_inherit_docstrings = False  # not torch's text for every forward()
 autodoc_default_options = {"members": True, "show-inheritance": True}
 python_maximum_signature_line_length = 88  # long signatures: one parameter a line
 add_module_names = False
-toc_object_entries_show_parents = "hide"
+toc_object_entries = False  # the page's contents: its topics (the summary lists names)
 myst_heading_anchors = 3
 myst_enable_extensions = ["dollarmath"]
 suppress_warnings = ["myst.xref_missing"]  # the guides link files of the repository
@@ -88,6 +89,7 @@ def generate(app=None) -> None:
     _write(GENERATED / "api" / "index.rst", tg_apipages.api_index())
     _write(GENERATED / "gallery.rst", tg_pages.gallery_page(ROOT, GENERATED))
     _write(GENERATED / "examples.rst", tg_pages.examples_page(ROOT))
+    _write(GENERATED / "guides_toctree.md", tg_pages.guides_toctree(HERE))
     _write(GENERATED / "layers.svg",
            tg_pages.layers_svg(tg_pages.allowed_layers(ROOT / "tests" / "test_layers.py")))
 

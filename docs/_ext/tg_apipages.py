@@ -10,8 +10,14 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import re
+from functools import cache
+from pathlib import Path
+
+from sphinx.pycode import ModuleAnalyzer
 
 from tests.api_inventory import INVENTORY, PACKAGE, subpackages
+from tg_pages import ordered_guides
 from tg_public import PublicName, public_names, subpackage_of
 
 
@@ -27,11 +33,17 @@ def _kind(obj: object) -> str:
     return "autodata"
 
 
-def first_line(obj: object) -> str:
-    """The first sentence line of an object's docstring (its summary)."""
-    if _kind(obj) == "autodata":
-        return ""
-    doc = inspect.getdoc(obj) or ""
+def first_line(entry: PublicName) -> str:
+    """The summary of an object: its docstring's first paragraph (data: its ``#:``
+    comment, else its value when short)."""
+    if _kind(entry.obj) == "autodata":
+        docs = ModuleAnalyzer.for_module(entry.topic).find_attr_docs()
+        lines = docs.get(("", entry.name))
+        if lines:
+            return " ".join(line.strip() for line in lines).split(". ")[0].strip()
+        text = repr(entry.obj)
+        return f"``{text}``" if len(text) <= 60 else ""
+    doc = inspect.getdoc(entry.obj) or ""
     return doc.strip().split("\n\n")[0].replace("\n", " ").strip()
 
 
@@ -45,9 +57,11 @@ def _document(entry: PublicName) -> list[str]:
 
 def topic_title(module: str, parent: str) -> str:
     """A short title for a topic: its docstring's lead up to a colon, else the module name."""
+    if module == parent:
+        return "General"
     doc = (importlib.import_module(module).__doc__ or "").strip().split("\n")[0]
-    lead = doc.split(":")[0].split(" (")[0].strip().rstrip(".")
-    if 0 < len(lead) <= 48 and "`" not in lead and not lead.startswith(PACKAGE):
+    lead = re.sub(r"\s*\([^)]*\)", "", doc.split(":")[0]).strip().rstrip(".")
+    if 0 < len(lead) <= 60 and "`" not in lead and not lead.startswith(PACKAGE):
         return lead
     rel = module.removeprefix(parent + ".")
     return rel.replace("_", " ").replace(".", ": ").capitalize()
@@ -61,23 +75,35 @@ def entries_of(subpackage: str) -> dict[str, list[PublicName]]:
             topics.setdefault(entry.topic, []).append(entry)
     for items in topics.values():
         items.sort(key=lambda e: (e.order, e.name))
-    return dict(sorted(topics.items(), key=lambda kv: _topic_rank(subpackage, kv[0])))
+    return dict(sorted(topics.items(), key=lambda kv: _topic_rank(*kv)))
 
 
-def _topic_rank(subpackage: str, topic: str) -> tuple[int, str]:
-    """Topics in the order the subpackage's ``__init__`` imports them."""
-    init = importlib.import_module(subpackage)
-    names = list(getattr(init, "__all__", []))
-    positions = [names.index(n) for n in INVENTORY.get(topic, ()) if n in names]
-    return (min(positions) if positions else len(names), topic)
+@cache
+def _guides_text() -> str:
+    """The guides, in reading order."""
+    docs = Path(__file__).resolve().parents[1]
+    return "\n".join(p.read_text(encoding="utf-8") for p in ordered_guides(docs))
+
+
+def _topic_rank(topic: str, items: list[PublicName]) -> tuple[int, str]:
+    """Topics in the order a reader meets them in the guides (the first of its names to
+    appear), then the others by name."""
+    text = _guides_text()
+    found = [m.start() for e in items
+             for m in [re.search(rf"\b{re.escape(e.name)}\b", text)] if m]
+    return (min(found) if found else len(text), topic)
 
 
 def summary_table(topics: dict[str, list[PublicName]], parent: str) -> list[str]:
-    lines = [".. list-table::", "   :class: tg-summary", "   :widths: 30 70", ""]
+    """One small table per topic (name, summary), under the topic's title."""
+    lines = []
     for topic, items in topics.items():
+        lines += [f".. rubric:: {topic_title(topic, parent)}", "",
+                  ".. list-table::", "   :class: tg-summary", "   :widths: 35 65", ""]
         for entry in items:
-            lines += [f"   * - :py:obj:`~{entry.path}`", f"     - {first_line(entry.obj)}"]
-    return lines + [""]
+            lines += [f"   * - :py:obj:`~{entry.path}`", f"     - {first_line(entry)}"]
+        lines.append("")
+    return lines
 
 
 def automodule(module: str) -> list[str]:

@@ -35,6 +35,26 @@ CAPABILITIES = [
 ]
 
 
+#: the guides in reading order; a guide not listed follows, by name.
+GUIDE_ORDER = ["transforms", "estimation", "curves", "surfaces", "sdf", "marching_cubes",
+               "subdivision", "points", "neighbourhoods", "cameras", "rays"]
+
+
+def ordered_guides(docs: Path) -> list[Path]:
+    """``docs/guide/*.md`` in reading order."""
+    found = {p.stem: p for p in (docs / "guide").glob("*.md")}
+    order = [n for n in GUIDE_ORDER if n in found] + sorted(n for n in found
+                                                            if n not in GUIDE_ORDER)
+    return [found[n] for n in order]
+
+
+def guides_toctree(docs: Path) -> str:
+    """The landing page's table of contents of the guides (included by ``index.md``)."""
+    lines = ["```{toctree}", ":caption: Guides", ":maxdepth: 1", ""]
+    lines += [f"guide/{p.stem}" for p in ordered_guides(docs)]
+    return "\n".join(lines + ["```", ""])
+
+
 def _text(text: str) -> str:
     """Plain text (a caption) as reST: markup characters escaped."""
     for char in "\\*`|_":

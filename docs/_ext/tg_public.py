@@ -85,6 +85,15 @@ def _order(topic: str, name: str, obj: object) -> int:
     return 10**6 + sorted(INVENTORY[topic]).index(name) if name in INVENTORY[topic] else 10**7
 
 
+def _public_sibling(obj: object) -> str | None:
+    """``pkg._topic`` -> ``pkg.topic`` when that public module exists: the topic of an
+    object defined in a private module beside its public one."""
+    module = getattr(obj, "__module__", None) or ""
+    head, _, last = module.rpartition(".")
+    sibling = f"{head}.{last.lstrip('_')}"
+    return sibling if last.startswith("_") and sibling in INVENTORY else None
+
+
 @cache
 def public_names() -> dict[int, PublicName]:
     """``id(obj)`` -> where the object is documented, for every non-module public object."""
@@ -103,7 +112,8 @@ def public_names() -> dict[int, PublicName]:
         obj = objects[key]
         module, name = min(places, key=lambda p: (_depth(p[0]), p[0]))
         defining = [m for m, n in places if _defines(m, n, obj)]
-        topic = defining[0] if defining else max(places, key=lambda p: (_depth(p[0]), p[0]))[0]
+        topic = defining[0] if defining else _public_sibling(obj) or max(
+            places, key=lambda p: (_depth(p[0]), p[0]))[0]
         out[key] = PublicName(module, name, topic, _order(topic, name, obj), obj)
     return out
 
