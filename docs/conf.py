@@ -33,6 +33,7 @@ sys.path[:0] = [str(ROOT), str(HERE / "_ext")]
 import tg_apipages  # noqa: E402
 import tg_inventories  # noqa: E402
 import tg_pages  # noqa: E402
+
 from tests.api_inventory import PACKAGE, subpackages  # noqa: E402
 
 project = "torchgeo_cg"

@@ -200,6 +200,7 @@ def test_maintainers_map_draws_every_layer(site):
 
 def test_gallery_links_the_functions_a_figure_calls():
     from tg_pages import functions_shown
+
     from torchgeo_cg.viz import registered_figures
     from torchgeo_cg.viz.gallery import load_figure_modules
 

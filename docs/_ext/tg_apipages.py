@@ -15,10 +15,10 @@ from functools import cache
 from pathlib import Path
 
 from sphinx.pycode import ModuleAnalyzer
-
-from tests.api_inventory import INVENTORY, PACKAGE, subpackages
 from tg_pages import ordered_guides
 from tg_public import PublicName, public_names, subpackage_of
+
+from tests.api_inventory import INVENTORY, PACKAGE, subpackages
 
 
 def heading(text: str, char: str) -> list[str]:

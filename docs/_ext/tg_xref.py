@@ -18,7 +18,6 @@ import sys
 from typing import NamedTuple
 
 from sphinx.ext import intersphinx
-
 from tg_inventories import ALIASES
 from tg_public import public_path
 
