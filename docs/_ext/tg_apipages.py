@@ -61,8 +61,9 @@ def topic_title(module: str, parent: str) -> str:
         return "General"
     doc = (importlib.import_module(module).__doc__ or "").strip().split("\n")[0]
     lead = re.sub(r"\s*\([^)]*\)", "", doc.split(":")[0]).strip().rstrip(".")
-    if 0 < len(lead) <= 60 and "`" not in lead and not lead.startswith(PACKAGE):
-        return lead
+    for text in (lead, lead.split(", ")[0], lead.split(" with ")[0]):
+        if 0 < len(text) <= 70 and "`" not in text and not text.startswith(PACKAGE):
+            return text
     rel = module.removeprefix(parent + ".")
     return rel.replace("_", " ").replace(".", ": ").capitalize()
 

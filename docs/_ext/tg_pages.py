@@ -192,10 +192,10 @@ def layers_svg(allowed: dict[str, set[str] | None]) -> str:
     box_w, box_h, gap_x, gap_y = 120, 34, 28, 70
     by_row = [sorted(a for a in areas if level[a] == r) for r in range(rows)]
     width = max(len(r) for r in by_row) * (box_w + gap_x) + gap_x
-    height = rows * (box_h + gap_y) + gap_y - 40
+    height = rows * box_h + (rows - 1) * gap_y + 20
     pos = {}
     for r, names in enumerate(by_row):
-        y = height - 30 - box_h - r * (box_h + gap_y)
+        y = height - 10 - box_h - r * (box_h + gap_y)
         x0 = (width - len(names) * (box_w + gap_x) + gap_x) / 2
         for i, name in enumerate(names):
             pos[name] = (x0 + i * (box_w + gap_x), y)
