@@ -104,7 +104,15 @@ def _drop_aliases(app, env) -> None:
         del objects[name]
 
 
+def _skip_namedtuple_fields(app, what, name, obj, skip, options):
+    """A NamedTuple's fields are documented by its ``Attributes:`` section; autodoc would
+    add each again as "Alias for field number N"."""
+    doc = getattr(obj, "__doc__", None) or ""
+    return True if doc.startswith("Alias for field number") else None
+
+
 def setup(app):
     app.connect("builder-inited", generate)
+    app.connect("autodoc-skip-member", _skip_namedtuple_fields)
     app.connect("env-updated", _drop_aliases)
     return {"parallel_read_safe": True}
