@@ -3,12 +3,14 @@
 Subpackages, one per area:
 
 - :mod:`torchgeo_cg.core`: the validation helper and NaN-free numerics;
-- :mod:`torchgeo_cg.transforms`: homogeneous 2D transforms, scene graphs, estimation;
+- :mod:`torchgeo_cg.transforms`: 2D and 3D transforms, rotations, scene graphs, estimation
+  and registration;
 - :mod:`torchgeo_cg.curves`: Bezier, B-spline/NURBS, Hermite/PCHIP, parametric and 2D curves;
 - :mod:`torchgeo_cg.surfaces`: Bezier, B-spline and NURBS patches, surface fits and grid meshes;
 - :mod:`torchgeo_cg.sdf`: signed distance fields, grids and samplers;
-- :mod:`torchgeo_cg.mesh`: marching cubes, Catmull-Clark subdivision, mesh I/O;
-- :mod:`torchgeo_cg.points`: exact k nearest neighbours and the Chamfer distance;
+- :mod:`torchgeo_cg.mesh`: dense and sparse marching cubes, Catmull-Clark, Loop and bilinear
+  subdivision, limit surfaces, mesh I/O;
+- :mod:`torchgeo_cg.points`: nearest neighbours, Chamfer distance, normals, sampling, ICP;
 - :mod:`torchgeo_cg.viz` and :mod:`torchgeo_cg.cli`: the gallery and ``torchgeo-cg``.
 """
 

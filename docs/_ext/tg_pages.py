@@ -32,6 +32,8 @@ CAPABILITIES = [
     ("marching_cubes", "Marching cubes"),
     ("subdivision", "Subdivision"),
     ("points", "Point clouds"),
+    ("cameras", "Cameras"),
+    ("rays", "Rays"),
 ]
 
 
