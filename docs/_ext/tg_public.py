@@ -95,9 +95,10 @@ def _public_sibling(obj: object) -> str | None:
 
 
 @cache
-def public_names() -> dict[int, PublicName]:
-    """``id(obj)`` -> where the object is documented, for every non-module public object."""
-    homes: dict[int, list[tuple[str, str]]] = {}
+def public_names() -> dict[tuple[int, str], PublicName]:
+    """``(id(obj), name)`` -> where the object is documented, for every non-module public
+    object (an object exported under two names is documented under each)."""
+    homes: dict[tuple[int, str], list[str]] = {}
     objects: dict[int, object] = {}
     for module, names in INVENTORY.items():
         mod = importlib.import_module(module)
@@ -105,16 +106,25 @@ def public_names() -> dict[int, PublicName]:
             obj = getattr(mod, name)
             if inspect.ismodule(obj):
                 continue
-            homes.setdefault(id(obj), []).append((module, name))
+            homes.setdefault((id(obj), name), []).append(module)
             objects[id(obj)] = obj
     out = {}
-    for key, places in homes.items():
+    for (key, name), places in homes.items():
         obj = objects[key]
-        module, name = min(places, key=lambda p: (_depth(p[0]), p[0]))
-        defining = [m for m, n in places if _defines(m, n, obj)]
+        module = min(places, key=lambda m: (_depth(m), m))
+        defining = [m for m in places if _defines(m, name, obj)]
         topic = defining[0] if defining else _public_sibling(obj) or max(
-            places, key=lambda p: (_depth(p[0]), p[0]))[0]
-        out[key] = PublicName(module, name, topic, _order(topic, name, obj), obj)
+            places, key=lambda m: (_depth(m), m))
+        out[key, name] = PublicName(module, name, topic, _order(topic, name, obj), obj)
+    return out
+
+
+@cache
+def _path_of_id() -> dict[int, str]:
+    out: dict[int, str] = {}
+    for (key, _), entry in sorted(public_names().items(),
+                                  key=lambda kv: (_depth(kv[1].module), kv[1].path)):
+        out.setdefault(key, entry.path)
     return out
 
 
@@ -122,8 +132,7 @@ def public_path(obj: object) -> str | None:
     """The documented path of a public object (a module: its name), else None."""
     if inspect.ismodule(obj):
         return obj.__name__ if obj.__name__ in INVENTORY else None
-    entry = public_names().get(id(obj))
-    return entry.path if entry is not None else None
+    return _path_of_id().get(id(obj))
 
 
 def subpackage_of(module: str) -> str:
