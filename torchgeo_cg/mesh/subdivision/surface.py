@@ -42,6 +42,17 @@ import torch
 from torchgeo_cg.core.check import check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.subdivision._creasing import effective_sharpness
+from torchgeo_cg.mesh.subdivision._ev_patches import (
+    CHILD_A,
+    CHILD_B,
+    TRI_A,
+    TRI_B,
+    ev_face_corners,
+    ev_tables,
+    ev_weights,
+    ring_slots,
+    rotate_to_corner,
+)
 from torchgeo_cg.mesh.subdivision._limit_assembly import (
     Patches,
     PointBlock,
@@ -74,13 +85,6 @@ __all__ = [
     "LimitSurfaceSample", "LimitStencils", "SurfaceSamples", "limit_stencils", "limit_surface",
     "sample_limit_surface",
 ]
-
-# child quad p of a quad: its local (s', t') = A_p (s, t) + b_p (module docstring's layout)
-_CHILD_A = ((2, 0, 0, 2), (0, 2, -2, 0), (-2, 0, 0, -2), (0, -2, 2, 0))
-_CHILD_B = ((0, 0), (0, 2), (2, 2), (2, 0))
-# child triangle p of a triangle (Loop's child order: corners 0, 1, 2, then the middle)
-_TRI_A = ((2, 0, 0, 2), (0, 2, -2, -2), (-2, -2, 2, 0), (2, 2, -2, 0))
-_TRI_B = ((0, 0), (0, 2), (2, 0), (-1, 1))
 
 
 class LimitSurfaceSample(NamedTuple):
@@ -224,10 +228,10 @@ def _to_child(s, t, jac, scheme="catmark"):
     hi_s, hi_t = s >= 0.5, t >= 0.5
     if scheme == "catmark":
         p = torch.where(hi_t, torch.where(hi_s, 2, 3), torch.where(hi_s, 1, 0))
-        table_a, table_b = _CHILD_A, _CHILD_B
+        table_a, table_b = CHILD_A, CHILD_B
     else:
         p = torch.where(hi_s, 1, torch.where(hi_t, 2, torch.where(s + t <= 0.5, 0, 3)))
-        table_a, table_b = _TRI_A, _TRI_B
+        table_a, table_b = TRI_A, TRI_B
     A = torch.tensor(table_a, dtype=s.dtype, device=s.device).reshape(4, 2, 2)[p]
     b = torch.tensor(table_b, dtype=s.dtype, device=s.device)[p]
     st = torch.einsum("nij,nj->ni", A, torch.stack([s, t], -1)) + b
@@ -394,6 +398,36 @@ def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
     out.append(PointBlock(sample, face_local, _packed(s, t, jac), weights, patches))
 
 
+def _emit_last_level(out, level, topo, twin, sharp_e, sharp_v, points, boundary, num_cols):
+    """The points still in irregular faces at the last level: exact patches in the faces
+    of one isolated smooth extraordinary vertex, end caps elsewhere."""
+    scheme = "catmark" if level.faces.shape[1] == 4 else "loop"
+    corner = ev_face_corners(topo, twin, level.faces, sharp_e, sharp_v, scheme)[points[1]]
+    ev = corner >= 0
+    if bool(ev.any()):
+        _emit_ev_patches(out, level, topo, twin, corner[ev], *(x[ev] for x in points),
+                         num_cols)
+    if not bool(ev.all()):
+        _emit_end_caps(out, level, boundary, *(x[~ev] for x in points), num_cols)
+
+
+def _emit_ev_patches(out, level, topo, twin, corner, sample, face, s, t, jac, num_cols):
+    """The blocks of the points ``sample`` in EV faces ``face`` (their EV at ``corner``),
+    one per valence: Stam's exact evaluation on the faces' slots."""
+    scheme = "catmark" if level.faces.shape[1] == 4 else "loop"
+    valence = topo.valence_v[level.faces[face, corner]]
+    corner_f = torch.zeros(level.faces.shape[0], dtype=torch.long, device=face.device)
+    corner_f[face] = corner
+    for N in torch.unique(valence).tolist():  # a loop over valences
+        m = valence == N
+        fu, face_local = _local_faces(face[m], level.faces.shape[0])
+        slots = ring_slots(topo, twin, fu, corner_f[fu], N, scheme)
+        patches = _face_matrices(slots, None, (level.chain,), num_cols, s.dtype)
+        rs, rt, rjac = rotate_to_corner(s[m], t[m], jac[m], corner[m], scheme)
+        weights = ev_weights(ev_tables(N, scheme, s.dtype, s.device), scheme)
+        out.append(PointBlock(sample[m], face_local, _packed(rs, rt, rjac), weights, patches))
+
+
 def _check_level(max_level) -> int:
     if isinstance(max_level, bool) or not isinstance(max_level, int) or max_level < 1:
         raise ValueError(f"max_level: expected an int >= 1, got {max_level!r}")
@@ -517,7 +551,8 @@ def _build(operator, face_ids, uv, crease_method, max_level):
         rest = ~regular
         if depth == max_level:
             if bool(rest.any()):
-                _emit_end_caps(out, level, boundary, *(x[rest] for x in points), V0)
+                _emit_last_level(out, level, topo, twin, sharp_e, sharp_v,
+                                 [x[rest] for x in points], boundary, V0)
             break
         sample, face, s, t, jac = (x[rest] for x in points)
         if sample.numel() == 0:
