@@ -398,19 +398,6 @@ def _emit_end_caps(out, level, boundary, sample, face, s, t, jac, num_cols):
     out.append(PointBlock(sample, face_local, _packed(s, t, jac), weights, patches))
 
 
-def _emit_last_level(out, level, topo, twin, sharp_e, sharp_v, points, boundary, num_cols):
-    """The points still in irregular faces at the last level: exact patches in the faces
-    of one isolated smooth extraordinary vertex, end caps elsewhere."""
-    scheme = "catmark" if level.faces.shape[1] == 4 else "loop"
-    corner = ev_face_corners(topo, twin, level.faces, sharp_e, sharp_v, scheme)[points[1]]
-    ev = corner >= 0
-    if bool(ev.any()):
-        _emit_ev_patches(out, level, topo, twin, corner[ev], *(x[ev] for x in points),
-                         num_cols)
-    if not bool(ev.all()):
-        _emit_end_caps(out, level, boundary, *(x[~ev] for x in points), num_cols)
-
-
 def _emit_ev_patches(out, level, topo, twin, corner, sample, face, s, t, jac, num_cols):
     """The blocks of the points ``sample`` in EV faces ``face`` (their EV at ``corner``),
     one per valence: Stam's exact evaluation on the faces' slots."""
@@ -548,11 +535,15 @@ def _build(operator, face_ids, uv, crease_method, max_level):
         if bool(regular.any()):
             emit = _emit_triangles if loop else _emit_patches
             emit(out, level, topo, twin, sharp_e, *(x[regular] for x in points), V0)
-        rest = ~regular
+        corner = ev_face_corners(topo, twin, level.faces, sharp_e, sharp_v,
+                                 operator.scheme)[face]
+        ev = ~regular & (corner >= 0)
+        if bool(ev.any()):
+            _emit_ev_patches(out, level, topo, twin, corner[ev], *(x[ev] for x in points), V0)
+        rest = ~regular & ~ev
         if depth == max_level:
             if bool(rest.any()):
-                _emit_last_level(out, level, topo, twin, sharp_e, sharp_v,
-                                 [x[rest] for x in points], boundary, V0)
+                _emit_end_caps(out, level, boundary, *(x[rest] for x in points), V0)
             break
         sample, face, s, t, jac = (x[rest] for x in points)
         if sample.numel() == 0:
