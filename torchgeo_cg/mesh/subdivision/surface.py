@@ -21,7 +21,7 @@ Convention:
     - A face with one smooth interior extraordinary vertex (any valence) and smooth
       regular other corners, with no sharp edge at its corners, is evaluated exactly at
       any distance from that vertex, as soon as refinement isolates it (Stam's
-      evaluation, :mod:`~torchgeo_cg.mesh.subdivision._ev_patches`): positions and
+      evaluation, in ``mesh/subdivision/_ev_patches.py``): positions and
       normals are continuous across every edge there and equal the limit's to rounding
       (measured in float64 next to vertices of valence 3 to 16: 1e-11 or better).
       The ptex derivatives there scale like ``(2 lam)**n`` at ``2**-n`` from the vertex
