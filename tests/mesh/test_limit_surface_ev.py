@@ -18,6 +18,7 @@ from torchgeo_cg.mesh import (
     loop_operator,
 )
 from torchgeo_cg.mesh.data import rabbit
+from torchgeo_cg.mesh.subdivision._ev_patches import ev_tables as _ev_tables
 
 F64 = torch.float64
 LEVEL = 8  # the default max_level: the points below lie within 2**-LEVEL of the vertex
@@ -250,3 +251,27 @@ def test_gradcheck_near_the_vertex():
     v = verts.clone().requires_grad_(True)
     assert torch.autograd.gradcheck(normals, (v,))
     torch.testing.assert_close(normals(verts), limit_surface(op, verts, fid, uv).normals)
+
+
+@pytest.mark.parametrize("scheme", ["catmark", "loop"])
+@pytest.mark.parametrize("valence", [3, 5, 8, 12, 30])
+def test_ring_tables_against_the_closed_forms(scheme, valence):
+    """The subdominant eigenvalue of the ring's subdivision matrix against its closed form
+    (Stam 1998; Loop: ``3/8 + 1/4 cos(2 pi / N)``), the limit mask a
+    left eigenvector (``l^T Q = 0``), ``Q 1 = 0``, the children's patch rows affine, and
+    ``Q^inf`` a rank-2 projector that ``Q`` fixes."""
+    P, l_row, lam, powers, Pi = _ev_tables(valence, scheme, F64, "cpu")
+    c = math.cos(2 * math.pi / valence)
+    if scheme == "catmark":
+        want = (5 + c + math.cos(math.pi / valence) * math.sqrt(2 * (9 + c))) / 16
+    else:
+        want = 3 / 8 + c / 4
+    assert abs(lam - want) < 1e-13
+    Q = powers[0]
+    torch.testing.assert_close(l_row @ Q, torch.zeros_like(l_row), atol=1e-13, rtol=0)
+    torch.testing.assert_close(Q.sum(1), torch.zeros_like(l_row), atol=1e-13, rtol=0)
+    torch.testing.assert_close(l_row.sum(), torch.tensor(1.0, dtype=F64))
+    torch.testing.assert_close(P.sum(-1), torch.ones(P.shape[:2], dtype=F64))
+    torch.testing.assert_close(Pi @ Pi, Pi, atol=1e-12, rtol=0)
+    torch.testing.assert_close(Q @ Pi, Pi, atol=1e-12, rtol=0)
+    assert torch.linalg.matrix_rank(Pi).item() == 2

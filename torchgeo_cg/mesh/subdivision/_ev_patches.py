@@ -79,7 +79,7 @@ def _regular(scheme: str) -> int:
 def ev_face_corners(topo, twin, faces, sharp_e, sharp_v, scheme: str) -> torch.Tensor:
     """``(F,)`` long: the corner of each EV face holding its extraordinary vertex, ``-1``
     for other faces (module docstring)."""
-    k, reg = faces.shape[1], _regular(scheme)
+    reg = _regular(scheme)
     if faces.shape[0] == 0:
         return torch.zeros(0, dtype=torch.long, device=faces.device)
     _, n_inf, n_semi = sharp_edge_counts(topo, sharp_e)
@@ -87,11 +87,12 @@ def ev_face_corners(topo, twin, faces, sharp_e, sharp_v, scheme: str) -> torch.T
     smooth = (sharp_v == 0) & (n_inf == 0) & (n_semi == 0) & (val == nf)
     ev_v = smooth & (val != reg) & (val >= 3)
     reg_v = smooth & (val == reg)
-    ev_c, reg_c = ev_v[faces], reg_v[faces]  # (F, k)
+    # every edge at the vertex has a consistently wound twin (the walks need them)
+    twinned = torch.ones_like(smooth).scatter_reduce(0, topo.vert_c, twin >= 0, "amin")
+    ev_c, reg_c = (ev_v & twinned)[faces], (reg_v & twinned)[faces]  # (F, k)
     one = (ev_c.sum(1) == 1) & ((ev_c | reg_c).all(1))
     corner = torch.argmax(ev_c.to(torch.int8), 1)
-    closed = twin.reshape(-1, k).ge(0).all(1)  # every edge of the face has its twin
-    return torch.where(one & closed, corner, -1)
+    return torch.where(one, corner, -1)
 
 
 def _fan(topo, twin, h0: torch.Tensor, N: int, k: int, scheme: str) -> torch.Tensor:
