@@ -6,9 +6,11 @@ the vertex itself the limit masks of :func:`limit_frames` (tested against OpenSu
 
 import math
 
+import numpy as np
 import pytest
 import torch
 
+from tests.mesh._osd import run_osd
 from torchgeo_cg.mesh import (
     apply_stencils,
     catmull_clark_operator,
@@ -275,3 +277,30 @@ def test_ring_tables_against_the_closed_forms(scheme, valence):
     torch.testing.assert_close(Pi @ Pi, Pi, atol=1e-12, rtol=0)
     torch.testing.assert_close(Q @ Pi, Pi, atol=1e-12, rtol=0)
     assert torch.linalg.matrix_rank(Pi).item() == 2
+
+
+@pytest.mark.parametrize("scheme", ["catmark", "loop"])
+def test_matches_opensubdiv_next_to_high_valence_vertices(scheme):
+    """OpenSubdiv's ``Far::PatchTable`` run live (regular patches after 10 levels of
+    isolation: exact there), at points of the faces around the valence-8 and -9 vertices
+    of the triangulated rabbit, 2**-5 to 1/2 of a ptex face from the vertex."""
+    verts, faces = rabbit_triangles()
+    rows = corner_frames(scheme, verts, faces, 8) + corner_frames(scheme, verts, faces, 9)
+    g = torch.Generator().manual_seed(3)
+    pick = torch.randint(0, len(rows), (200,), generator=g)
+    w = 2.0 ** -5 + (0.5 - 2.0 ** -5) * torch.rand(200, 2, generator=g, dtype=F64)
+    o = torch.tensor([rows[i][1] for i in pick.tolist()], dtype=F64)
+    a = torch.tensor([rows[i][2][0] for i in pick.tolist()], dtype=F64)
+    b = torch.tensor([rows[i][2][1] for i in pick.tolist()], dtype=F64)
+    fid = torch.tensor([rows[i][0] for i in pick.tolist()])
+    uv = (o + w[:, :1] * a + w[:, 1:] * b).clamp(0, 1)
+    ours = limit_surface(operator(scheme, verts, faces), verts, fid, uv)
+    ref = run_osd(verts.tolist(), faces.tolist(), "patch 10", scheme=scheme,
+                  samples=np.c_[fid.numpy(), uv.numpy()])
+    # OpenSubdiv's derivatives on Catmark's sub-faces of non-quads are twice ours (see
+    # test_limit_surface's live test); positions and normals compare directly
+    scale = float(verts.abs().max())
+    np.testing.assert_allclose(ours.positions.numpy(), ref[:, :3], atol=1e-12 * scale, rtol=0)
+    half = 0.5 if scheme == "catmark" else 1.0
+    np.testing.assert_allclose(ours.du.numpy(), half * ref[:, 3:6], atol=1e-11 * scale, rtol=0)
+    np.testing.assert_allclose(ours.dv.numpy(), half * ref[:, 6:9], atol=1e-11 * scale, rtol=0)
