@@ -16,15 +16,16 @@ Convention:
     Loop ``2**n (s + t)``, in ``[1/2, 1)``) in child ``p`` of that level has the weights
     ``b(s', t') P_p A^n`` (Stam 1998: the B-spline or box-spline basis at the point's
     coordinates in the child). Instead of ``A``'s eigenvectors, ``A^n = 1 l^T + lam^n
-    Q^n`` (``n >= 1``) with ``l`` the EV's limit mask, ``lam`` the subdominant eigenvalue and ``Q =
-    (A - 1 l^T) / lam`` (spectral radius 1, powers by squaring), so the derivatives,
-    which grow or shrink like ``(2 lam)^n``, keep their relative accuracy at any depth.
-    At the EV itself the derivatives are unbounded (``lam > 1/2``) or zero (Catmark
-    valence 3); there ``du``, ``dv`` are the limits of the derivatives at ``(2^-n, 0)``
-    and ``(0, 2^-n)`` (the child corners on the two edges) divided by ``(2 lam)^n``:
-    tangent to the two edges, so ``du x dv`` is the exact limit normal. ``A``, ``P_p``,
-    ``l`` and ``lam`` are computed once per scheme and valence, in float64, by
-    subdividing a template ring with the scheme's own operator.
+    Q^n`` (``n >= 1``) with ``l`` the EV's limit mask, ``lam`` the subdominant
+    eigenvalue and ``Q = (A - 1 l^T) / lam`` (spectral radius 1, powers by squaring),
+    so the derivatives, which grow or shrink like ``(2 lam)^n``, keep their relative
+    accuracy at any depth. At the EV itself the derivatives are unbounded (``lam >
+    1/2``) or zero (``lam < 1/2``: Catmark's valence 3, Loop's 3 to 5); there ``du``,
+    ``dv`` are the limits of the derivatives at ``(2^-n, 0)`` and ``(0, 2^-n)`` (the
+    child corners on the two edges) divided by ``(2 lam)^n``: tangent to the two edges,
+    so ``du x dv`` is the exact limit normal. ``A``, ``P_p``, ``l`` and ``lam`` are
+    computed once per scheme and valence, in float64, by subdividing a template ring
+    with the scheme's own operator.
 """
 
 from __future__ import annotations
