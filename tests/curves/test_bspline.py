@@ -182,6 +182,22 @@ def test_insert_knot_leaves_the_curve_unchanged(degree):
         insert_knot(cp, float(knots[count]) + 1, degree, knots)
 
 
+def test_insert_knot_takes_a_number_in_the_knots_dtype():
+    # a Python number is inserted in the knots' dtype, not rounded through float32
+    knots = torch.tensor([0, 0, 0, 0, 0.5, 0.8, 1, 1, 1, 1], dtype=F64)
+    cp = torch.randn(6, 2, generator=torch.Generator().manual_seed(0), dtype=F64)
+    new = insert_knot(cp, 0.37, 3, knots)
+    assert new.knots.dtype == F64 and bool((new.knots == 0.37).any())
+    tck = scipy_interpolate.insert(0.37, (knots.numpy(), cp.T.numpy(), 3))
+    np.testing.assert_array_equal(new.knots.numpy(), tck[0])
+    twice = insert_knot(cp, 0.8, 3, knots, times=2)
+    assert int((twice.knots == 0.8).sum()) == 3  # the multiplicity of 0.8 grows
+    # a tensor value takes part in the dtype promotion, as t does in bspline
+    promoted = insert_knot(cp.float(), torch.tensor(0.37, dtype=F64), 3, knots.float())
+    assert promoted.knots.dtype == F64 and bool((promoted.knots == 0.37).any())
+    assert insert_knot(cp.float(), 0.37, 3).knots.dtype == torch.float32
+
+
 @pytest.mark.parametrize("degree", [1, 2, 3, 4])
 @pytest.mark.parametrize("shared", [True, False])
 def test_bezier_segments_equal_the_curve(degree, shared):
