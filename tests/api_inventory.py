@@ -57,11 +57,15 @@ INVENTORY: dict[str, list[str]] = {
         "hypot",
         "index_to_world",
         "power_of_two_scale",
+        "records_graph",
         "safe_div",
         "safe_norm",
         "safe_sqrt",
         "working_dtype",
         "world_to_index",
+    ],
+    "torchgeo_cg.core.autograd": [
+        "records_graph",
     ],
     "torchgeo_cg.core.check": [
         "ShapeError",

@@ -35,6 +35,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.curves.bernstein import check_degree
@@ -169,8 +170,7 @@ def evaluate_local(control_points, basis, spans, degree: int) -> torch.Tensor:
     batch = torch.broadcast_shapes(control_points.shape[:-2], spans.shape[:-1])
     cp = control_points.expand(*batch, k, d).reshape(-1, k, d)  # (B, K, D)
     spans = spans.expand(*batch, spans.shape[-1]).reshape(cp.shape[0], -1)  # (B, T)
-    inplace = not (torch.is_grad_enabled() and (cp.requires_grad or any(
-        b.requires_grad for b in basis)))
+    inplace = not records_graph(cp, *basis)
     out = None
     first = spans - degree
     for j in range(degree + 1):  # loop over the p + 1 local control points
@@ -255,7 +255,7 @@ def evaluate_table(table, knots, t, degree: int, dims: int) -> torch.Tensor:
         knots = knots.expand(*batch, knots.shape[-1]).reshape(-1, knots.shape[-1])
     low, high = span_limits(knots, degree)  # (curves or 1, 1)
     count, length = t_flat.shape
-    record = torch.is_grad_enabled() and (table.requires_grad or t.requires_grad)
+    record = records_graph(table, t)
     step = count if record else max(1, CHUNK // max(length, 1))
     out = table.new_empty(dims, count, length)
     for c in range(0, count, step):  # loop over chunks of curves

@@ -33,6 +33,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_module_dtype
 
@@ -586,7 +587,7 @@ class PchipInterpolator(nn.Module):
         self.register_buffer("knots", x, persistent=False)
         self.register_buffer("values", y, persistent=False)
         y_flat = y.expand(*batch, k).reshape(-1, k)  # (B, K)
-        needs_grad = torch.is_grad_enabled() and (x.requires_grad or y.requires_grad)
+        needs_grad = records_graph(x, y)
         if x.dim() == 1 and not needs_grad:
             # Shared knots, no autograd: build the knots-first table in place.
             table = y.new_empty(2 * k, y_flat.shape[0])  # (2K, B): values, then tangents

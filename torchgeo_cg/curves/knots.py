@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.curves.bernstein import check_degree
 
@@ -260,7 +261,7 @@ def local_basis_list(knots, t, spans, degree: int, order: int) -> list[list[torc
 
 def _inplace(*tensors: torch.Tensor) -> bool:
     """In-place arithmetic is safe: nothing here needs the intermediates for a gradient."""
-    return not (torch.is_grad_enabled() and any(x.requires_grad for x in tensors))
+    return not records_graph(*tensors)
 
 
 def _gather1(knots: torch.Tensor, index: torch.Tensor) -> torch.Tensor:

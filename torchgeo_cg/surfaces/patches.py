@@ -37,6 +37,7 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_div, safe_norm
 from torchgeo_cg.curves.bernstein import check_degree
@@ -145,8 +146,7 @@ def _tensor_product(grid, u, v, knots_u, knots_v, p, q, derivatives: bool):
     knots_u = knots_u.expand(*batch, knots_u.shape[-1])
     knots_v = knots_v.expand(*batch, knots_v.shape[-1])
     u, v = u.expand(*batch, n), v.expand(*batch, n)
-    record = torch.is_grad_enabled() and any(
-        x.requires_grad for x in (grid, u, v, knots_u, knots_v))
+    record = records_graph(grid, u, v, knots_u, knots_v)
     step = n if record else max(1, CHUNK // max(1, batch.numel()))
     keys = [(0, 0), (1, 0), (0, 1), (1, 1)] if derivatives else [(0, 0)]
     out = {}
@@ -176,9 +176,7 @@ def _patch_chunk(planes, knots_u, knots_v, u, v, p, q, cols, e, derivatives):
     bu = local_basis_list(knots_u, u, su, p, order)  # [order][i] (*, n)
     bv = local_basis_list(knots_v, v, sv, q, order)
     base = (su - p) * cols + (sv - q)  # flat index of the local corner
-    inplace = not (torch.is_grad_enabled() and (planes.requires_grad or u.requires_grad
-                                                or v.requires_grad or knots_u.requires_grad
-                                                or knots_v.requires_grad))
+    inplace = not records_graph(planes, u, v, knots_u, knots_v)
     sums: dict = {}
     for i in range(p + 1):  # loop over the p + 1 local rows
         along = [None] * (order + 1)

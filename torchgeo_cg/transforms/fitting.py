@@ -29,6 +29,7 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
@@ -249,9 +250,7 @@ def fit_transform(
     else:
         theta = first_order(optimizer, fn, theta, prob, objective, steps, lr, tol, patience,
                              bar, history)
-        if torch.is_grad_enabled() and any(
-            t.requires_grad for t in (src, dst, weights) if t is not None
-        ):
+        if records_graph(src, dst, weights):
             theta = gauss_newton_step(fn, theta, prob, objective)
     bar.close()
     hn = fn(theta)

@@ -27,6 +27,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape, check_tensor
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.subdivision._spmm import csr_tensor, spmm_batched
@@ -205,7 +206,7 @@ class _StencilApply(torch.autograd.Function):
     @staticmethod
     def backward(ctx, grad_brd):
         crow, col, weights, crow_t, col_t, weights_t = ctx.saved_tensors
-        if not torch.is_grad_enabled() and _plain_eager():  # no double backward, no transform
+        if not records_graph(grad_brd) and _plain_eager():  # no double backward, no transform
             grad_x = _stencil_matmul_eager(crow_t, col_t, weights_t, crow, grad_brd)
         else:
             grad_x = _StencilApply.apply(crow_t, col_t, weights_t, crow, col, weights, grad_brd)
@@ -239,7 +240,7 @@ class _StencilApplyEager(torch.autograd.Function):
 
 
 def _plain_eager() -> bool:
-    return not (torch.compiler.is_compiling() or torch._C._are_functorch_transforms_active())
+    return not (torch.compiler.is_compiling() or records_graph())  # no tensor: a transform
 
 
 def check_out(out: Tensor, shape: tuple[int, ...], like: Tensor) -> None:
@@ -263,12 +264,13 @@ def check_out(out: Tensor, shape: tuple[int, ...], like: Tensor) -> None:
         raise TypeError(f"out: expected dtype {like.dtype} (the input's), got {out.dtype}")
     if out.device != like.device:
         raise ValueError(f"out: expected device {like.device} (the input's), got {out.device}")
-    if torch.is_grad_enabled() and (like.requires_grad or out.requires_grad):
-        raise ValueError("out: writing into a buffer does not support autograd (an input or "
-                         "out requires grad); call without out=, or under torch.no_grad()")
     if not _plain_eager():
         raise ValueError("out: not supported under torch.compile or torch.func transforms; "
                          "call without out=")
+    if records_graph(like, out):
+        raise ValueError("out: writing into a buffer does not support autograd (an input or "
+                         "out requires grad or carries a forward-mode tangent); call without "
+                         "out=, or under torch.no_grad()")
 
 
 def apply_stencils(stencils: StencilMatrix, x: Tensor, *, out: Tensor | None = None) -> Tensor:
