@@ -33,12 +33,12 @@ INVENTORY: dict[str, list[str]] = {
         "transforms",
     ],
     "torchgeo_cg.cli": ["CommandError"],
-    "torchgeo_cg.cli.bench": [],
-    "torchgeo_cg.cli.fit_shapes": [],
-    "torchgeo_cg.cli.gallery": [],
-    "torchgeo_cg.cli.info": [],
+    "torchgeo_cg.cli.bench": ["add_parser"],
+    "torchgeo_cg.cli.fit_shapes": ["add_parser"],
+    "torchgeo_cg.cli.gallery": ["add_parser"],
+    "torchgeo_cg.cli.info": ["add_parser"],
     "torchgeo_cg.cli.main": ["main"],
-    "torchgeo_cg.cli.sdf_samples": [],
+    "torchgeo_cg.cli.sdf_samples": ["add_parser"],
     "torchgeo_cg.core": [
         "ShapeError",
         "Volume",
@@ -75,6 +75,7 @@ INVENTORY: dict[str, list[str]] = {
         "check_generator",
         "check_shape",
         "check_tensor",
+        "format_shape",
     ],
     "torchgeo_cg.core.coerce": [
         "as_tensor_like",
@@ -165,7 +166,10 @@ INVENTORY: dict[str, list[str]] = {
         "split_bezier",
         "uniform_knots",
     ],
-    "torchgeo_cg.curves.bernstein": ["bernstein_basis"],
+    "torchgeo_cg.curves.bernstein": [
+        "bernstein_basis",
+        "check_degree",
+    ],
     "torchgeo_cg.curves.bezier": [
         "BezierCurve",
         "SplitResult",
@@ -234,6 +238,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.curves.nurbs": [
         "NURBSCurve",
+        "check_weights",
         "nurbs",
         "nurbs_derivative",
     ],
@@ -258,6 +263,7 @@ INVENTORY: dict[str, list[str]] = {
         "MarchingCubesResult",
         "Mesh",
         "MeshEdges",
+        "SchemeOptions",
         "StencilMatrix",
         "SubdivisionOperator",
         "SubdivisionTags",
@@ -353,6 +359,7 @@ INVENTORY: dict[str, list[str]] = {
         "LimitStencils",
         "LimitSurfaceSample",
         "LoopSubdivision",
+        "SchemeOptions",
         "StencilMatrix",
         "SubdivisionOperator",
         "SubdivisionTags",
@@ -379,7 +386,6 @@ INVENTORY: dict[str, list[str]] = {
         "catmull_clark_operator",
     ],
     "torchgeo_cg.mesh.subdivision.face_varying": [
-        "FVAR_INTERPOLATIONS",
         "FaceVaryingSubdivision",
         "face_varying_operator",
         "face_varying_subdivide",
@@ -398,6 +404,13 @@ INVENTORY: dict[str, list[str]] = {
         "SubdivisionOperator",
         "apply_operator",
     ],
+    "torchgeo_cg.mesh.subdivision.options": [
+        "BOUNDARY_MODES",
+        "CREASE_METHODS",
+        "FVAR_INTERPOLATIONS",
+        "SchemeOptions",
+        "TRIANGLE_RULES",
+    ],
     "torchgeo_cg.mesh.subdivision.stencils": [
         "StencilMatrix",
         "apply_stencils",
@@ -413,6 +426,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.mesh.subdivision.tags": [
         "INFINITELY_SHARP",
         "SubdivisionTags",
+        "check_tags",
     ],
     "torchgeo_cg.points": [
         "ChamferDistance",
@@ -628,6 +642,7 @@ INVENTORY: dict[str, list[str]] = {
         "HartleyNormalization",
         "HomogeneousTransform",
         "HomographyModel",
+        "LossOptions",
         "Orbit",
         "Prismatic",
         "RegistrationResult",
@@ -636,6 +651,7 @@ INVENTORY: dict[str, list[str]] = {
         "RobustFit",
         "SceneGraph",
         "ShapeFit",
+        "SolverOptions",
         "TRSTransform",
         "TransformFit",
         "WarpedImage",
@@ -719,6 +735,8 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.transforms.fitting": [
         "FitResult",
         "HomographyModel",
+        "LossOptions",
+        "SolverOptions",
         "fit_transform",
     ],
     "torchgeo_cg.transforms.homogeneous": [
@@ -767,6 +785,7 @@ INVENTORY: dict[str, list[str]] = {
         "ShapeFit",
         "fit_report_shapes",
         "format_report_table",
+        "format_transform",
         "report_shapes",
     ],
     "torchgeo_cg.transforms.robust": [

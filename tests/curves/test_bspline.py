@@ -96,15 +96,15 @@ def test_per_curve_knots_and_parameters_match_a_loop():
 @pytest.mark.parametrize("kind", ["clamped", "unclamped", "repeated"])
 @pytest.mark.parametrize("many", [True, False])  # by Bezier segments / by the basis
 def test_per_curve_knots_match_scipy_on_both_paths(degree, kind, many, monkeypatch):
-    bspline_module = __import__("torchgeo_cg.curves.bspline", fromlist=["CHUNK"])
-    monkeypatch.setattr(bspline_module, "CHUNK", 40)  # several chunks of curves
+    bspline_module = __import__("torchgeo_cg.curves.bspline", fromlist=["_CHUNK"])
+    monkeypatch.setattr(bspline_module, "_CHUNK", 40)  # several chunks of curves
     g = torch.Generator().manual_seed(100 + degree)
     count, curves = degree + 6, 5
     knots = torch.stack([_knots(kind, count, degree, g) for _ in range(curves)])
     cp = torch.randn(curves, count, 3, generator=g, dtype=F64)
     lo, hi = knots[:, degree:degree + 1], knots[:, count:count + 1]
     size = 37 if many else 1
-    assert (size * bspline_module.SEGMENT_RATIO >= count - degree) == many
+    assert (size * bspline_module._SEGMENT_RATIO >= count - degree) == many
     t = lo + (hi - lo) * torch.rand(curves, size, generator=g, dtype=F64)
     if many:  # every knot of the domain, where spans change
         t = torch.cat([t, knots[:, degree:count + 1]], -1)

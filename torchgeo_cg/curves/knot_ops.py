@@ -25,8 +25,9 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.curves._bspline_core import prepare_bspline
 from torchgeo_cg.curves.bernstein import check_degree
-from torchgeo_cg.curves.bspline import BSplineControls, bspline, prepare_bspline
+from torchgeo_cg.curves.bspline import BSplineControls, bspline
 
 __all__ = ["BezierSegments", "insert_knot", "bspline_to_bezier", "bezier_to_bspline"]
 

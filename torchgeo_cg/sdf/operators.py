@@ -56,7 +56,7 @@ __all__ = [
     "Scale",
 ]
 
-SDF = Callable[[torch.Tensor], torch.Tensor]
+_SDF = Callable[[torch.Tensor], torch.Tensor]
 
 
 def _values(*values: torch.Tensor) -> None:
@@ -235,7 +235,7 @@ def _built(value, name: str) -> torch.Tensor:
     return as_tensor_like(value, torch.empty((), dtype=torch.float64), name)
 
 
-def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
+def translate(sdf_fn: _SDF, offset: torch.Tensor) -> _SDF:
     """Move a shape by ``offset``: returns ``p -> sdf_fn(p - offset)`` (exact).
 
     Convention:
@@ -271,7 +271,7 @@ def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
     return moved
 
 
-def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
+def rotate(sdf_fn: _SDF, world_from_local: torch.Tensor) -> _SDF:
     """Rotate a shape: returns ``p -> sdf_fn(R^T p)`` for ``R = world_from_local`` (exact).
 
     Convention:
@@ -312,7 +312,7 @@ def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
     return rotated
 
 
-def scale(sdf_fn: SDF, factor: torch.Tensor | float) -> SDF:
+def scale(sdf_fn: _SDF, factor: torch.Tensor | float) -> _SDF:
     """Uniformly scale a shape about the origin: ``p -> s * sdf_fn(p / s)`` (exact).
 
     Convention:

@@ -57,7 +57,7 @@ __all__ = [
     "Annulus",
 ]
 
-Number = float | int
+_Number = float | int
 
 
 def _norm(v: torch.Tensor) -> torch.Tensor:
@@ -80,7 +80,7 @@ def _points(points: torch.Tensor, dims: tuple[int, ...] = (2, 3)) -> torch.Tenso
     return points.to(working_dtype(points.dtype))
 
 
-def _scalar(x: torch.Tensor | Number, name: str, like: torch.Tensor,
+def _scalar(x: torch.Tensor | _Number, name: str, like: torch.Tensor,
             points: torch.Tensor) -> torch.Tensor:
     """A ``(*)`` parameter as a tensor shaped ``(*, 1)`` to broadcast against ``(*, N)``.
 
@@ -115,7 +115,7 @@ def _batches(work: torch.Tensor, scalars: dict[str, torch.Tensor],
 
 
 def sphere(
-    points: torch.Tensor, radius: torch.Tensor | Number = 1.0, center: torch.Tensor | None = None
+    points: torch.Tensor, radius: torch.Tensor | _Number = 1.0, center: torch.Tensor | None = None
 ) -> torch.Tensor:
     """Exact SDF of a sphere (a circle in 2D): ``|p - center| - radius``.
 
@@ -142,7 +142,7 @@ def sphere(
 
 
 def circle(
-    points: torch.Tensor, radius: torch.Tensor | Number = 1.0, center: torch.Tensor | None = None
+    points: torch.Tensor, radius: torch.Tensor | _Number = 1.0, center: torch.Tensor | None = None
 ) -> torch.Tensor:
     """Exact 2D SDF of a disk: :func:`sphere` restricted to ``points (*, N, 2)``.
 
@@ -168,7 +168,7 @@ def circle(
 def box(
     points: torch.Tensor,
     half_size: torch.Tensor | None = None,
-    radius: torch.Tensor | Number = 0.0,
+    radius: torch.Tensor | _Number = 0.0,
     center: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Exact SDF of an axis-aligned box with rounded edges (2D: a rectangle).
@@ -208,7 +208,7 @@ def box(
 def rectangle(
     points: torch.Tensor,
     half_size: torch.Tensor | None = None,
-    radius: torch.Tensor | Number = 0.0,
+    radius: torch.Tensor | _Number = 0.0,
     center: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Exact 2D SDF of a (rounded) rectangle: :func:`box` for ``points (*, N, 2)``.
@@ -237,7 +237,7 @@ def capsule(
     points: torch.Tensor,
     start: torch.Tensor | None = None,
     end: torch.Tensor | None = None,
-    radius: torch.Tensor | Number = 0.5,
+    radius: torch.Tensor | _Number = 0.5,
 ) -> torch.Tensor:
     """Exact SDF of a capsule: points within ``radius`` of the segment ``start -> end``.
 
@@ -276,7 +276,7 @@ def capsule(
 
 
 def plane(
-    points: torch.Tensor, normal: torch.Tensor | None = None, offset: torch.Tensor | Number = 0.0
+    points: torch.Tensor, normal: torch.Tensor | None = None, offset: torch.Tensor | _Number = 0.0
 ) -> torch.Tensor:
     """Exact SDF of the half-space ``n . p <= offset`` with ``n = normal / |normal|``.
 
@@ -313,8 +313,8 @@ def plane(
 
 def torus(
     points: torch.Tensor,
-    major_radius: torch.Tensor | Number = 1.0,
-    minor_radius: torch.Tensor | Number = 0.25,
+    major_radius: torch.Tensor | _Number = 1.0,
+    minor_radius: torch.Tensor | _Number = 0.25,
     exact: bool = True,
 ) -> torch.Tensor:
     """SDF of a torus around the z axis (report Appendix A(iii), eq. 13).
@@ -355,8 +355,8 @@ def torus(
 
 def annulus(
     points: torch.Tensor,
-    major_radius: torch.Tensor | Number = 1.0,
-    minor_radius: torch.Tensor | Number = 0.25,
+    major_radius: torch.Tensor | _Number = 1.0,
+    minor_radius: torch.Tensor | _Number = 0.25,
 ) -> torch.Tensor:
     """Exact 2D SDF of a ring, the torus' cross-section: ``| |p| - R | - r``.
 
@@ -384,7 +384,8 @@ def annulus(
 
 
 def gyroid(
-    points: torch.Tensor, scale: torch.Tensor | Number = 1.0, thickness: torch.Tensor | Number = 0.1
+    points: torch.Tensor, scale: torch.Tensor | _Number = 1.0,
+    thickness: torch.Tensor | _Number = 0.1,
 ) -> torch.Tensor:
     """Approximate SDF of a gyroid sheet (a triply periodic minimal surface).
 

@@ -40,14 +40,10 @@ import torch
 from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_div, safe_norm
-from torchgeo_cg.curves.bernstein import check_degree
-from torchgeo_cg.curves.knots import (
-    check_bspline_knots,
-    find_spans,
-    local_basis_list,
-    uniform_knots,
-)
+from torchgeo_cg.curves._basis import find_spans, local_basis_list
+from torchgeo_cg.curves.knots import check_bspline_knots, uniform_knots
 from torchgeo_cg.curves.nurbs import check_weights
+from torchgeo_cg.surfaces._degree import check_surface_degree
 
 __all__ = [
     "SurfaceDerivatives",
@@ -81,21 +77,6 @@ class SurfaceDerivatives(NamedTuple):
     normals: torch.Tensor | None
 
 
-def check_surface_degree(degree) -> tuple[int, int]:
-    """``degree`` as a pair ``(p, q)`` of non-negative ints (an int means both).
-
-    Example:
-        >>> check_surface_degree(3), check_surface_degree((2, 1))
-        ((3, 3), (2, 1))
-    """
-    if isinstance(degree, (tuple, list)):
-        if len(degree) != 2:
-            raise ValueError(f"degree: expected an int or a pair (p, q), got {degree!r}")
-        return check_degree(degree[0], "degree[0]"), check_degree(degree[1], "degree[1]")
-    d = check_degree(degree)
-    return d, d
-
-
 def _check_grid(control_grid: torch.Tensor, p: int, q: int) -> tuple[int, int]:
     check_float(control_grid, "control_grid", low_precision=False)
     sizes = check_shape(control_grid, ["*", "M", "N", "D"], "control_grid")
@@ -123,7 +104,7 @@ def _knots(knots, count, degree, name, like):
 
 
 #: parameters per chunk of a patch evaluation (its intermediates stay in cache)
-CHUNK = 8192
+_CHUNK = 8192
 
 
 def _tensor_product(grid, u, v, knots_u, knots_v, p, q, derivatives: bool):
@@ -147,7 +128,7 @@ def _tensor_product(grid, u, v, knots_u, knots_v, p, q, derivatives: bool):
     knots_v = knots_v.expand(*batch, knots_v.shape[-1])
     u, v = u.expand(*batch, n), v.expand(*batch, n)
     record = records_graph(grid, u, v, knots_u, knots_v)
-    step = n if record else max(1, CHUNK // max(1, batch.numel()))
+    step = n if record else max(1, _CHUNK // max(1, batch.numel()))
     keys = [(0, 0), (1, 0), (0, 1), (1, 1)] if derivatives else [(0, 0)]
     out = {}
     for c in range(0, n, step):  # loop over chunks of parameters
@@ -209,7 +190,7 @@ def _end_sign(x, low, high):
     return torch.where(x >= high, -1.0, 1.0).to(x.dtype) if x.numel() else x
 
 
-def surface_normals(du: torch.Tensor, dv: torch.Tensor, duv: torch.Tensor,
+def _surface_normals(du: torch.Tensor, dv: torch.Tensor, duv: torch.Tensor,
                     degenerate_u: torch.Tensor, degenerate_v: torch.Tensor,
                     sign_u: torch.Tensor, sign_v: torch.Tensor) -> torch.Tensor:
     """Unit normals ``(*, N, 3)`` with the degenerate-edge rule of the module docstring.
@@ -258,7 +239,7 @@ def _derivatives(parts, rational: bool, p: int, q: int) -> SurfaceDerivatives:
         eps = torch.finfo(s.dtype).eps * 8 * (p + q + 2)
         degenerate_u = du.detach().abs().sum(-1) <= eps * bound_u
         degenerate_v = dv.detach().abs().sum(-1) <= eps * bound_v
-        normals = surface_normals(du, dv, duv, degenerate_u, degenerate_v, parts["sign_u"],
+        normals = _surface_normals(du, dv, duv, degenerate_u, degenerate_v, parts["sign_u"],
                                   parts["sign_v"])
     return SurfaceDerivatives(s, du, dv, normals)
 
