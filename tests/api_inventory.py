@@ -229,6 +229,8 @@ INVENTORY: dict[str, list[str]] = {
         "BSplineBasis",
         "bspline_basis",
         "check_bspline_knots",
+        "find_spans",
+        "local_basis_list",
         "uniform_knots",
     ],
     "torchgeo_cg.curves.marching_squares": [

@@ -30,10 +30,12 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.curves._basis import find_spans, local_basis
+from torchgeo_cg.curves._basis import find_spans, local_basis, local_basis_list
 from torchgeo_cg.curves.bernstein import check_degree
 
-__all__ = ["BSplineBasis", "bspline_basis", "check_bspline_knots", "uniform_knots"]
+# find_spans and local_basis_list are public for the tensor-product surfaces
+__all__ = ["BSplineBasis", "bspline_basis", "check_bspline_knots", "uniform_knots", "find_spans",
+           "local_basis_list"]
 
 
 class BSplineBasis(NamedTuple):

@@ -40,8 +40,12 @@ import torch
 from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_div, safe_norm
-from torchgeo_cg.curves._basis import find_spans, local_basis_list
-from torchgeo_cg.curves.knots import check_bspline_knots, uniform_knots
+from torchgeo_cg.curves.knots import (
+    check_bspline_knots,
+    find_spans,
+    local_basis_list,
+    uniform_knots,
+)
 from torchgeo_cg.curves.nurbs import check_weights
 from torchgeo_cg.surfaces._degree import check_surface_degree
 
