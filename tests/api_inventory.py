@@ -321,6 +321,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.io": [
         "Mesh",
+        "MeshFileWarning",
         "from_trimesh",
         "load_mesh",
         "save_mesh",
