@@ -447,8 +447,7 @@ def test_module_function_defaults_agree_and_to_deepcopy():
     sig_m = inspect.signature(FaceVaryingSubdivision.__init__).parameters
     sig_f = inspect.signature(face_varying_subdivide).parameters
     sig_o = inspect.signature(face_varying_operator).parameters
-    for name in ("levels", "scheme", "interpolation", "boundary", "tags", "crease_method",
-                 "triangle_rule"):
+    for name in ("levels", "scheme", "tags", "options"):
         assert sig_m[name].default == sig_f[name].default
         if name in sig_o:
             assert sig_o[name].default == sig_m[name].default

@@ -311,10 +311,10 @@ def test_custom_backward_equals_autograd(dtype, device):
 def test_module_equals_function_and_defaults():
     fn = inspect.signature(catmull_clark).parameters
     mod = inspect.signature(CatmullClark.__init__).parameters
-    for name in ("levels", "boundary"):
+    for name in ("levels", "options"):
         assert fn[name].default == mod[name].default
-    assert inspect.signature(catmull_clark_operator).parameters["boundary"].default == (
-        mod["boundary"].default)
+    assert inspect.signature(catmull_clark_operator).parameters["options"].default == (
+        mod["options"].default)
     v0, f0 = MESHES["fin"]()
     v = torch.tensor(v0)
     out_fn, faces_fn = catmull_clark(v, f0, levels=2)

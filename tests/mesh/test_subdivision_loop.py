@@ -141,7 +141,7 @@ def test_gradcheck_and_module_defaults():
     assert torch.autograd.gradcheck(loop, (torch.tensor(v0, requires_grad=True),))
     fn = inspect.signature(loop_subdivide).parameters
     mod = inspect.signature(LoopSubdivision.__init__).parameters
-    assert all(fn[k].default == mod[k].default for k in ("levels", "boundary"))
+    assert all(fn[k].default == mod[k].default for k in ("levels", "options"))
     v = torch.tensor(v0)
     out, faces = loop_subdivide(v, f0, levels=2)
     assert_close(loop(v), out)
