@@ -37,7 +37,7 @@ def _find_benchmarks() -> Path:
         FileNotFoundError: not a source checkout (the wheel ships no benchmarks).
 
     Example:
-        >>> find_benchmarks().name  # in a checkout
+        >>> _find_benchmarks().name  # in a checkout
         'benchmarks'
     """
     import torchgeo_cg

@@ -19,9 +19,9 @@ def _steps_argument(text: str) -> int:
             turns it into a one-line usage error).
 
     Example:
-        >>> steps_argument("25")
+        >>> _steps_argument("25")
         25
-        >>> steps_argument("-1")
+        >>> _steps_argument("-1")
         Traceback (most recent call last):
         ...
         argparse.ArgumentTypeError: must be an integer in [1, 1000000], got -1

@@ -15,7 +15,7 @@ def _collect_info() -> dict[str, object]:
     """Versions of torchgeo_cg and its dependencies, the devices and the threads.
 
     Example:
-        >>> info = collect_info()
+        >>> info = _collect_info()
         >>> info["devices"][0], info["threads"] >= 1
         ('cpu', True)
     """

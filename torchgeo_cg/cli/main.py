@@ -31,7 +31,7 @@ class _OneLineParser(argparse.ArgumentParser):
 
     Example:
         >>> import contextlib, io
-        >>> parser = OneLineParser(prog="demo")
+        >>> parser = _OneLineParser(prog="demo")
         >>> _ = parser.add_argument("--n", type=int)
         >>> err = io.StringIO()
         >>> with contextlib.redirect_stderr(err):

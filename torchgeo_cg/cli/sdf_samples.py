@@ -56,7 +56,7 @@ def _find_meshes(root: Path) -> list[str]:
         >>> for name in ("b.OBJ", "a/c.ply", "notes.txt"):
         ...     (d / name).parent.mkdir(exist_ok=True)
         ...     _ = (d / name).write_text("")
-        >>> find_meshes(d)
+        >>> _find_meshes(d)
         ['a/c.ply', 'b.OBJ']
     """
     if root.is_file():
@@ -69,7 +69,7 @@ def _mesh_seed(seed: int, relative_path: str) -> int:
     """63-bit seed of one mesh from the run's seed and the mesh's relative path.
 
     Example:
-        >>> mesh_seed(0, "a.obj") == mesh_seed(0, "a.obj") != mesh_seed(1, "a.obj")
+        >>> _mesh_seed(0, "a.obj") == _mesh_seed(0, "a.obj") != _mesh_seed(1, "a.obj")
         True
     """
     digest = hashlib.sha256(relative_path.encode("utf-8")).digest()
@@ -84,7 +84,7 @@ def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     Example:
         >>> import tempfile
         >>> p = Path(tempfile.mkdtemp()) / "x.npz"
-        >>> write_npz(p, {"a": np.arange(3)})
+        >>> _write_npz(p, {"a": np.arange(3)})
         >>> np.load(p)["a"].tolist()
         [0, 1, 2]
     """

@@ -64,7 +64,7 @@ def _rational_derivatives(homogeneous: list[torch.Tensor]) -> list[torch.Tensor]
         ``k + 1`` tensors ``(*, D)``.
 
     Example:
-        >>> rational_derivatives([torch.tensor([2.0, 2.0]), torch.tensor([1.0, 0.0])])
+        >>> _rational_derivatives([torch.tensor([2.0, 2.0]), torch.tensor([1.0, 0.0])])
         [tensor([1.]), tensor([0.5000])]
     """
     w0 = homogeneous[0][..., -1:]

@@ -158,7 +158,7 @@ def _build_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, backend: str) 
     """The search structure of a backend for scaled vertices ``(B, V, 3)``.
 
     Example:
-        >>> s = build_search(torch.eye(3)[None], torch.tensor([[0, 1, 2]]), "torch")
+        >>> s = _build_search(torch.eye(3)[None], torch.tensor([[0, 1, 2]]), "torch")
         >>> s.faces_per_mesh
         1
     """

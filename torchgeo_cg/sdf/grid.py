@@ -56,7 +56,7 @@ def _parse_bounds(bounds, device=None, dtype=None) -> torch.Tensor:
         ValueError: not finite, or ``lo >= hi`` on an axis.
 
     Example:
-        >>> parse_bounds((-1.0, 2.0))
+        >>> _parse_bounds((-1.0, 2.0))
         tensor([[-1., -1., -1.],
                 [ 2.,  2.,  2.]])
     """

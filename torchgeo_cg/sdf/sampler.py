@@ -78,7 +78,7 @@ def _worker_seed(seed: int | None) -> int | None:
     seed (from the DataLoader's base seed).
 
     Example:
-        >>> worker_seed(0) is None  # not inside a DataLoader worker
+        >>> _worker_seed(0) is None  # not inside a DataLoader worker
         True
     """
     from torch.utils.data import get_worker_info

@@ -208,7 +208,7 @@ def _surface_normals(du: torch.Tensor, dv: torch.Tensor, duv: torch.Tensor,
         >>> du = torch.tensor([[0.0, 0.0, 0.0]])  # a pole: du vanishes
         >>> dv, duv = torch.tensor([[0.0, 1.0, 0.0]]), torch.tensor([[1.0, 0.0, 0.0]])
         >>> no = torch.tensor([False])
-        >>> surface_normals(du, dv, duv, torch.tensor([True]), no, torch.ones(1), torch.ones(1))
+        >>> _surface_normals(du, dv, duv, torch.tensor([True]), no, torch.ones(1), torch.ones(1))
         tensor([[0., 0., 1.]])
     """
     du = torch.where(degenerate_u[..., None], 0.0, du)

@@ -29,7 +29,7 @@ class SurfaceMesh(NamedTuple):
         faces: ``(2 (R_u - 1)(R_v - 1), 3)`` int64 triangles.
 
     Example:
-        >>> grid_faces(2, 2)
+        >>> _grid_faces(2, 2)
         tensor([[0, 2, 3],
                 [0, 3, 1]])
     """
@@ -42,7 +42,7 @@ def _grid_faces(rows: int, cols: int, device=None) -> torch.Tensor:
     """Triangles ``(2 (rows - 1)(cols - 1), 3)`` of a ``rows x cols`` vertex grid (see above).
 
     Example:
-        >>> grid_faces(2, 3).shape
+        >>> _grid_faces(2, 3).shape
         torch.Size([4, 3])
     """
     i = torch.arange(rows - 1, device=device)[:, None]

@@ -62,7 +62,7 @@ def _glyph_polygon(char: str = "d") -> np.ndarray:
     """``(K, 2)`` vertices of the longest (outer) outline of ``char``, not repeated at the end.
 
     Example:
-        >>> poly = glyph_polygon("d")
+        >>> poly = _glyph_polygon("d")
         >>> poly.ndim, poly.shape[1], bool((poly[0] != poly[-1]).any())
         (2, 2, True)
     """

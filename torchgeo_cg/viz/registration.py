@@ -36,7 +36,7 @@ def _plot_registration(source: torch.Tensor, target: torch.Tensor, matrix: torch
         >>> import pathlib, tempfile
         >>> out = pathlib.Path(tempfile.mkdtemp()) / "reg.png"
         >>> img = torch.rand(32, 32)
-        >>> plot_registration(img, img, torch.eye(3), out)
+        >>> _plot_registration(img, img, torch.eye(3), out)
         >>> out.stat().st_size > 5_000
         True
     """
@@ -79,7 +79,7 @@ def _plot_robust_fit(image0: np.ndarray, image1: np.ndarray, src: torch.Tensor,
         >>> out = pathlib.Path(tempfile.mkdtemp()) / "ransac.png"
         >>> pts = torch.rand(30, 2) * 31
         >>> fit = find_transform_ransac(pts, pts + 1.0, generator=torch.Generator().manual_seed(0))
-        >>> plot_robust_fit(np.zeros((32, 32)), np.zeros((32, 32)), pts, pts + 1.0, fit, out)
+        >>> _plot_robust_fit(np.zeros((32, 32)), np.zeros((32, 32)), pts, pts + 1.0, fit, out)
         >>> out.stat().st_size > 5_000
         True
     """

@@ -62,7 +62,7 @@ def _torus_grid_sdf(R: torch.Tensor, r: torch.Tensor, n: int = _N) -> torch.Tens
         ``(n, n, n)`` values, ``indexing="ij"``, negative inside, in ``R``'s dtype.
 
     Example:
-        >>> f = torus_grid_sdf(torch.tensor(0.65), torch.tensor(0.25), n=5)
+        >>> f = _torus_grid_sdf(torch.tensor(0.65), torch.tensor(0.25), n=5)
         >>> f.shape, round(float(f[2, 2, 2]), 4)  # the centre: distance R - r to the tube
         (torch.Size([5, 5, 5]), 0.4)
     """
@@ -75,7 +75,7 @@ def _sample_torus_surface(R: float, r: float, count: int, seed: int = 0) -> torc
     """``(count, 3)`` float64 points on the torus (uniform in the two angles, seeded).
 
     Example:
-        >>> p = sample_torus_surface(0.65, 0.25, 4)
+        >>> p = _sample_torus_surface(0.65, 0.25, 4)
         >>> p.shape, bool(((p[:, :2].norm(dim=1) - 0.65).hypot(p[:, 2]) - 0.25).abs().max() < 1e-12)
         (torch.Size([4, 3]), True)
     """
