@@ -149,6 +149,7 @@ def apply_stencils(stencils: StencilMatrix, x: Tensor, *, out: Tensor | None = N
         ValueError: ``out`` on another device, needing autograd, or under a transform.
 
     Example:
+        >>> from torchgeo_cg.mesh.subdivision._stencil_build import stencil_matrix
         >>> s = stencil_matrix(torch.tensor([0, 0]), torch.tensor([0, 1]),
         ...                    torch.tensor([0.5, 0.5]), (1, 2))
         >>> apply_stencils(s, torch.tensor([[0., 2.], [4., 6.]]))
