@@ -5,7 +5,7 @@ Targets, 1 thread, float32 (kornia's dtype):
   (lu solver, its default) with the exact solver (``max_rel_diff_vs_svd`` on noisy and
   outlier data), and <= 0.05x a Python loop over OpenCV's findHomography (timed on a
   subset, scaled up).
-- fit_transform(model="homography", optimizer="lm"): total <= 3x our DLT.
+- fit_transform(model="homography", solver=SolverOptions("lm")): total <= 3x our DLT.
 - Adam: the time per step is reported (extra ``ms_per_step``).
 - find_transform_ransac (256 problems x 200 correspondences, 40% outliers, 1 px noise,
   threshold 3 px): <= 1.0x OpenCV findHomography(USAC_MAGSAC) looped over the problems,
