@@ -5,7 +5,7 @@ Targets, 1 thread, float32 (kornia's dtype):
   (lu solver, its default) with the exact solver (``max_rel_diff_vs_svd`` on noisy and
   outlier data), and <= 0.05x a Python loop over OpenCV's findHomography (timed on a
   subset, scaled up).
-- fit_transform(model="homography", optimizer="lm"): total <= 3x our DLT.
+- fit_transform(model="homography", solver=SolverOptions("lm")): total <= 3x our DLT.
 - Adam: the time per step is reported (extra ``ms_per_step``).
 - find_transform_ransac (256 problems x 200 correspondences, 40% outliers, 1 px noise,
   threshold 3 px): <= 1.0x OpenCV findHomography(USAC_MAGSAC) looped over the problems,
@@ -22,6 +22,7 @@ import torch
 
 from benchmarks.harness import Case, time_fn
 from torchgeo_cg.transforms import (
+    SolverOptions,
     find_homography_dlt,
     find_transform_ransac,
     fit_transform,
@@ -223,12 +224,13 @@ def cases(quick: bool = False) -> list[Case]:
     deg = find_homography_dlt(deg_src, deg_src + 1)
     k_deg = kornia_dlt(deg_src, deg_src + 1)
 
-    lm_fit = fit_transform(src, dst, optimizer="lm")
+    lm_fit = fit_transform(src, dst, solver=SolverOptions("lm"))
     lm_err = reprojection_error(lm_fit.matrix, src, dst)
     adam_steps = 20
 
     def adam():
-        return fit_transform(src, dst, optimizer="adam", steps=adam_steps, patience=10**6)
+        return fit_transform(src, dst,
+                             solver=SolverOptions("adam", steps=adam_steps, patience=10**6))
 
     adam_ms = time_fn(adam, 1, 0.3)[0] * 1e3
     exactness = _dlt_exactness(gen)
@@ -261,7 +263,7 @@ def cases(quick: bool = False) -> list[Case]:
         ),
         Case(
             f"fit_transform homography lm {size}",
-            lambda: fit_transform(src, dst, optimizer="lm"),
+            lambda: fit_transform(src, dst, solver=SolverOptions("lm")),
             lambda: find_homography_dlt(src, dst),
             "our find_homography_dlt",
             target=3.0,

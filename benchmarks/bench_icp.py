@@ -91,7 +91,7 @@ def _case(pairs, normals, label, target) -> Case:
 
 def cases(quick: bool = False) -> list[Case]:
     count, points = (4, 3000) if quick else (16, 10000)
-    pairs = rabbit_scan_pairs(count, points, seed=0)
+    pairs = rabbit_scan_pairs(count, points, generator=torch.Generator().manual_seed(0))
     normals = estimate_normals(pairs.target, 10)
     one = pairs._replace(source=pairs.source[:1], target=pairs.target[:1],
                          truth=pairs.truth[:1])

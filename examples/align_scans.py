@@ -8,7 +8,8 @@ import torch
 from torchgeo_cg.mesh.data import rabbit_scan_pairs
 from torchgeo_cg.points import estimate_normals, icp
 
-pairs = rabbit_scan_pairs(1, 8000, seed=4, angles=(30.0, 40.0))
+pairs = rabbit_scan_pairs(1, 8000, generator=torch.Generator().manual_seed(4),
+                          angles=(30.0, 40.0))
 normals = estimate_normals(pairs.target, 10)
 out = icp(pairs.source, pairs.target, method="point_to_plane", target_normals=normals,
           max_distance=0.2 * pairs.size)

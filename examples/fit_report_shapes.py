@@ -5,7 +5,7 @@ Run: python examples/fit_report_shapes.py  (writes fit_report_shapes.png)
 
 import torch
 
-from torchgeo_cg.transforms import fit_report_shapes, fit_transform, report_shapes
+from torchgeo_cg.transforms import SolverOptions, fit_report_shapes, fit_transform, report_shapes
 from torchgeo_cg.transforms.report_shapes import format_report_table
 
 OUTPUT = globals().get("OUTPUT", "fit_report_shapes.png")
@@ -16,7 +16,7 @@ shapes = report_shapes(dtype=torch.float64)
 src = shapes.start.expand(8, -1, -1)  # (8, 10, 2): one problem per letter
 
 # One batched call fits all eight: a homography each, Levenberg-Marquardt from the identity.
-fit = fit_transform(src, shapes.targets, model="homography", optimizer="lm")
+fit = fit_transform(src, shapes.targets, model="homography", solver=SolverOptions("lm"))
 print(f"{fit.history.shape[0] - 1} LM iterations, final loss {fit.loss.max():.1e}")
 
 # The Table-3-style summary: truth next to the recovered transform in report terms.

@@ -33,12 +33,12 @@ INVENTORY: dict[str, list[str]] = {
         "transforms",
     ],
     "torchgeo_cg.cli": ["CommandError"],
-    "torchgeo_cg.cli.bench": [],
-    "torchgeo_cg.cli.fit_shapes": [],
-    "torchgeo_cg.cli.gallery": [],
-    "torchgeo_cg.cli.info": [],
+    "torchgeo_cg.cli.bench": ["add_parser"],
+    "torchgeo_cg.cli.fit_shapes": ["add_parser"],
+    "torchgeo_cg.cli.gallery": ["add_parser"],
+    "torchgeo_cg.cli.info": ["add_parser"],
     "torchgeo_cg.cli.main": ["main"],
-    "torchgeo_cg.cli.sdf_samples": [],
+    "torchgeo_cg.cli.sdf_samples": ["add_parser"],
     "torchgeo_cg.core": [
         "ShapeError",
         "Volume",
@@ -57,11 +57,15 @@ INVENTORY: dict[str, list[str]] = {
         "hypot",
         "index_to_world",
         "power_of_two_scale",
+        "records_graph",
         "safe_div",
         "safe_norm",
         "safe_sqrt",
         "working_dtype",
         "world_to_index",
+    ],
+    "torchgeo_cg.core.autograd": [
+        "records_graph",
     ],
     "torchgeo_cg.core.check": [
         "ShapeError",
@@ -71,6 +75,7 @@ INVENTORY: dict[str, list[str]] = {
         "check_generator",
         "check_shape",
         "check_tensor",
+        "format_shape",
     ],
     "torchgeo_cg.core.coerce": [
         "as_tensor_like",
@@ -161,7 +166,10 @@ INVENTORY: dict[str, list[str]] = {
         "split_bezier",
         "uniform_knots",
     ],
-    "torchgeo_cg.curves.bernstein": ["bernstein_basis"],
+    "torchgeo_cg.curves.bernstein": [
+        "bernstein_basis",
+        "check_degree",
+    ],
     "torchgeo_cg.curves.bezier": [
         "BezierCurve",
         "SplitResult",
@@ -221,6 +229,8 @@ INVENTORY: dict[str, list[str]] = {
         "BSplineBasis",
         "bspline_basis",
         "check_bspline_knots",
+        "find_spans",
+        "local_basis_list",
         "uniform_knots",
     ],
     "torchgeo_cg.curves.marching_squares": [
@@ -230,6 +240,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.curves.nurbs": [
         "NURBSCurve",
+        "check_weights",
         "nurbs",
         "nurbs_derivative",
     ],
@@ -254,6 +265,7 @@ INVENTORY: dict[str, list[str]] = {
         "MarchingCubesResult",
         "Mesh",
         "MeshEdges",
+        "SchemeOptions",
         "StencilMatrix",
         "SubdivisionOperator",
         "SubdivisionTags",
@@ -309,6 +321,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.io": [
         "Mesh",
+        "MeshFileWarning",
         "from_trimesh",
         "load_mesh",
         "save_mesh",
@@ -349,6 +362,7 @@ INVENTORY: dict[str, list[str]] = {
         "LimitStencils",
         "LimitSurfaceSample",
         "LoopSubdivision",
+        "SchemeOptions",
         "StencilMatrix",
         "SubdivisionOperator",
         "SubdivisionTags",
@@ -375,7 +389,6 @@ INVENTORY: dict[str, list[str]] = {
         "catmull_clark_operator",
     ],
     "torchgeo_cg.mesh.subdivision.face_varying": [
-        "FVAR_INTERPOLATIONS",
         "FaceVaryingSubdivision",
         "face_varying_operator",
         "face_varying_subdivide",
@@ -394,6 +407,13 @@ INVENTORY: dict[str, list[str]] = {
         "SubdivisionOperator",
         "apply_operator",
     ],
+    "torchgeo_cg.mesh.subdivision.options": [
+        "BOUNDARY_MODES",
+        "CREASE_METHODS",
+        "FVAR_INTERPOLATIONS",
+        "SchemeOptions",
+        "TRIANGLE_RULES",
+    ],
     "torchgeo_cg.mesh.subdivision.stencils": [
         "StencilMatrix",
         "apply_stencils",
@@ -409,6 +429,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.mesh.subdivision.tags": [
         "INFINITELY_SHARP",
         "SubdivisionTags",
+        "check_tags",
     ],
     "torchgeo_cg.points": [
         "ChamferDistance",
@@ -624,6 +645,7 @@ INVENTORY: dict[str, list[str]] = {
         "HartleyNormalization",
         "HomogeneousTransform",
         "HomographyModel",
+        "LossOptions",
         "Orbit",
         "Prismatic",
         "RegistrationResult",
@@ -632,6 +654,7 @@ INVENTORY: dict[str, list[str]] = {
         "RobustFit",
         "SceneGraph",
         "ShapeFit",
+        "SolverOptions",
         "TRSTransform",
         "TransformFit",
         "WarpedImage",
@@ -715,6 +738,8 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.transforms.fitting": [
         "FitResult",
         "HomographyModel",
+        "LossOptions",
+        "SolverOptions",
         "fit_transform",
     ],
     "torchgeo_cg.transforms.homogeneous": [
@@ -763,6 +788,7 @@ INVENTORY: dict[str, list[str]] = {
         "ShapeFit",
         "fit_report_shapes",
         "format_report_table",
+        "format_transform",
         "report_shapes",
     ],
     "torchgeo_cg.transforms.robust": [

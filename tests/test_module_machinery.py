@@ -57,6 +57,7 @@ from torchgeo_cg.mesh import (
     catmull_clark,
     loop_subdivide,
 )
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 from torchgeo_cg.points import ChamferDistance
 from torchgeo_cg.sdf import (
     Annulus,
@@ -510,7 +511,7 @@ def test_catmull_clark_compiles_fullgraph():
     """fullgraph compiles without "Attempted to wrap sparse Tensor" (the eager backend
     keeps this fast; the default backend runs in the slow compile test)."""
     cc = CatmullClark(_CUBE_F, 8, levels=2, tags=_CUBE_TAGS)
-    loop = LoopSubdivision(_OCTA_F, 6, levels=2, boundary="none")
+    loop = LoopSubdivision(_OCTA_F, 6, levels=2, options=SchemeOptions(boundary="none"))
     for module, x in ((cc, _cube_sample(0)), (loop, _rand(2, 6, 3)(0))):
         compiled = torch.compile(module, fullgraph=True, backend="aot_eager")
         torch.testing.assert_close(compiled(x), module(x), rtol=0, atol=0)

@@ -229,14 +229,19 @@ def test_mixed_dtypes_name_both_arguments():
         union(torch.zeros(3), torch.zeros(3, dtype=F64))
 
 
-def test_rotate_parameters_follow_the_points():
-    """rotate/Rotate raised a raw matmul error for float64 points and a float32 matrix."""
+def test_rotate_parameters_keep_their_dtype():
+    """rotate/Rotate raised a raw matmul error for float64 points and a float32 matrix;
+    the rule of a shape's parameters: a tensor keeps its dtype (TypeError naming both),
+    numbers and lists take the points' dtype."""
     rot = torch.tensor([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     pts = torch.randn(6, 3, dtype=F64)
     want = P.capsule(pts @ rot.double())
-    got = rotate(P.capsule, rot)(pts)
+    with pytest.raises(TypeError, match="world_from_local is torch.float32.*points is .*float64"):
+        rotate(P.capsule, rot)(pts)
+    got = rotate(P.capsule, rot.double())(pts)
     assert got.dtype == F64
     torch.testing.assert_close(got, want)
+    torch.testing.assert_close(rotate(P.capsule, rot.tolist())(pts), want)
     module = Rotate(P.Capsule(dtype=F64), rot)  # module state is float32: the one rule
     with pytest.raises(TypeError, match="float32"):
         module(pts)

@@ -6,11 +6,11 @@ import subprocess
 
 import pytest
 
-from torchgeo_cg.cli.main import build_parser, main
+from torchgeo_cg.cli.main import _build_parser, main
 
 
 def test_subcommands_are_discovered():
-    parser = build_parser()
+    parser = _build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
     assert {"gallery", "bench", "info"} <= set(sub.choices)
 
@@ -50,9 +50,9 @@ def test_bench_quick_runs_and_prints_ratios(capsys):
 
 
 def test_bench_results_json_is_well_formed():
-    from torchgeo_cg.cli.bench import find_benchmarks
+    from torchgeo_cg.cli.bench import _find_benchmarks
 
-    path = find_benchmarks() / "results" / "transforms.json"
+    path = _find_benchmarks() / "results" / "transforms.json"
     data = json.loads(path.read_text())
     assert {"meta", "results"} <= set(data)
     assert {r["threads"] for r in data["results"]} == {1, 2}

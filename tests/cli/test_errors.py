@@ -118,9 +118,9 @@ def test_bench_unknown_area(capsys):
 
 
 def test_bench_missing_peer_names_the_extra(monkeypatch, capsys):
-    from torchgeo_cg.cli.bench import find_benchmarks, load_benchmarks
+    from torchgeo_cg.cli.bench import _find_benchmarks, _load_benchmarks
 
-    run = load_benchmarks(find_benchmarks())
+    run = _load_benchmarks(_find_benchmarks())
     monkeypatch.setitem(run.PEERS, "transforms", ("no_such_peer_module",))
     assert _exit_code(["bench", "--only", "transforms", "--no-write"]) == 2
     line = _one_error_line(capsys, "bench")

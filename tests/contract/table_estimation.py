@@ -149,8 +149,9 @@ def _fit_robust(src, dst):
     # robust loss needs a good start (documented): the DLT's
     top = float(dst.detach().abs().amax()) if dst.numel() else 1.0
     init = T.find_homography_dlt(src, dst).matrix
-    return tuple(T.fit_transform(src, dst, "homography", "lm", steps=3, tol=0.0, init=init,
-                                 loss="huber", scale=0.1 * top))
+    return tuple(T.fit_transform(src, dst, "homography", init=init,
+                                 solver=T.SolverOptions("lm", steps=3, tol=0.0),
+                                 loss=T.LossOptions("huber", scale=0.1 * top)))
 
 
 def _split_params(model: str):
@@ -293,16 +294,18 @@ ENTRIES: list[Entry] = [
     # float32 homography LM (steps solved from JᵀJ, which squares the condition): measured
     # worst 1.1e-4 (entries, 40 seeds), 1.4e-4 (sl3, 40; corners, 30) -> rtol32 = 5
     Entry("transforms.fit_transform",
-          lambda s, d: tuple(T.fit_transform(s, d, "homography", "lm", steps=4, tol=0.0)),
+          lambda s, d: tuple(T.fit_transform(s, d, "homography",
+                                             solver=T.SolverOptions("lm", steps=4, tol=0.0))),
           (SRC, Arg("dst", (2, N, 2), _dst("homography"))),
           out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP, rtol32=5.0),
     Entry("transforms.fit_transform[similarity]",
-          lambda s, d: tuple(T.fit_transform(s, d, "similarity", "lm", steps=4, tol=0.0)),
+          lambda s, d: tuple(T.fit_transform(s, d, "similarity",
+                                             solver=T.SolverOptions("lm", steps=4, tol=0.0))),
           (SRC, Arg("dst", (2, N, 2), _dst("similarity"))),
           out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP),
     Entry("transforms.fit_transform[weights]",
-          lambda w, s, d: tuple(T.fit_transform(s, d, "affine", "lm", steps=3, tol=0.0,
-                                             weights=w)),
+          lambda w, s, d: tuple(T.fit_transform(s, d, "affine", weights=w,
+                                                solver=T.SolverOptions("lm", steps=3, tol=0.0))),
           (Arg("weights", (2, N), _weights, "unitless"), SRC,
            Arg("dst", (2, N, 2), _dst("affine"))),
           out=("matrix", "unitless", "area", "area"), empty=((0, 0), (1, 0), (2, 0)),
@@ -311,24 +314,27 @@ ENTRIES: list[Entry] = [
     # rounding level: typically 5e-4 (24 seeds), worst seen 1.7e-2 (the loss, one CI seed);
     # float64 1e-12
     Entry("transforms.fit_transform[lbfgs]",
-          lambda s, d: tuple(T.fit_transform(s, d, "euclidean", "lbfgs", steps=3)),
+          lambda s, d: tuple(T.fit_transform(s, d, "euclidean",
+                                             solver=T.SolverOptions("lbfgs", steps=3))),
           (SRC, Arg("dst", (2, N, 2), _dst("euclidean"))),
           out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP, rtol32=300.0),
     # Adam from a start away from the optimum: a parameter at its optimum (zero gradient)
     # would be kicked by the sign of rounding noise (Adam's steps are about lr whatever |g|)
     Entry("transforms.fit_transform[adam]",
-          lambda s, d, init: tuple(T.fit_transform(s, d, "trs", "adam", steps=3, init=init)),
+          lambda s, d, init: tuple(T.fit_transform(s, d, "trs", init=init,
+                                                   solver=T.SolverOptions("adam", steps=3))),
           (SRC, Arg("dst", (2, N, 2), _dst("similarity")),
            Arg("init", (2, 3, 3), _trs_matrix, "matrix")),
           out=("matrix", "unitless", "area", "area"), empty=((0, 0), (1, 0), (2, 0)), bad=BADP),
     Entry("transforms.fit_transform[sl3]",
-          lambda s, d: tuple(T.fit_transform(s, d, "homography", "lm", steps=3, tol=0.0,
-                                             parametrization="sl3", symmetric=True)),
+          lambda s, d: tuple(T.fit_transform(s, d, "homography", parametrization="sl3",
+                                             solver=T.SolverOptions("lm", steps=3, tol=0.0),
+                                             loss=T.LossOptions(symmetric=True))),
           (SRC, Arg("dst", (2, N, 2), _dst("homography"))),
           out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP, rtol32=5.0),
     Entry("transforms.fit_transform[corners]",
-          lambda s, d: tuple(T.fit_transform(s, d, "homography", "lm", steps=3, tol=0.0,
-                                             parametrization="corners")),
+          lambda s, d: tuple(T.fit_transform(s, d, "homography", parametrization="corners",
+                                             solver=T.SolverOptions("lm", steps=3, tol=0.0))),
           (SRC, Arg("dst", (2, N, 2), _dst("homography"))),
           out=("matrix", "unitless", "area", "area"), empty=PAIR_EMPTY, bad=BADP, rtol32=5.0),
     Entry("transforms.fit_transform[huber]", _fit_robust,
@@ -397,6 +403,10 @@ ENTRIES: list[Entry] = [
 
 EXEMPT: dict[str, str] = {
     "transforms.FitResult": "NamedTuple result of fit_transform (no geometry of its own)",
+    "transforms.SolverOptions": "option bundle of fit_transform (frozen dataclass, validated "
+                                "when built; tests/transforms/test_fitting.py)",
+    "transforms.LossOptions": "option bundle of fit_transform (frozen dataclass, validated "
+                              "when built; tests/transforms/test_fitting.py)",
     "transforms.HartleyNormalization": "NamedTuple result of hartley_normalize",
     "transforms.RobustFit": "NamedTuple result of find_transform_ransac",
     "transforms.RegistrationResult": "NamedTuple result of register_images",

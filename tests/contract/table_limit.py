@@ -42,7 +42,8 @@ def _sample(out) -> tuple[torch.Tensor, ...]:
 
 def _surface(faces, num_vertices, ids, boundary="edge_only"):
     def call(v):
-        op = M.catmull_clark_operator(faces, num_vertices, boundary, **_wdtype(v))
+        op = M.catmull_clark_operator(faces, num_vertices, **_wdtype(v),
+                                      options=M.SchemeOptions(boundary=boundary))
         uv = _UV.to(op.stencils.weights.dtype)
         return _sample(M.limit_surface(op, v, ids, uv, max_level=5))
 

@@ -170,15 +170,16 @@ ENTRIES: list[Entry] = [
     # --- iterative 3D fits (LM on se(3)): matrix, params, loss, history
     *[Entry(f"transforms.fit_transform[3d,{model},{loss}]",
             lambda s, d, model=model, loss=loss: tuple(T.fit_transform(
-                s, d, model, steps=4, tol=0.0, loss=loss, scale=_typical(s))),
+                s, d, model, solver=T.SolverOptions(steps=4, tol=0.0),
+                loss=T.LossOptions(loss, scale=_typical(s)))),
             (SRC3, Arg("dst", (2, N3, 3), _dst3(model == "similarity"))),
             out=("matrix", "unitless", "area", "area"), empty=((0, 0), (1, 0)),
             bad=((2, N3, 4), (2,)))
       for model, loss in (("euclidean", "l2"), ("similarity", "cauchy"),
                           ("euclidean", "tukey"))],
     Entry("transforms.fit_transform[3d,weights]",
-          lambda w, s, d: tuple(T.fit_transform(s, d, "similarity", steps=4, tol=0.0,
-                                                weights=w)),
+          lambda w, s, d: tuple(T.fit_transform(s, d, "similarity", weights=w,
+                                                solver=T.SolverOptions(steps=4, tol=0.0))),
           (Arg("weights", (2, N3), "positive", "unitless"), SRC3,
            Arg("dst", (2, N3, 3), _dst3(True))), out=("matrix", "unitless", "area", "area"),
           empty=((0, 0), (1, 0), (2, 0)), bad=((2, N3 + 1), (2, N3, 3))),

@@ -124,7 +124,8 @@ BADV8 = ((2, 7, 3), (3,))  # an operator fixes V
 POS3 = ("length", "length", "length", "unitless")  # positions, tangents, normals
 
 _CC_CUBE = M.catmull_clark_operator(CUBE_F, 8, dtype=torch.float64)
-_CC_GRID = M.catmull_clark_operator(GRID_F, 9, boundary="edge_and_corner", dtype=torch.float64)
+_CC_GRID = M.catmull_clark_operator(GRID_F, 9, dtype=torch.float64,
+                                    options=M.SchemeOptions(boundary="edge_and_corner"))
 _LOOP_OCTA = M.loop_operator(OCTA_F, 6, dtype=torch.float64)
 _CC_INF = M.catmull_clark_operator(
     CUBE_F, 8, dtype=torch.float64,
@@ -149,12 +150,15 @@ ENTRIES: list[Entry] = [
     Entry("mesh.catmull_clark[levels2]", lambda v: M.catmull_clark(v, CUBE_F, levels=2)[0],
           (VERTS8,), empty=(0, 0), bad=BADV),
     Entry("mesh.catmull_clark[boundary]",
-          lambda v: M.catmull_clark(v, GRID_F, boundary="edge_and_corner")[0],
+          lambda v: M.catmull_clark(v, GRID_F,
+                                    options=M.SchemeOptions(boundary="edge_and_corner"))[0],
           (Arg("verts", (2, 9, 3), GRID_V),), empty=(0, 0), bad=BADV),
-    Entry("mesh.catmull_clark[none]", lambda v: M.catmull_clark(v, GRID_F, boundary="none")[0],
+    Entry("mesh.catmull_clark[none]", lambda v: M.catmull_clark(v, GRID_F,
+                                                                options=M.SchemeOptions(boundary="none"))[0],
           (Arg("verts", (2, 9, 3), GRID_V),), empty=(0, 0), bad=BADV),
     Entry("mesh.catmull_clark[ngon]",
-          lambda v: M.catmull_clark(v, NGON_F, levels=2, triangle_rule="smooth")[0],
+          lambda v: M.catmull_clark(v, NGON_F, levels=2,
+                                    options=M.SchemeOptions(triangle_rule="smooth"))[0],
           (Arg("verts", (2, 7, 3), NGON_V),), empty=(0, 0), bad=BADV),
     Entry("mesh.catmull_clark[no_faces]", lambda v: M.catmull_clark(v, [])[0],
           (Arg("verts", (2, 4, 3)),), empty=((0, -2),), bad=BADV),  # V = 0: nothing to refine
@@ -189,7 +193,8 @@ ENTRIES: list[Entry] = [
     Entry("mesh.loop_subdivide", lambda v: M.loop_subdivide(v, OCTA_F)[0],
           (Arg("verts", (2, 6, 3), OCTA_V),), empty=((0, 0), (0, -1)), bad=BADV),
     Entry("mesh.loop_subdivide[boundary]",
-          lambda v: M.loop_subdivide(v, FAN_F, levels=2, boundary="edge_and_corner")[0],
+          lambda v: M.loop_subdivide(v, FAN_F, levels=2,
+                                     options=M.SchemeOptions(boundary="edge_and_corner"))[0],
           (Arg("verts", (2, 5, 3), FAN_V),), empty=(0, 0), bad=BADV),
     Entry("mesh.loop_subdivide[no_faces]", lambda v: M.loop_subdivide(v, [])[0],
           (Arg("verts", (2, 4, 3)),), empty=((0, -2),), bad=BADV),
@@ -210,13 +215,15 @@ ENTRIES: list[Entry] = [
           (VERTS8, Arg("crease_sharpness", (3,), _sharpness, "unitless")),
           empty=(0, 0), bad=BADV, mixed=("follow", 0)),
     Entry("mesh.SubdivisionTags[corners]",
-          lambda v, s: M.catmull_clark(v, CUBE_F, levels=2, crease_method="chaikin",
+          lambda v, s: M.catmull_clark(v, CUBE_F, levels=2,
+                                       options=M.SchemeOptions(crease_method="chaikin"),
                                        tags=_tags(CUBE_CREASES, s[:3], torch.tensor([4, 7]),
                                                   s[3:]))[0],
           (VERTS8, Arg("sharpness", (5,), _sharpness, "unitless")),
           empty=(0, 0), bad=BADV, mixed=("follow", 0)),
     Entry("mesh.SubdivisionTags[loop]",
-          lambda v, s: M.loop_subdivide(v, OCTA_F, levels=2, crease_method="chaikin",
+          lambda v, s: M.loop_subdivide(v, OCTA_F, levels=2,
+                                        options=M.SchemeOptions(crease_method="chaikin"),
                                         tags=_tags(OCTA_CREASES, s))[0],
           (Arg("verts", (2, 6, 3), OCTA_V), Arg("crease_sharpness", (2,), _sharpness,
                                                  "unitless")),
@@ -240,24 +247,26 @@ ENTRIES: list[Entry] = [
           lambda uv: M.face_varying_subdivide(uv, SEAM_F, SEAM_UV, 6, levels=2)[0],
           (Arg("uvs", (2, 8, 2), SEAM_UV_V),), empty=((0, 0), (0, -1)), bad=((3,),)),
     Entry("mesh.face_varying_subdivide[none]",
-          lambda uv: M.face_varying_subdivide(uv, SEAM_F, SEAM_UV, 6, interpolation="none")[0],
+          lambda uv: M.face_varying_subdivide(uv, SEAM_F, SEAM_UV, 6,
+                                              options=M.SchemeOptions(fvar_interpolation="none"))[0],
           (Arg("uvs", (2, 8, 2), SEAM_UV_V),), empty=(0, 0), bad=((3,),)),
     Entry("mesh.face_varying_subdivide[boundaries]",
           lambda uv: M.face_varying_subdivide(uv, SEAM_F, SEAM_UV, 6,
-                                              interpolation="boundaries")[0],
+                                              options=M.SchemeOptions(fvar_interpolation="boundaries"))[0],
           (Arg("uvs", (2, 8, 2), SEAM_UV_V),), empty=(0, 0), bad=((3,),)),
     Entry("mesh.face_varying_subdivide[loop]",
           lambda uv: M.face_varying_subdivide(uv, TRI_SEAM_F, TRI_SEAM_UV, 4, scheme="loop",
-                                              interpolation="corners_plus1")[0],
+                                              options=M.SchemeOptions(fvar_interpolation="corners_plus1"))[0],
           (Arg("uvs", (2, 6, 2), TRI_UV_V),), empty=(0, 0), bad=((3,),)),
     Entry("mesh.face_varying_operator",
           lambda uv: M.apply_operator(  # apply_operator names its data "verts"
-              M.face_varying_operator(SEAM_F, SEAM_UV, 6, 8, interpolation="all",
+              M.face_varying_operator(SEAM_F, SEAM_UV, 6, 8,
+                                      options=M.SchemeOptions(fvar_interpolation="all"),
                                       **_wdtype(uv)), uv),
           (Arg("verts", (2, 8, 2), SEAM_UV_V),), empty=(0, 0), bad=((2, 7, 2), (3,))),
     Entry("mesh.FaceVaryingSubdivision",
           lambda uv: M.FaceVaryingSubdivision(SEAM_F, SEAM_UV, 6, 8, levels=2,
-                                              interpolation="corners_plus2",
+                                              options=M.SchemeOptions(fvar_interpolation="corners_plus2"),
                                               **_wdtype(uv))(uv),
           (Arg("uvs", (2, 8, 2), SEAM_UV_V),), empty=(0, 0), bad=((2, 7, 2), (3,))),
 ]
@@ -268,6 +277,8 @@ EXEMPT: dict[str, str] = {
     "mesh.SubdivisionOperator": "result type (NamedTuple) of the operator builders, under "
                                 "contract through apply_operator and the builders' entries",
     "mesh.LimitFrames": "result type (NamedTuple) of limit_frames",
+    "mesh.SchemeOptions": "option bundle (frozen dataclass of strings), validated when built "
+                          "(tests/mesh/test_subdivision_options.py)",
     "mesh.StencilMatrix": "result type (NamedTuple) of the stencil builders, under contract "
                           "through apply_stencils",
 }

@@ -96,15 +96,15 @@ def test_per_curve_knots_and_parameters_match_a_loop():
 @pytest.mark.parametrize("kind", ["clamped", "unclamped", "repeated"])
 @pytest.mark.parametrize("many", [True, False])  # by Bezier segments / by the basis
 def test_per_curve_knots_match_scipy_on_both_paths(degree, kind, many, monkeypatch):
-    bspline_module = __import__("torchgeo_cg.curves.bspline", fromlist=["CHUNK"])
-    monkeypatch.setattr(bspline_module, "CHUNK", 40)  # several chunks of curves
+    bspline_module = __import__("torchgeo_cg.curves.bspline", fromlist=["_CHUNK"])
+    monkeypatch.setattr(bspline_module, "_CHUNK", 40)  # several chunks of curves
     g = torch.Generator().manual_seed(100 + degree)
     count, curves = degree + 6, 5
     knots = torch.stack([_knots(kind, count, degree, g) for _ in range(curves)])
     cp = torch.randn(curves, count, 3, generator=g, dtype=F64)
     lo, hi = knots[:, degree:degree + 1], knots[:, count:count + 1]
     size = 37 if many else 1
-    assert (size * bspline_module.SEGMENT_RATIO >= count - degree) == many
+    assert (size * bspline_module._SEGMENT_RATIO >= count - degree) == many
     t = lo + (hi - lo) * torch.rand(curves, size, generator=g, dtype=F64)
     if many:  # every knot of the domain, where spans change
         t = torch.cat([t, knots[:, degree:count + 1]], -1)
@@ -180,6 +180,22 @@ def test_insert_knot_leaves_the_curve_unchanged(degree):
                           bspline(cp, t, degree, knots), atol=1e-13)
     with pytest.raises(ValueError, match="value"):
         insert_knot(cp, float(knots[count]) + 1, degree, knots)
+
+
+def test_insert_knot_takes_a_number_in_the_knots_dtype():
+    # a Python number is inserted in the knots' dtype, not rounded through float32
+    knots = torch.tensor([0, 0, 0, 0, 0.5, 0.8, 1, 1, 1, 1], dtype=F64)
+    cp = torch.randn(6, 2, generator=torch.Generator().manual_seed(0), dtype=F64)
+    new = insert_knot(cp, 0.37, 3, knots)
+    assert new.knots.dtype == F64 and bool((new.knots == 0.37).any())
+    tck = scipy_interpolate.insert(0.37, (knots.numpy(), cp.T.numpy(), 3))
+    np.testing.assert_array_equal(new.knots.numpy(), tck[0])
+    twice = insert_knot(cp, 0.8, 3, knots, times=2)
+    assert int((twice.knots == 0.8).sum()) == 3  # the multiplicity of 0.8 grows
+    # a tensor value takes part in the dtype promotion, as t does in bspline
+    promoted = insert_knot(cp.float(), torch.tensor(0.37, dtype=F64), 3, knots.float())
+    assert promoted.knots.dtype == F64 and bool((promoted.knots == 0.37).any())
+    assert insert_knot(cp.float(), 0.37, 3).knots.dtype == torch.float32
 
 
 @pytest.mark.parametrize("degree", [1, 2, 3, 4])

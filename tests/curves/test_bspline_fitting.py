@@ -96,3 +96,10 @@ def test_gradcheck():
     x = torch.linspace(0, 1, 7, dtype=F64)
     assert torch.autograd.gradcheck(lambda p: interpolate_bspline(x, p[:7], 3).control_points,
                                     (points,))
+
+
+def test_bad_parametrization_names_the_choices():
+    points = torch.rand(20, 2, dtype=torch.float64)
+    with pytest.raises(ValueError, match="parametrization: expected one of 'uniform', 'chord', "
+                                         "'centripetal', got 'arc'"):
+        fit_bspline(points, 3, 6, parametrization="arc")

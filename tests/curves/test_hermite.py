@@ -29,7 +29,7 @@ from torchgeo_cg.curves import (
     pchip_interpolate,
     pchip_tangents,
 )
-from torchgeo_cg.curves.hermite import check_knots
+from torchgeo_cg.curves._knot_checks import check_knots
 
 
 def test_basis_matches_appendix_a(device, dtype):

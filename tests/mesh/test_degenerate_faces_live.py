@@ -16,6 +16,7 @@ from torchgeo_cg.mesh import (
     loop_operator,
     loop_subdivide,
 )
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 from torchgeo_cg.mesh.subdivision.limit import limit_frames
 
 SQUARE = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
@@ -65,11 +66,11 @@ def test_refines_as_opensubdiv(name, boundary):
     v = torch.tensor(verts, dtype=torch.float64)
     refine = catmull_clark if scheme == "catmark" else loop_subdivide
     for level in (1, 2, 3):
-        ours, _ = refine(v, faces, levels=level, boundary=boundary)
+        ours, _ = refine(v, faces, levels=level, options=SchemeOptions(boundary=boundary))
         same_points(ours, run_osd(verts, faces, f"refine {level}", scheme=scheme,
                                   boundary=boundary))
     build = catmull_clark_operator if scheme == "catmark" else loop_operator
-    op = build(faces, len(verts), boundary, dtype=torch.float64)
+    op = build(faces, len(verts), dtype=torch.float64, options=SchemeOptions(boundary=boundary))
     theirs = run_osd(verts, faces, "limit 1", scheme=scheme, boundary=boundary)
     same_points(limit_positions(op, v), theirs[:, :3])
     frames = limit_frames(op, v)  # finite everywhere

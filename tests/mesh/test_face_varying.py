@@ -29,6 +29,7 @@ from torchgeo_cg.mesh import (
     face_varying_subdivide,
     loop_operator,
 )
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 
 # ----------------------------------------------------------------------------- meshes
 
@@ -238,9 +239,9 @@ def reference(pos_faces, val_faces, values, mode, levels, creased=frozenset(),
 
 
 def ours(faces, uv_faces, V, uvs, mode, levels, tags=None, scheme="catmark"):
-    fv = FaceVaryingSubdivision(faces, uv_faces, V, uvs.shape[0], levels=levels,
-                                interpolation=mode, tags=tags, scheme=scheme,
-                                dtype=torch.float64)
+    fv = FaceVaryingSubdivision(faces, uv_faces, V, uvs.shape[0], levels=levels, tags=tags,
+                                scheme=scheme, dtype=torch.float64,
+                                options=SchemeOptions(fvar_interpolation=mode))
     return fv(uvs)[fv.faces].numpy(), fv
 
 
@@ -312,7 +313,8 @@ def test_no_seam_equals_vertex_operator(mode, scheme):
         corners=torch.tensor([1]), corner_sharpness=torch.tensor([0.5], dtype=torch.float64))
     build = catmull_clark_operator if scheme == "catmark" else loop_operator
     pos = build(faces, V, dtype=torch.float64, tags=tags)
-    fv = face_varying_operator(faces, faces, V, V, scheme=scheme, interpolation=mode, tags=tags,
+    fv = face_varying_operator(faces, faces, V, V, scheme=scheme,
+                               options=SchemeOptions(fvar_interpolation=mode), tags=tags,
                                dtype=torch.float64)
     torch.testing.assert_close(fv.stencils.dense(), pos.stencils.dense(), rtol=0, atol=1e-15)
     assert torch.equal(fv.faces, pos.faces)
@@ -326,19 +328,23 @@ def test_no_seam_open_grid_boundary_modes():
     cases = (("none", "edge_only", "edge_only"), ("corners_only", "edge_only", "edge_and_corner"),
              ("none", "edge_and_corner", "edge_and_corner"))
     for mode, geometry, boundary in cases:
-        pos = catmull_clark_operator(faces, V, boundary=boundary, dtype=torch.float64)
-        fv = face_varying_operator(faces, faces, V, V, interpolation=mode, boundary=geometry,
-                                   dtype=torch.float64)
+        pos = catmull_clark_operator(faces, V,
+                                     options=SchemeOptions(boundary=boundary), dtype=torch.float64)
+        fv = face_varying_operator(faces, faces, V, V, dtype=torch.float64,
+                                   options=SchemeOptions(fvar_interpolation=mode,
+                                                         boundary=geometry))
         torch.testing.assert_close(fv.stencils.dense(), pos.stencils.dense(), rtol=0, atol=0)
 
 
 def test_all_is_bilinear():
     faces, uv_faces, V, uvs = torus_grid(3, 3)
-    fv = face_varying_operator(faces, uv_faces, V, uvs.shape[0], interpolation="all",
+    fv = face_varying_operator(faces, uv_faces, V, uvs.shape[0],
+                               options=SchemeOptions(fvar_interpolation="all"),
                                dtype=torch.float64)
     bil = bilinear_operator(uv_faces, uvs.shape[0], dtype=torch.float64)
     torch.testing.assert_close(fv.stencils.dense(), bil.stencils.dense(), rtol=0, atol=0)
-    loop = face_varying_operator(OCTA_F, OCTA_F, 6, 6, scheme="loop", interpolation="all",
+    loop = face_varying_operator(OCTA_F, OCTA_F, 6, 6, scheme="loop",
+                                 options=SchemeOptions(fvar_interpolation="all"),
                                  dtype=torch.float64)
     pts = torch.randn(6, 3, dtype=torch.float64)
     out = apply_operator(loop, pts)
@@ -352,7 +358,8 @@ def test_loop_seam_matches_dense_reference():
     seams = {frozenset((0, 4)), frozenset((4, 1))}
     uv_faces, T = seam_values(OCTA_F, seams)
     uvs = torch.rand(T, 2, dtype=torch.float64, generator=torch.Generator().manual_seed(3))
-    op = face_varying_operator(OCTA_F, uv_faces, 6, T, scheme="loop", interpolation="none",
+    op = face_varying_operator(OCTA_F, uv_faces, 6, T, scheme="loop",
+                               options=SchemeOptions(fvar_interpolation="none"),
                                dtype=torch.float64)
     got = apply_operator(op, uvs)[op.faces].numpy()
     # reference: the value mesh, boundaries (seams) use the crease rules
@@ -407,8 +414,9 @@ def test_levels_line_up_with_position_module(boundary):
     uv_faces, T = seam_values(faces, seams)
     tags = SubdivisionTags.empty()._replace(creases=torch.tensor([[11, 12]]),
                                             crease_sharpness=torch.tensor([1.5]))
-    cc = CatmullClark(faces, V, levels=2, boundary=boundary, tags=tags)
-    fv = FaceVaryingSubdivision(faces, uv_faces, V, T, levels=2, boundary=boundary, tags=tags)
+    cc = CatmullClark(faces, V, levels=2, options=SchemeOptions(boundary=boundary), tags=tags)
+    fv = FaceVaryingSubdivision(faces, uv_faces, V, T, levels=2,
+                                options=SchemeOptions(boundary=boundary), tags=tags)
     assert fv.faces.shape == cc.faces.shape and fv.faces.shape[0] > 0
     pairs = torch.stack([fv.faces.flatten(), cc.faces.flatten()], 1).unique(dim=0)
     assert pairs[:, 0].unique().numel() == pairs.shape[0]
@@ -423,8 +431,10 @@ def test_uv_index_shared_by_two_vertices_is_split():
     copied = uvs.clone()
     copied[5] = uvs[0]
     for mode in ("none", "corners_only"):
-        a = face_varying_subdivide(uvs, faces, shared, V, levels=2, interpolation=mode)
-        b = face_varying_subdivide(copied, faces, uv_faces, V, levels=2, interpolation=mode)
+        a = face_varying_subdivide(uvs, faces, shared, V, levels=2,
+                                   options=SchemeOptions(fvar_interpolation=mode))
+        b = face_varying_subdivide(copied, faces, uv_faces, V, levels=2,
+                                   options=SchemeOptions(fvar_interpolation=mode))
         np.testing.assert_allclose(a[0][a[1]].numpy(), b[0][b[1]].numpy(), rtol=0,
                                    atol=1e-12)
     op = face_varying_operator(faces, shared, V, 20)
@@ -437,8 +447,7 @@ def test_module_function_defaults_agree_and_to_deepcopy():
     sig_m = inspect.signature(FaceVaryingSubdivision.__init__).parameters
     sig_f = inspect.signature(face_varying_subdivide).parameters
     sig_o = inspect.signature(face_varying_operator).parameters
-    for name in ("levels", "scheme", "interpolation", "boundary", "tags", "crease_method",
-                 "triangle_rule"):
+    for name in ("levels", "scheme", "tags", "options"):
         assert sig_m[name].default == sig_f[name].default
         if name in sig_o:
             assert sig_o[name].default == sig_m[name].default
@@ -475,7 +484,8 @@ def test_empty_and_nan():
 def test_errors_name_the_argument():
     faces, uv_faces, V, _ = torus_grid(3, 3)
     with pytest.raises(ValueError, match="interpolation"):
-        face_varying_operator(faces, uv_faces, V, 16, interpolation="linear")
+        face_varying_operator(faces, uv_faces, V, 16,
+                              options=SchemeOptions(fvar_interpolation="linear"))
     with pytest.raises(ValueError, match="scheme"):
         face_varying_operator(faces, uv_faces, V, 16, scheme="bilinear")
     with pytest.raises(ValueError, match="uv_faces: face 0 has index 16"):

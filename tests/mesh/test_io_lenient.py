@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from torchgeo_cg.mesh.faces import triangulate_faces, unpad_faces
-from torchgeo_cg.mesh.io import Mesh, load_mesh, save_mesh
+from torchgeo_cg.mesh.io import Mesh, MeshFileWarning, load_mesh, save_mesh
 from torchgeo_cg.mesh.subdivision import face_varying_subdivide
 
 QUADS = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nv 3 0 0\nv 3 1 0\n"
@@ -47,7 +47,8 @@ def _load(tmp_path, name: str, content: bytes, expect_warning: bool = True):
 
 def _assert_warning(caught, path, count: int, line: int, what: str):
     (w,) = caught
-    assert issubclass(w.category, UserWarning) and w.category.__name__ == "MeshFileWarning"
+    assert w.category is MeshFileWarning and issubclass(MeshFileWarning, UserWarning)
+    assert MeshFileWarning.__name__ in __import__("torchgeo_cg.mesh.io").mesh.io.__all__
     plural = "s" if count > 1 else ""
     assert str(w.message) == (f"{path}: skipped what cannot change positions or faces on "
                               f"{count} line{plural}; the first, line {line}: {what}")

@@ -13,6 +13,7 @@ from tests.mesh._osd import run_osd
 from tests.mesh.test_opensubdiv_live import CUBE_F, CUBE_V, grid
 from torchgeo_cg.mesh import SubdivisionTags, catmull_clark_operator, loop_operator
 from torchgeo_cg.mesh.data import rabbit
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 from torchgeo_cg.mesh.subdivision.limit import limit_frames
 
 
@@ -62,7 +63,8 @@ def shape(name):
 def test_limit_frames_match_primvar_refiner_limit(name, boundary):
     verts, faces, scheme, shape_tags = shape(name)
     build = catmull_clark_operator if scheme == "catmark" else loop_operator
-    op = build(faces, len(verts), boundary, dtype=torch.float64, tags=shape_tags)
+    op = build(faces, len(verts), dtype=torch.float64, tags=shape_tags,
+               options=SchemeOptions(boundary=boundary))
     ours = limit_frames(op, torch.tensor(verts, dtype=torch.float64))
     theirs = run_osd(verts, faces, "limit 1", tags=shape_tags, boundary=boundary, scheme=scheme)
     # OpenSubdiv numbers its refined vertices in another order: pair them by position

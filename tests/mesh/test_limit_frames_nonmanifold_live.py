@@ -25,6 +25,7 @@ import torch
 from tests.mesh._nonmanifold_shapes import KINDS
 from tests.mesh._osd import run_osd
 from torchgeo_cg.mesh import catmull_clark_operator, loop_operator
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 from torchgeo_cg.mesh.subdivision._topology import mesh_topology
 from torchgeo_cg.mesh.subdivision.limit import limit_frames
 
@@ -81,7 +82,7 @@ def overflow_terms(faces, num_vertices, refined):
 def test_nonmanifold_kind_frames_match_primvar_refiner_limit(name, boundary):
     verts, faces, scheme = KINDS[name]
     build = catmull_clark_operator if scheme == "catmark" else loop_operator
-    op = build(faces, len(verts), boundary, dtype=torch.float64)
+    op = build(faces, len(verts), dtype=torch.float64, options=SchemeOptions(boundary=boundary))
     ours = limit_frames(op, torch.tensor(verts, dtype=torch.float64))
     index = osd_index(faces, len(verts), scheme)
     theirs = run_osd(verts, faces, "limit 1", boundary=boundary, scheme=scheme)[index]

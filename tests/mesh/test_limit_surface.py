@@ -20,7 +20,7 @@ from torchgeo_cg.mesh import (
     load_mesh,
     sample_limit_surface,
 )
-from torchgeo_cg.mesh.subdivision import CatmullClark
+from torchgeo_cg.mesh.subdivision import CatmullClark, SchemeOptions
 
 RABBIT = Path(mesh_pkg.__file__).parent / "data" / "rabbit.obj"
 CUBE_V = [[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]
@@ -79,7 +79,8 @@ def test_matches_opensubdiv_patch_table(name):
     make, boundary, make_tags, allowed = CASES[name]
     verts, faces = make()
     tags = make_tags() if make_tags else None
-    op = catmull_clark_operator(faces, len(verts), boundary, dtype=F64, tags=tags)
+    op = catmull_clark_operator(faces, len(verts), dtype=F64, tags=tags,
+                                options=SchemeOptions(boundary=boundary))
     fid, uv = random_points(faces, 300, 1, allowed)
     ours = limit_surface(op, torch.tensor(verts, dtype=F64), fid, uv)
     ref = run_osd(verts, faces, "patch 10", tags=tags, boundary=boundary,
@@ -98,7 +99,8 @@ def test_matches_opensubdiv_patch_table(name):
 
 def test_derivatives_are_those_of_the_ptex_parametrisation():
     verts, faces = MIXED_V, MIXED_F
-    op = catmull_clark_operator(faces, len(verts), "edge_and_corner", dtype=F64)
+    op = catmull_clark_operator(faces, len(verts), dtype=F64,
+                                options=SchemeOptions(boundary="edge_and_corner"))
     v = torch.tensor(verts, dtype=F64)
     fid, uv = random_points(faces, 50, 2, margin=0.05)
     h = 1e-6
@@ -145,7 +147,8 @@ def test_corners_equal_limit_positions(name, boundary):
                            torch.full((4,), 10.0), torch.tensor([7]), torch.tensor([10.0]),
                            torch.zeros(0, dtype=torch.long)) if name == "tagged_cube" else None
     v = torch.tensor(verts, dtype=F64)
-    op = catmull_clark_operator(faces, len(verts), boundary, dtype=F64, tags=tags)
+    op = catmull_clark_operator(faces, len(verts), dtype=F64, tags=tags,
+                                options=SchemeOptions(boundary=boundary))
     limit = limit_positions(op, v)
     ids, uvs, want = [], [], []
     ptex = 0

@@ -22,6 +22,7 @@ from torchgeo_cg.mesh import (
     sample_limit_surface,
 )
 from torchgeo_cg.mesh.data import rabbit
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 
 F64 = torch.float64
 OCTA_V = [[0, 0, 1], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, -1]]
@@ -80,7 +81,8 @@ CASES = {
 def test_matches_opensubdiv_patch_table(name):
     make, boundary, shape_tags = CASES[name]
     verts, faces = make()
-    op = loop_operator(faces, len(verts), boundary, dtype=F64, tags=shape_tags)
+    op = loop_operator(faces, len(verts), dtype=F64, tags=shape_tags,
+                       options=SchemeOptions(boundary=boundary))
     fid, uv = triangle_points(len(faces), 300, 1)
     ours = limit_surface(op, torch.tensor(verts, dtype=F64), fid, uv)
     ref = run_osd(verts, faces, "patch 8", tags=shape_tags, boundary=boundary, scheme="loop",
@@ -132,7 +134,8 @@ def test_corners_equal_limit_positions(name, boundary):
         shape_tags = tags([(7, 8), (8, 9), (9, 10), (10, 16), (16, 15), (15, 14), (14, 8)],
                           corners=[21]) if name == "grid_creases" else None
     v = torch.tensor(verts, dtype=F64)
-    op = loop_operator(faces, len(verts), boundary, dtype=F64, tags=shape_tags)
+    op = loop_operator(faces, len(verts), dtype=F64, tags=shape_tags,
+                       options=SchemeOptions(boundary=boundary))
     fid = torch.arange(len(faces)).repeat_interleave(3)
     uv = torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], dtype=F64).repeat(len(faces), 1)
     out = limit_surface(op, v, fid, uv)

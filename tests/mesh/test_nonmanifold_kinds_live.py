@@ -17,6 +17,7 @@ from torchgeo_cg.mesh import (
     catmull_clark_operator,
     limit_positions,
 )
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 from torchgeo_cg.mesh.subdivision.operator import apply_operator
 
 CASES = [pytest.param(name, boundary, marks=[pytest.mark.slow] if name.endswith("360") else [])
@@ -28,7 +29,7 @@ CASES = [pytest.param(name, boundary, marks=[pytest.mark.slow] if name.endswith(
 def test_kind_refines_and_limits_as_opensubdiv(name, boundary):
     verts, faces, scheme = KINDS[name]
     module = (CatmullClark if scheme == "catmark" else LoopSubdivision)(
-        faces, len(verts), levels=3, boundary=boundary, dtype=torch.float64)
+        faces, len(verts), levels=3, dtype=torch.float64, options=SchemeOptions(boundary=boundary))
     x = torch.tensor(verts, dtype=torch.float64)
     for level in (1, 2, 3):
         op = module.operator(level - 1)

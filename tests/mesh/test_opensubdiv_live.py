@@ -18,6 +18,7 @@ from torchgeo_cg.mesh import (
     loop_operator,
     loop_subdivide,
 )
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 
 RABBIT = Path(mesh_pkg.__file__).parent / "data" / "rabbit.obj"
 CUBE_V = [[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]
@@ -63,12 +64,13 @@ def test_catmark_refinement_and_limit_match_opensubdiv(shape, boundary):
         m = load_mesh(RABBIT)
         verts, faces = m.verts.double().tolist(), m.faces.tolist()
     v = torch.tensor(verts, dtype=torch.float64)
-    ours, _ = catmull_clark(v, faces, levels=2, boundary=boundary, tags=tags)
+    ours, _ = catmull_clark(v, faces, levels=2, options=SchemeOptions(boundary=boundary), tags=tags)
     theirs = run_osd(verts, faces, "refine 2", tags=tags, boundary=boundary)
     same_points(ours, theirs)
     if shape == "tagged_cube":
         return  # semi-sharp tags remain at level 2: no limit masks there
-    op = catmull_clark_operator(faces, len(verts), boundary, dtype=torch.float64, tags=tags)
+    op = catmull_clark_operator(faces, len(verts), dtype=torch.float64, tags=tags,
+                                options=SchemeOptions(boundary=boundary))
     limit_ours = limit_positions(op, v)
     limit_theirs = run_osd(verts, faces, "limit 1", tags=tags, boundary=boundary)[:, :3]
     same_points(limit_ours, limit_theirs)

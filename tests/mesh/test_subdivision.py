@@ -23,6 +23,7 @@ from torchgeo_cg.mesh.faces import face_sizes, pad_faces, unpad_faces
 from torchgeo_cg.mesh.io import to_trimesh
 from torchgeo_cg.mesh.subdivision import (
     CatmullClark,
+    SchemeOptions,
     SubdivisionOperator,
     apply_operator,
     catmull_clark,
@@ -130,7 +131,8 @@ def test_operator_rows_and_layout():
 
 @pytest.mark.parametrize("boundary", ["edge_only", "edge_and_corner"])
 def test_quad_boundary_rules_hand_derived(boundary):
-    op = catmull_clark_operator([[0, 1, 2, 3]], 4, boundary=boundary, dtype=torch.float64)
+    op = catmull_clark_operator([[0, 1, 2, 3]], 4,
+                                options=SchemeOptions(boundary=boundary), dtype=torch.float64)
     s = op.matrix.to_dense()
     corner = [1.0, 0, 0, 0] if boundary == "edge_and_corner" else [0.75, 0.125, 0, 0.125]
     assert s[0].tolist() == corner
@@ -145,7 +147,8 @@ def test_quad_boundary_rules_hand_derived(boundary):
 def test_matches_reference(name, boundary, levels):
     v0, f0 = MESHES[name]()
     v_ref, f_ref = reference_levels(v0, f0, levels, boundary)
-    v_ours, f_ours = catmull_clark(torch.tensor(v0), f0, levels=levels, boundary=boundary)
+    v_ours, f_ours = catmull_clark(torch.tensor(v0), f0, levels=levels,
+                                   options=SchemeOptions(boundary=boundary))
     assert f_ours.tolist() == f_ref
     np.testing.assert_allclose(v_ours.numpy(), v_ref, rtol=1e-12, atol=1e-12)
 
@@ -194,7 +197,8 @@ def test_rigid_equivariance(seed, name, boundary):
     rot = torch.tensor(_random_rotation(seed))
     t = torch.tensor(np.random.default_rng(seed + 1).normal(size=3) * 10)
     v = torch.tensor(v0)
-    cc = CatmullClark(f0, len(v0), levels=2, boundary=boundary, dtype=torch.float64)
+    cc = CatmullClark(f0, len(v0), levels=2,
+                      options=SchemeOptions(boundary=boundary), dtype=torch.float64)
     assert_close(cc(v @ rot.T + t), cc(v) @ rot.T + t, scale=1e3)
 
 
@@ -238,8 +242,10 @@ def test_limit_positions_invariant_under_refinement(name, boundary):
     """The limit surface does not change when refining: limit(level 1)[:V1] == limit(level 2)."""
     v0, f0 = MESHES[name]()
     v = torch.tensor(v0)
-    op1 = catmull_clark_operator(f0, len(v0), boundary, dtype=torch.float64)
-    op2 = catmull_clark_operator(op1.faces, op1.num_vertices_out, boundary, dtype=torch.float64)
+    options = SchemeOptions(boundary=boundary)
+    op1 = catmull_clark_operator(f0, len(v0), dtype=torch.float64, options=options)
+    op2 = catmull_clark_operator(op1.faces, op1.num_vertices_out, dtype=torch.float64,
+                                 options=options)
     lim1 = limit_positions(op1, v)
     lim2 = limit_positions(op2, apply_operator(op1, v))
     assert_close(lim2[: op1.num_vertices_out], lim1, scale=100)
@@ -263,7 +269,8 @@ def test_limit_regular_boundary_is_cubic_bspline():
     """On a boundary the limit is the uniform cubic B-spline mask (a + 4 V + b) / 6."""
     v0, f0 = grid(4, 1)
     v = torch.tensor(v0)
-    op = catmull_clark_operator(f0, len(v0), "edge_and_corner", dtype=torch.float64)
+    op = catmull_clark_operator(f0, len(v0), dtype=torch.float64,
+                                options=SchemeOptions(boundary="edge_and_corner"))
     lim = limit_positions(op, v)
     vp = apply_operator(op, v)
     edges = sorted({tuple(sorted((f[k], f[(k + 1) % 4]))) for f in f0 for k in range(4)})
@@ -304,10 +311,10 @@ def test_custom_backward_equals_autograd(dtype, device):
 def test_module_equals_function_and_defaults():
     fn = inspect.signature(catmull_clark).parameters
     mod = inspect.signature(CatmullClark.__init__).parameters
-    for name in ("levels", "boundary"):
+    for name in ("levels", "options"):
         assert fn[name].default == mod[name].default
-    assert inspect.signature(catmull_clark_operator).parameters["boundary"].default == (
-        mod["boundary"].default)
+    assert inspect.signature(catmull_clark_operator).parameters["options"].default == (
+        mod["options"].default)
     v0, f0 = MESHES["fin"]()
     v = torch.tensor(v0)
     out_fn, faces_fn = catmull_clark(v, f0, levels=2)
@@ -389,9 +396,9 @@ def test_bad_faces_name_the_face(faces, match):
 def test_bad_arguments():
     v = torch.tensor(CUBE_V)
     with pytest.raises(ValueError, match="boundary"):
-        catmull_clark_operator(CUBE_F, 8, boundary="corner")
+        catmull_clark_operator(CUBE_F, 8, options=SchemeOptions(boundary="corner"))
     with pytest.raises(ValueError, match="boundary"):
-        CatmullClark(CUBE_F, 8, boundary="smooth")
+        CatmullClark(CUBE_F, 8, options=SchemeOptions(boundary="smooth"))
     with pytest.raises(ValueError, match="levels"):
         CatmullClark(CUBE_F, 8, levels=-1)
     with pytest.raises(ValueError, match="levels"):

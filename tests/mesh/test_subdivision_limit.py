@@ -10,7 +10,12 @@ import trimesh
 
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.mesh import SubdivisionTags, bilinear_operator
-from torchgeo_cg.mesh.subdivision import CatmullClark, catmull_clark_operator, limit_positions
+from torchgeo_cg.mesh.subdivision import (
+    CatmullClark,
+    SchemeOptions,
+    catmull_clark_operator,
+    limit_positions,
+)
 from torchgeo_cg.mesh.subdivision.limit import limit_frames
 from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator
 
@@ -30,7 +35,8 @@ def test_planar_grid_normals_are_the_plane_normal(scheme, boundary):
     xy = xy + 0.15 * torch.rand(16, 2, generator=g, dtype=torch.float64)
     verts = torch.cat([xy, torch.zeros(16, 1, dtype=torch.float64)], 1)
     build = catmull_clark_operator if scheme == "catmark" else loop_operator
-    op = build(GRID_Q if scheme == "catmark" else GRID_T, 16, boundary=boundary,
+    op = build(GRID_Q if scheme == "catmark" else GRID_T, 16,
+               options=SchemeOptions(boundary=boundary),
                dtype=torch.float64)
     frames = limit_frames(op, verts)
     assert_close(frames.positions, limit_positions(op, verts))

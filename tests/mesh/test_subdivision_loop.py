@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.mesh.io import to_trimesh
-from torchgeo_cg.mesh.subdivision import apply_operator, limit_positions
+from torchgeo_cg.mesh.subdivision import SchemeOptions, apply_operator, limit_positions
 from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator, loop_subdivide
 
 
@@ -94,7 +94,8 @@ def test_matches_reference(name, boundary, levels):
     v_ref, f_ref = v0, f0
     for _ in range(levels):
         v_ref, f_ref = reference_loop(v_ref, f_ref, boundary)
-    v, f = loop_subdivide(torch.tensor(v0), f0, levels=levels, boundary=boundary)
+    v, f = loop_subdivide(torch.tensor(v0), f0, levels=levels,
+                          options=SchemeOptions(boundary=boundary))
     assert f.tolist() == f_ref
     np.testing.assert_allclose(v.numpy(), v_ref, rtol=1e-12, atol=1e-12)
 
@@ -140,7 +141,7 @@ def test_gradcheck_and_module_defaults():
     assert torch.autograd.gradcheck(loop, (torch.tensor(v0, requires_grad=True),))
     fn = inspect.signature(loop_subdivide).parameters
     mod = inspect.signature(LoopSubdivision.__init__).parameters
-    assert all(fn[k].default == mod[k].default for k in ("levels", "boundary"))
+    assert all(fn[k].default == mod[k].default for k in ("levels", "options"))
     v = torch.tensor(v0)
     out, faces = loop_subdivide(v, f0, levels=2)
     assert_close(loop(v), out)
@@ -163,7 +164,7 @@ def test_errors():
     with pytest.raises(ValueError, match="face 1 has index 9"):
         loop_operator([[0, 1, 2], [0, 2, 9]], 4)
     with pytest.raises(ValueError, match="boundary"):
-        loop_operator([[0, 1, 2]], 3, boundary="smooth")
+        loop_operator([[0, 1, 2]], 3, options=SchemeOptions(boundary="smooth"))
     with pytest.raises(ValueError, match="same device"):
         loop_subdivide(torch.zeros(3, 3), torch.tensor([[0, 1, 2]], device="meta"))
     with pytest.raises(ShapeError, match="verts"):
@@ -248,7 +249,8 @@ def test_loop_limit_is_invariant_under_refinement():
 @pytest.mark.parametrize("boundary", ["edge_only", "edge_and_corner"])
 def test_loop_limit_on_the_boundary_is_the_cubic_bspline(boundary):
     verts = torch.tensor([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]], dtype=torch.float64)
-    op = loop_operator([[0, 1, 2], [0, 2, 3]], 4, boundary=boundary, dtype=torch.float64)
+    op = loop_operator([[0, 1, 2], [0, 2, 3]], 4,
+                       options=SchemeOptions(boundary=boundary), dtype=torch.float64)
     limit = limit_positions(op, verts)
     # vertex 0 has valence 3 (neighbours 1, 2, 3), boundary neighbours 1 and 3
     assert_close(limit[0], (verts[1] + 4 * verts[0] + verts[3]) / 6)

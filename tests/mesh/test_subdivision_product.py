@@ -17,7 +17,7 @@ import pytest
 import torch
 
 from torchgeo_cg.mesh.subdivision import apply_stencils, catmull_clark_operator
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, index_dtype, stencil_matrix
+from torchgeo_cg.mesh.subdivision._stencil_build import StencilMatrix, index_dtype, stencil_matrix
 
 R, C, NNZ = 40_000, 3_000, 200_000  # 40k rows: three blocks of embedding_bag rows
 

@@ -26,6 +26,7 @@ from torchgeo_cg.mesh import (
     loop_operator,
     loop_subdivide,
 )
+from torchgeo_cg.mesh.subdivision import SchemeOptions
 
 INF = 10.0
 
@@ -309,8 +310,8 @@ def _tags_tensor(tags, dtype=torch.float64):
 
 def _check_against_reference(module_cls, V, faces, tags, boundary, method, scheme, levels,
                              **options):
-    module = module_cls(faces, V, levels=levels, boundary=boundary, dtype=torch.float64,
-                        tags=_tags_tensor(tags), crease_method=method, **options)
+    module = module_cls(faces, V, levels=levels, dtype=torch.float64, tags=_tags_tensor(tags),
+                        options=SchemeOptions(boundary=boundary, crease_method=method, **options))
     expected = reference_levels(V, faces, tags, boundary, method, scheme, levels, **options)
     for level, (S, visible) in enumerate(expected):
         op = module.operator(level)
@@ -519,7 +520,7 @@ def test_bad_tags_name_the_problem():
     with pytest.raises(ValueError, match="crease_sharpness"):
         loop_operator(OCTA_F, 6, tags=_tags_tensor({"creases": {(0, 2): -1.0}}))
     with pytest.raises(ValueError, match="crease_method"):
-        CatmullClark(CUBE_F, 8, crease_method="linear")
+        CatmullClark(CUBE_F, 8, options=SchemeOptions(crease_method="linear"))
 
 
 @pytest.mark.parametrize("scheme", ["catmark", "loop"])
@@ -571,7 +572,7 @@ def test_triangle_rule_matches_reference(triangle_rule):
     assert_close(row[1], torch.tensor(end, dtype=torch.float64))
     assert_close(row[0], torch.tensor(fw / 3, dtype=torch.float64))  # opposite corners
     with pytest.raises(ValueError, match="triangle_rule"):
-        catmull_clark_operator(faces, 5, triangle_rule="loop")
+        catmull_clark_operator(faces, 5, options=SchemeOptions(triangle_rule="loop"))
 
 
 def test_bilinear_operator_stays_on_the_control_polygons():

@@ -560,8 +560,8 @@ def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
     ref = M.mesh_sdf(V, F, p, return_closest=True, backend=backend)
     ref2 = M.mesh_sdf(2 * V, F, p, backend=backend)
     builds = []
-    real = E.build_search
-    monkeypatch.setattr(E, "build_search", lambda *a: builds.append(1) or real(*a))
+    real = E._build_search
+    monkeypatch.setattr(E, "_build_search", lambda *a: builds.append(1) or real(*a))
     first = module(p, return_closest=True)
     second = module(p.flip(0))
     assert len(builds) == 1  # the second query reused the structure
@@ -645,8 +645,8 @@ def test_repeated_calls_reuse_only_an_identical_mesh(backend, monkeypatch):
     p = _points(m, 50, seed=3)
     want2 = M.mesh_sdf(2 * V, F, p, backend="torch").sdf
     builds = []
-    real = E.build_search
-    monkeypatch.setattr(E, "build_search", lambda *a: builds.append(1) or real(*a))
+    real = E._build_search
+    monkeypatch.setattr(E, "_build_search", lambda *a: builds.append(1) or real(*a))
     first = M.mesh_sdf(V, F, p, backend=backend).sdf
     again = M.mesh_sdf(V, F, p, backend=backend).sdf
     assert torch.equal(first, again)

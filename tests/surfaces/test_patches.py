@@ -235,8 +235,8 @@ def test_gradcheck():
 
 
 def test_chunked_evaluation_equals_one_recorded_pass(monkeypatch):
-    patches = __import__("torchgeo_cg.surfaces.patches", fromlist=["CHUNK"])
-    monkeypatch.setattr(patches, "CHUNK", 14)  # several chunks of 7 parameters per patch
+    patches = __import__("torchgeo_cg.surfaces.patches", fromlist=["_CHUNK"])
+    monkeypatch.setattr(patches, "_CHUNK", 14)  # several chunks of 7 parameters per patch
     g = torch.Generator().manual_seed(11)
     grid = torch.randn(2, 6, 5, 3, generator=g, dtype=F64)
     w = 0.5 + torch.rand(2, 6, 5, generator=g, dtype=F64)

@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from torchgeo_cg.transforms import (
+    SolverOptions,
     compose,
     find_affine,
     find_euclidean,
@@ -171,7 +172,7 @@ def test_corners_parametrization_propagates_nan():
 def test_fit_transform_rejects_bad_tol(tol):
     src = torch.rand(5, 2, dtype=F64)
     with pytest.raises(ValueError, match="tol"):
-        fit_transform(src, src, "affine", tol=tol)
+        fit_transform(src, src, "affine", solver=SolverOptions(tol=tol))
 
 
 def test_homogeneous_3d_ops():

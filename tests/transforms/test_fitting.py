@@ -14,6 +14,8 @@ from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
 from torchgeo_cg.transforms import (
     HomographyModel,
+    LossOptions,
+    SolverOptions,
     find_affine,
     find_euclidean,
     find_homography_dlt,
@@ -60,7 +62,7 @@ def noisy_4096():
 @pytest.mark.parametrize("optimizer,steps", [("adam", 200), ("lm", 10)])
 def test_4096_noisy_problems_reach_closed_form_cost(noisy_4096, optimizer, steps):
     src, dst, dlt_cost = noisy_4096
-    fit = fit_transform(src, dst, optimizer=optimizer, steps=steps)
+    fit = fit_transform(src, dst, solver=SolverOptions(optimizer, steps=steps))
     assert fit.history.shape[0] <= steps + 1
     cost = reprojection_error(fit.matrix, src, dst)
     assert_close(fit.loss, cost, rtol=1e-4, atol=1e-6)
@@ -74,17 +76,17 @@ def test_report_shapes_recovered_by_every_parametrization(parametrization):
     src = shapes.start.expand(8, -1, -1)
     # sl3 from the identity needs ~18 LM iterations for F's R(-135°)
     steps = 30 if parametrization == "sl3" else 10
-    fit = fit_transform(src, shapes.targets, "homography", "lm", steps=steps,
-                        parametrization=parametrization)
+    fit = fit_transform(src, shapes.targets, "homography", parametrization=parametrization,
+                        solver=SolverOptions("lm", steps=steps))
     assert (fit.matrix - shapes.matrices).abs().max() < 1e-6
-    affine = fit_transform(src[:7], shapes.targets[:7], "affine", "lm")
+    affine = fit_transform(src[:7], shapes.targets[:7], "affine", solver=SolverOptions("lm"))
     assert (affine.matrix - shapes.matrices[:7]).abs().max() < 1e-6
 
 
 def test_report_shapes_trs_model_recovers_a_to_f():
     shapes = report_shapes(dtype=torch.float64)
     src = shapes.start.expand(6, -1, -1)
-    fit = fit_transform(src, shapes.targets[:6], "trs", "lm", steps=30)
+    fit = fit_transform(src, shapes.targets[:6], "trs", solver=SolverOptions("lm", steps=30))
     assert (fit.matrix - shapes.matrices[:6]).abs().max() < 1e-6
 
 
@@ -103,7 +105,7 @@ def test_raw_entries_in_pixels_do_not_converge_but_normalized_do():
         loss.backward()
         opt.step()
     raw = reprojection_error(m.detach(), src, dst)
-    ours = fit_transform(src, dst, optimizer="adam", steps=200).loss
+    ours = fit_transform(src, dst, solver=SolverOptions("adam", steps=200)).loss
     assert (raw > 10 * ours).float().mean() > 0.9
 
 
@@ -118,7 +120,7 @@ def test_models_reach_their_closed_form_optimum(model, closed_form, device, dtyp
     gen = torch.Generator().manual_seed(2)
     src, dst, _ = random_problem(8, 10, gen, noise=2.0)
     src, dst = src.to(device, dtype), dst.to(device, dtype)
-    fit = fit_transform(src, dst, model=model, optimizer="lm", steps=30, tol=0.0)
+    fit = fit_transform(src, dst, model=model, solver=SolverOptions("lm", steps=30, tol=0.0))
     assert fit.matrix.dtype == dtype and fit.matrix.device.type == device.type
     assert fit.params.shape == (8, parametrization.MODELS[model])
     # translations are ~100 px: absolute tolerances follow
@@ -131,7 +133,7 @@ def test_models_reach_their_closed_form_optimum(model, closed_form, device, dtyp
 def test_every_optimizer_improves_and_records_history(optimizer):
     gen = torch.Generator().manual_seed(3)
     src, dst, _ = random_problem(4, 8, gen, noise=0.5)
-    fit = fit_transform(src, dst, optimizer=optimizer)
+    fit = fit_transform(src, dst, solver=SolverOptions(optimizer))
     assert fit.history.shape[1:] == (4,)
     assert (fit.history[-1] < 0.01 * fit.history[0]).all()
     assert_close(fit.history[-1], fit.loss)
@@ -140,21 +142,21 @@ def test_every_optimizer_improves_and_records_history(optimizer):
 def test_early_stopping_on_exact_data():
     gen = torch.Generator().manual_seed(4)
     src, dst, h = random_problem(3, 8, gen)
-    lm = fit_transform(src, dst, optimizer="lm", steps=50)
+    lm = fit_transform(src, dst, solver=SolverOptions("lm", steps=50))
     assert lm.history.shape[0] < 15
     assert_close(lm.matrix, h, rtol=1e-9, atol=1e-9)
-    adam = fit_transform(src, dst, optimizer="adam", steps=2000, patience=10)
+    adam = fit_transform(src, dst, solver=SolverOptions("adam", steps=2000, patience=10))
     assert adam.history.shape[0] < 2001
 
 
 def test_symmetric_loss():
     gen = torch.Generator().manual_seed(5)
     src, dst, h = random_problem(4, 8, gen)
-    exact = fit_transform(src, dst, loss="symmetric")
+    exact = fit_transform(src, dst, loss=LossOptions(symmetric=True))
     assert_close(exact.matrix, h, rtol=1e-8, atol=1e-8)
     src, dst, _ = random_problem(16, 8, gen, noise=1.0)
-    sym = fit_transform(src, dst, loss="symmetric", steps=30)
-    one_way = fit_transform(src, dst, loss="transfer", steps=30)
+    sym = fit_transform(src, dst, solver=SolverOptions(steps=30), loss=LossOptions(symmetric=True))
+    one_way = fit_transform(src, dst, solver=SolverOptions(steps=30))
     assert_close(sym.loss, reprojection_error(sym.matrix, src, dst, symmetric=True))
     sym_cost = reprojection_error(sym.matrix, src, dst, symmetric=True)
     other = reprojection_error(one_way.matrix, src, dst, symmetric=True)
@@ -168,8 +170,8 @@ def test_weights_match_point_removal():
     w = torch.ones(2, 9, dtype=torch.float64)
     w[:, 4] = 0
     keep = [i for i in range(9) if i != 4]
-    a = fit_transform(src, dst, weights=w, steps=20).matrix
-    b = fit_transform(src[:, keep], dst[:, keep], steps=20).matrix
+    a = fit_transform(src, dst, weights=w, solver=SolverOptions(steps=20)).matrix
+    b = fit_transform(src[:, keep], dst[:, keep], solver=SolverOptions(steps=20)).matrix
     assert_close(a, b, rtol=1e-8, atol=1e-8)
 
 
@@ -177,13 +179,15 @@ def test_init_is_used():
     gen = torch.Generator().manual_seed(7)
     src, dst, h = random_problem(2, 8, gen)
     for par in parametrization.PARAMETRIZATIONS:
-        fit = fit_transform(src, dst, optimizer="adam", steps=0, init=h, parametrization=par)
+        fit = fit_transform(src, dst, init=h, parametrization=par,
+                            solver=SolverOptions("adam", steps=0))
         assert_close(fit.matrix, h, rtol=1e-9, atol=1e-9)
         assert fit.history.shape == (1, 2)
         # from a perturbed start, every parametrization (sl3: Ĥ = base·exp) reaches h
         start = h.clone()
         start[:, :2, 2] += 3.0
-        fit = fit_transform(src, dst, optimizer="lm", steps=20, init=start, parametrization=par)
+        fit = fit_transform(src, dst, init=start, parametrization=par,
+                            solver=SolverOptions("lm", steps=20))
         assert_close(fit.matrix, h, rtol=1e-8, atol=1e-8)
 
 
@@ -198,7 +202,8 @@ def test_gradcheck_one_lm_step(parametrization):
     dst.requires_grad_(True)
 
     def fn(s, d):
-        return fit_transform(s, d, optimizer="lm", steps=1, parametrization=parametrization).matrix
+        return fit_transform(s, d, parametrization=parametrization,
+                             solver=SolverOptions("lm", steps=1)).matrix
 
     assert torch.autograd.gradcheck(fn, (src, dst), eps=1e-6, atol=1e-5, rtol=1e-4)
 
@@ -209,7 +214,7 @@ def test_gradcheck_lm_euclidean_nonlinear_parametrization():
     dst.requires_grad_(True)
 
     def fn(d):
-        return fit_transform(src, d, model="euclidean", optimizer="lm", steps=2).matrix
+        return fit_transform(src, d, model="euclidean", solver=SolverOptions("lm", steps=2)).matrix
 
     assert torch.autograd.gradcheck(fn, (dst,), eps=1e-6, atol=1e-5, rtol=1e-4)
 
@@ -220,7 +225,8 @@ def test_implicit_gradient_of_adam_matches_unrolled_lm_at_exact_optimum():
     grads = []
     for optimizer in ("lm", "lbfgs", "adam"):
         d = dst.clone().requires_grad_(True)
-        fit = fit_transform(src, d, optimizer=optimizer, steps=20 if optimizer == "lm" else 300)
+        fit = fit_transform(src, d,
+                            solver=SolverOptions(optimizer, steps=20 if optimizer == "lm" else 300))
         (fit.matrix * torch.arange(9, dtype=torch.float64).view(3, 3)).sum().backward()
         grads.append(d.grad)
     assert_close(grads[1], grads[0], rtol=1e-4, atol=1e-6)
@@ -232,7 +238,7 @@ def test_degenerate_input_no_nan_forward_or_backward():
                        dtype=torch.float64, requires_grad=True)
     dst = (src.detach() * 2).requires_grad_(True)
     for optimizer in ("lm", "adam"):
-        fit = fit_transform(src, dst, optimizer=optimizer, steps=5)
+        fit = fit_transform(src, dst, solver=SolverOptions(optimizer, steps=5))
         assert torch.isfinite(fit.matrix).all() and torch.isfinite(fit.loss).all()
         fit.matrix.sum().backward()
         assert torch.isfinite(src.grad).all() and torch.isfinite(dst.grad).all()
@@ -251,7 +257,7 @@ def test_property_fit_recovers_m(lin, g, h, seed):
     src = torch.tensor([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]],
                        dtype=torch.float64)
     src = torch.cat([src, torch.rand(4, 2, generator=gen, dtype=torch.float64) * 100])
-    fit = fit_transform(src, transform_points(m, src), optimizer="lm", steps=20)
+    fit = fit_transform(src, transform_points(m, src), solver=SolverOptions("lm", steps=20))
     assert_close(fit.matrix, m, rtol=1e-8, atol=1e-8)
 
 
@@ -297,7 +303,7 @@ def test_module_equals_function_and_defaults_match():
     gen = torch.Generator().manual_seed(12)
     src, dst, _ = random_problem(3, 8, gen, noise=0.5)
     for par in parametrization.PARAMETRIZATIONS:
-        fit = fit_transform(src, dst, parametrization=par, steps=20)
+        fit = fit_transform(src, dst, parametrization=par, solver=SolverOptions(steps=20))
         model = HomographyModel(par, batch_shape=(3,), src=src, dst=dst)
         with torch.no_grad():
             model.params.copy_(fit.params)
@@ -332,7 +338,7 @@ def test_module_trains_and_moves():
 def test_progress_bar(capsys):
     gen = torch.Generator().manual_seed(14)
     src, dst, _ = random_problem(1, 8, gen)
-    fit_transform(src, dst, optimizer="lm", steps=3, progress=True)
+    fit_transform(src, dst, solver=SolverOptions("lm", steps=3, progress=True))
     assert "fit homography (lm)" in capsys.readouterr().err
 
 
@@ -344,13 +350,13 @@ def test_errors():
     with pytest.raises(ValueError, match="model"):
         fit_transform(pts, pts, model="projective")
     with pytest.raises(ValueError, match="optimizer"):
-        fit_transform(pts, pts, optimizer="sgd")
+        fit_transform(pts, pts, solver=SolverOptions("sgd"))
     with pytest.raises(ValueError, match="parametrization"):
         fit_transform(pts, pts, parametrization="quaternion")
     with pytest.raises(ValueError, match="loss"):
-        fit_transform(pts, pts, loss="l1")
+        fit_transform(pts, pts, loss=LossOptions("l1"))
     with pytest.raises(ValueError, match="steps"):
-        fit_transform(pts, pts, steps=-1)
+        fit_transform(pts, pts, solver=SolverOptions(steps=-1))
     with pytest.raises(ShapeError, match="init"):
         fit_transform(pts, pts, init=torch.eye(2))
     with pytest.raises(ShapeError, match="dst"):
@@ -426,7 +432,7 @@ def test_fit_transform_empty_batch(model, optimizer):
     # lm: the constant parameter Jacobian was taken at theta[:1] (IndexError for B = 0);
     # lbfgs: torch's L-BFGS raised on an empty parameter
     empty = torch.zeros(0, 6, 2, dtype=torch.float64)
-    fit = fit_transform(empty, empty, model, optimizer, steps=2)
+    fit = fit_transform(empty, empty, model, solver=SolverOptions(optimizer, steps=2))
     assert fit.matrix.shape == (0, 3, 3) and fit.params.shape == (0, parametrization.MODELS[model])
 
 
@@ -451,8 +457,8 @@ def test_fit_transform_low_precision_is_fitted_in_float32(low):
     gen = torch.Generator().manual_seed(21)
     src, dst, _ = random_problem(2, 8, gen, noise=0.1, dtype=torch.float32)
     src, dst = src.to(low), dst.to(low)
-    fit = fit_transform(src, dst, "homography", "lm", steps=4)
-    ref = fit_transform(src.float(), dst.float(), "homography", "lm", steps=4)
+    fit = fit_transform(src, dst, "homography", solver=SolverOptions("lm", steps=4))
+    ref = fit_transform(src.float(), dst.float(), "homography", solver=SolverOptions("lm", steps=4))
     assert fit.matrix.dtype == low and fit.history.shape == ref.history.shape
     assert_close(fit.matrix.float(), ref.matrix.to(low).float())
 
@@ -463,3 +469,30 @@ def test_homography_model_of_zero_points_names_the_argument():
         HomographyModel(src=torch.zeros(0, 2))
     with pytest.raises(ShapeError, match="dst.*N >= 1"):
         HomographyModel(batch_shape=(2,), src=torch.ones(2, 3, 2), dst=torch.zeros(2, 0, 2))
+
+
+def test_option_bundles_are_keyword_only_validated_and_reach_the_fit():
+    import dataclasses
+    import inspect
+
+    params = inspect.signature(fit_transform).parameters
+    assert [n for n, p in params.items() if p.kind is not inspect.Parameter.KEYWORD_ONLY] == [
+        "src", "dst", "model"]
+    assert params["solver"].default == SolverOptions() and params["loss"].default == LossOptions()
+    assert len(params) == 8  # was 15 loose arguments
+    for bad, name in ((dict(optimizer="sgd"), "optimizer"), (dict(steps=-1), "steps"),
+                      (dict(tol=float("nan")), "tol")):
+        with pytest.raises(ValueError, match=name):
+            SolverOptions(**bad)
+    for bad, name in ((dict(loss="symmetric"), "loss"), (dict(scale=0.0), "scale")):
+        with pytest.raises(ValueError, match=name):
+            LossOptions(**bad)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        SolverOptions().steps = 3
+    src = torch.tensor([[0.0, 0], [4, 0], [4, 5], [0, 5], [2, 1]], dtype=torch.float64)
+    with pytest.raises(TypeError, match="loss: expected a LossOptions"):
+        fit_transform(src, src, loss="l2")
+    with pytest.raises(TypeError, match="optimizer"):  # the loose keyword is gone
+        fit_transform(src, src, optimizer="lm")
+    fit = fit_transform(src, src + 1.0, "translation", solver=SolverOptions("adam", steps=7))
+    assert fit.history.shape[0] <= 8  # the solver bundle's step limit is used

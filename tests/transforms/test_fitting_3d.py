@@ -7,6 +7,8 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.transforms import (
+    LossOptions,
+    SolverOptions,
     find_euclidean,
     find_similarity,
     fit_transform,
@@ -38,7 +40,7 @@ def test_l2_reaches_the_closed_form(model, closed, start):
     src, dst, _, g = _problem(scale=model == "similarity")
     w = 0.2 + torch.rand(src.shape[:-1], generator=g, dtype=F64)
     init = None if start == "default" else torch.eye(4, dtype=F64)
-    fit = fit_transform(src, dst, model, steps=50, init=init, weights=w)
+    fit = fit_transform(src, dst, model, init=init, weights=w, solver=SolverOptions(steps=50))
     want = closed(src, dst, w).matrix
     torch.testing.assert_close(fit.matrix, want, rtol=0, atol=1e-10)
     assert fit.params.shape == (6, 6 if model == "euclidean" else 7)
@@ -55,7 +57,8 @@ def test_large_rotations_from_the_identity():
                            math.radians(170) * axis], -1))
     src = torch.randn(5, 30, 3, generator=g, dtype=F64)
     dst = transform_points(m, src)
-    fit = fit_transform(src, dst, "euclidean", steps=100, init=torch.eye(4, dtype=F64))
+    fit = fit_transform(src, dst, "euclidean", init=torch.eye(4, dtype=F64),
+                        solver=SolverOptions(steps=100))
     torch.testing.assert_close(fit.matrix, m, rtol=0, atol=1e-10)
 
 
@@ -72,9 +75,11 @@ def test_robust_losses_reject_outliers(loss, bound):
     src, dst, m = _with_outliers()
     plain = fit_transform(src, dst, "euclidean")
     # Tukey's weights vanish beyond the scale: it needs a rough alignment (a Cauchy fit)
-    init = (fit_transform(src, dst, "euclidean", loss="cauchy", scale=0.05, steps=100).matrix
+    init = (fit_transform(src, dst, "euclidean", solver=SolverOptions(steps=100),
+                          loss=LossOptions("cauchy", scale=0.05)).matrix
             if loss == "tukey" else None)
-    fit = fit_transform(src, dst, "euclidean", loss=loss, scale=0.05, steps=100, init=init)
+    fit = fit_transform(src, dst, "euclidean", init=init, solver=SolverOptions(steps=100),
+                        loss=LossOptions(loss, scale=0.05))
     if loss == "tukey":  # outliers beyond the scale get weight 0: the inliers' own fit
         inliers = find_euclidean(src[:, 30:], dst[:, 30:]).matrix
         torch.testing.assert_close(fit.matrix, inliers, rtol=0, atol=1e-6)
@@ -95,9 +100,10 @@ def test_similarity_with_outliers_recovers_the_scale():
     truth = find_similarity(src, dst).matrix
     dst = dst.clone()
     dst[:, :20] += 3 * torch.randn(4, 20, 3, generator=g, dtype=F64)
-    rough = fit_transform(src, dst, "similarity", loss="cauchy", scale=0.02, steps=100)
-    fit = fit_transform(src, dst, "similarity", loss="tukey", scale=0.02, steps=100,
-                        init=rough.matrix)
+    rough = fit_transform(src, dst, "similarity", solver=SolverOptions(steps=100),
+                          loss=LossOptions("cauchy", scale=0.02))
+    fit = fit_transform(src, dst, "similarity", init=rough.matrix, solver=SolverOptions(steps=100),
+                        loss=LossOptions("tukey", scale=0.02))
     scale = torch.linalg.det(fit.matrix[:, :3, :3]).pow(1 / 3)
     torch.testing.assert_close(scale, torch.linalg.det(truth[:, :3, :3]).pow(1 / 3),
                                rtol=1e-4, atol=0)
@@ -107,8 +113,10 @@ def test_similarity_with_outliers_recovers_the_scale():
 @pytest.mark.parametrize("s", [1e-6, 1e6])
 def test_scale_invariance(s):
     src, dst, m = _with_outliers(seed=2)
-    fit = fit_transform(src, dst, "similarity", loss="cauchy", scale=0.05, steps=30)
-    big = fit_transform(src * s, dst * s, "similarity", loss="cauchy", scale=0.05 * s, steps=30)
+    fit = fit_transform(src, dst, "similarity", solver=SolverOptions(steps=30),
+                        loss=LossOptions("cauchy", scale=0.05))
+    big = fit_transform(src * s, dst * s, "similarity", solver=SolverOptions(steps=30),
+                        loss=LossOptions("cauchy", scale=0.05 * s))
     want = fit.matrix.clone()
     want[:, :3, 3] *= s
     torch.testing.assert_close(big.matrix, want, rtol=1e-9, atol=1e-9 * s)
@@ -121,7 +129,8 @@ def test_gradients_match_the_closed_form_at_the_optimum():
     src, dst, _, _ = _problem(b=2, n=12)
     dst = dst.requires_grad_()
     direction = torch.randn(2, 4, 4, dtype=F64)
-    fit = fit_transform(src, dst, "euclidean", steps=50, init=torch.eye(4, dtype=F64))
+    fit = fit_transform(src, dst, "euclidean", init=torch.eye(4, dtype=F64),
+                        solver=SolverOptions(steps=50))
     (grad,) = torch.autograd.grad((fit.matrix * direction).sum(), dst)
     (want,) = torch.autograd.grad((find_euclidean(src, dst).matrix * direction).sum(), dst)
     torch.testing.assert_close(grad, want, rtol=1e-7, atol=1e-9)
@@ -133,8 +142,8 @@ def test_gradcheck():
     src = src.requires_grad_()
 
     def f(s, d):
-        return fit_transform(s, d, "similarity", steps=3, tol=0.0, loss="cauchy",
-                             scale=0.5).matrix
+        return fit_transform(s, d, "similarity", solver=SolverOptions(steps=3, tol=0.0),
+                             loss=LossOptions("cauchy", scale=0.5)).matrix
 
     assert torch.autograd.gradcheck(f, (src, dst))
 
@@ -163,7 +172,8 @@ def test_random_rotations_batch_against_find_euclidean():
     src = torch.randn(16, 20, 3, dtype=F64)
     dst = src @ r.mT + torch.randn(16, 1, 3, dtype=F64) + 1e-3 * torch.randn(16, 20, 3,
                                                                                dtype=F64)
-    fit = fit_transform(src, dst, "euclidean", init=torch.eye(4, dtype=F64), steps=100)
+    fit = fit_transform(src, dst, "euclidean", init=torch.eye(4, dtype=F64),
+                        solver=SolverOptions(steps=100))
     torch.testing.assert_close(fit.matrix, find_euclidean(src, dst).matrix, rtol=0, atol=1e-9)
 
 
@@ -172,9 +182,9 @@ def test_errors():
     with pytest.raises(ValueError, match="model: 3D points"):
         fit_transform(src, src, "affine")
     with pytest.raises(ValueError, match="optimizer: 3D fits use 'lm'"):
-        fit_transform(src, src, "euclidean", optimizer="adam")
+        fit_transform(src, src, "euclidean", solver=SolverOptions("adam"))
     with pytest.raises(ValueError, match="symmetric"):
-        fit_transform(src, src, "euclidean", symmetric=True)
+        fit_transform(src, src, "euclidean", loss=LossOptions(symmetric=True))
     with pytest.raises(ValueError, match="parametrization"):
         fit_transform(src, src, "euclidean", parametrization="sl3")
     with pytest.raises(ShapeError, match=r"init: expected shape \(\*, 4, 4\)"):

@@ -9,6 +9,8 @@ import torch
 import torchgeo_cg.transforms.ransac as ransac
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.transforms import (
+    LossOptions,
+    SolverOptions,
     find_transform_ransac,
     fit_transform,
     parameters_to_matrix,
@@ -189,19 +191,21 @@ def test_robust_losses_from_a_ransac_start_match_the_inlier_only_fit():
     start = find_transform_ransac(src, dst, generator=gen).matrix
     inlier_w = torch.ones(64, 150, dtype=torch.float64)
     inlier_w[:, :k] = 0
-    ref = fit_transform(src, dst, weights=inlier_w, steps=20).matrix
-    l2 = fit_transform(src, dst, init=start, steps=20).matrix
+    ref = fit_transform(src, dst, weights=inlier_w, solver=SolverOptions(steps=20)).matrix
+    l2 = fit_transform(src, dst, init=start, solver=SolverOptions(steps=20)).matrix
     assert corner_error(l2, ref).median() > 5.0  # plain least squares is dragged away
     ref_err = corner_error(ref, truth).median()
     # the usual 95%-efficiency scales for unit noise: Cauchy 2.385, Tukey 4.685
     for loss, scale in (("cauchy", 2.385), ("tukey", 4.685)):
         for optimizer, steps, lr in (("lm", 30, None), ("adam", 300, 1e-3)):
-            fit = fit_transform(src, dst, init=start, loss=loss, scale=scale, steps=steps,
-                                optimizer=optimizer, lr=lr).matrix
+            fit = fit_transform(src, dst, init=start,
+                                solver=SolverOptions(steps=steps, optimizer=optimizer, lr=lr),
+                                loss=LossOptions(loss, scale=scale)).matrix
             # equal to the inlier-only fit well within the noise (1 px), and as accurate
             assert corner_error(fit, ref).median() < 0.15, (loss, optimizer)
             assert corner_error(fit, truth).median() < 1.05 * ref_err, (loss, optimizer)
-    huber = fit_transform(src, dst, init=start, loss="huber", scale=3.0, steps=30).matrix
+    huber = fit_transform(src, dst, init=start, solver=SolverOptions(steps=30),
+                          loss=LossOptions("huber", scale=3.0)).matrix
     assert corner_error(huber, truth).median() < corner_error(l2, truth).median()
 
 

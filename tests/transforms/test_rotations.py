@@ -143,6 +143,41 @@ def test_euler_gimbal_lock_as_scipy_with_finite_gradients(seq):
     assert torch.isfinite(m.grad).all()
 
 
+@pytest.mark.parametrize("dtype,bound", [(F64, 1e-14), (torch.float32, 1e-6)])
+@pytest.mark.parametrize("seq", SEQS)
+def test_euler_near_gimbal_lock_rebuilds_the_matrix(seq, dtype, bound):
+    # within a few eps of the lock the middle angle keeps its sign: Ry(-2e-6) as "xyx"
+    # is not (0, 2e-6, 0); every sequence, both lock angles, both sides, against scipy
+    gen = torch.Generator().manual_seed(11)
+    proper = seq[0].lower() == seq[2].lower()
+    locks = (0.0, math.pi) if proper else (-math.pi / 2, math.pi / 2)
+    steps = torch.tensor([0.0, 1e-9, 1e-7, 5e-7, 2e-6, 1e-5, 1e-3], dtype=F64)
+    middle = torch.cat([lock + side * steps for lock in locks for side in (1.0, -1.0)])
+    outer = (torch.rand(middle.shape[0], 2, generator=gen, dtype=F64) * 2 - 1) * math.pi
+    ang = torch.stack([outer[:, 0], middle, outer[:, 1]], -1)
+    mat = torch.from_numpy(Rotation.from_euler(seq, ang.numpy()).as_matrix())
+    ours = R.matrix_to_euler(mat.to(dtype), seq, degrees=False)
+    assert ours.dtype == dtype
+    rebuilt = R.euler_to_matrix(ours.double(), seq, degrees=False)
+    assert (rebuilt - mat).abs().max() <= bound
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy warns at lock
+        peer = torch.from_numpy(Rotation.from_matrix(mat.numpy()).as_euler(seq))
+    far = (middle - torch.tensor(locks, dtype=F64)[:, None]).abs().amin(0) >= 1e-5
+    if dtype == F64:  # away from scipy's lock the angles are scipy's
+        diff = (ours - peer)[far].abs()
+        assert torch.minimum(diff, 2 * math.pi - diff).max() < 1e-9
+    if proper:  # the middle angle of a proper sequence lies in [0, pi]
+        assert bool(((ours[:, 1] >= 0) & (ours[:, 1] <= math.pi)).all())
+
+
+def test_euler_issue_case_keeps_the_sign():
+    m = torch.from_numpy(Rotation.from_euler("y", -2e-6).as_matrix()).float()
+    angles = R.matrix_to_euler(m, "xyx", degrees=False)
+    rebuilt = R.euler_to_matrix(angles.double(), "xyx", degrees=False)
+    assert (rebuilt - m.double()).abs().max() < 1e-6
+
+
 @pytest.mark.grad
 @pytest.mark.parametrize("angle", HARD)
 def test_gradcheck_vector_and_quaternion_maps(angle):

@@ -6,7 +6,7 @@ import torch
 
 pytest.importorskip("matplotlib")
 
-from torchgeo_cg.viz.glyph_fit import fit_glyph, glyph_pieces, glyph_polygon  # noqa: E402
+from torchgeo_cg.viz.glyph_fit import _glyph_polygon, fit_glyph, glyph_pieces  # noqa: E402
 from torchgeo_cg.viz.torus_fit import TRUE_RADII, fit_torus_radii  # noqa: E402
 
 
@@ -25,7 +25,7 @@ def test_every_corner_is_a_piece_end_and_pieces_lie_on_the_outline():
     for corner in parts.corners.numpy():  # a corner inside a piece would force a loop
         assert np.linalg.norm(ends - corner, axis=1).min() < 1e-9
     assert np.allclose(parts.runs[:, -1], parts.runs.roll(-1, 0)[:, 0])  # closed chain
-    on_outline = _segment_distance(parts.runs.reshape(-1, 2).numpy(), glyph_polygon("d"))
+    on_outline = _segment_distance(parts.runs.reshape(-1, 2).numpy(), _glyph_polygon("d"))
     assert on_outline.max() < 1e-9
 
 
@@ -45,8 +45,8 @@ def test_fitted_glyph_follows_the_outline_without_loops():
     assert _turning_degrees(fit).max() < 120
     with torch.no_grad():
         dense = fit.curve(torch.linspace(0, 1, 200, dtype=torch.float64)).reshape(-1, 2)
-    height = np.ptp(glyph_polygon("d")[:, 1])
-    assert _segment_distance(dense.numpy(), glyph_polygon("d")).max() < 0.02 * height
+    height = np.ptp(_glyph_polygon("d")[:, 1])
+    assert _segment_distance(dense.numpy(), _glyph_polygon("d")).max() < 0.02 * height
     assert fit.losses[-1] < fit.losses[0] / 50
     # the check can fail: pieces spanning the stem corners (no corner split) do loop
     spanning = fit_glyph(glyph_pieces("d", corner_degrees=180).runs, steps=300)

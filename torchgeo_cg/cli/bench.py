@@ -16,16 +16,16 @@ from pathlib import Path
 
 from torchgeo_cg.cli import CommandError
 
-__all__: list[str] = []  # a command: `torchgeo-cg` calls its add_parser
+__all__ = ["add_parser"]  # a command: `torchgeo-cg` calls its add_parser
 
 #: The one line printed when the benchmarks are not there (a wheel install).
-NEEDS_CHECKOUT = (
+_NEEDS_CHECKOUT = (
     "the benchmarks are not part of the installed package; they run from a source "
     "checkout installed with pip install -e '.[bench]'"
 )
 
 
-def find_benchmarks() -> Path:
+def _find_benchmarks() -> Path:
     """The ``benchmarks/`` folder of the source checkout this package is imported from.
 
     It is the folder beside the ``torchgeo_cg`` package directory, and counts only
@@ -37,7 +37,7 @@ def find_benchmarks() -> Path:
         FileNotFoundError: not a source checkout (the wheel ships no benchmarks).
 
     Example:
-        >>> find_benchmarks().name  # in a checkout
+        >>> _find_benchmarks().name  # in a checkout
         'benchmarks'
     """
     import torchgeo_cg
@@ -50,10 +50,10 @@ def find_benchmarks() -> Path:
     )
     if is_checkout and (bench / "run.py").is_file() and (bench / "harness.py").is_file():
         return bench
-    raise FileNotFoundError(NEEDS_CHECKOUT)
+    raise FileNotFoundError(_NEEDS_CHECKOUT)
 
 
-def load_benchmarks(folder: Path):
+def _load_benchmarks(folder: Path):
     """Import ``folder/run.py`` as ``benchmarks.run``, with the package taken from ``folder``.
 
     Raises:
@@ -76,7 +76,7 @@ def load_benchmarks(folder: Path):
 
 def _run(args: argparse.Namespace) -> int:
     try:
-        run = load_benchmarks(find_benchmarks())
+        run = _load_benchmarks(_find_benchmarks())
     except (FileNotFoundError, RuntimeError) as exc:
         raise CommandError(str(exc)) from None
     known = run.areas()

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import argparse
 
-__all__: list[str] = []  # a command: `torchgeo-cg` calls its add_parser
+__all__ = ["add_parser"]  # a command: `torchgeo-cg` calls its add_parser
 
 #: The largest ``--steps`` accepted: far beyond convergence (lm needs 10), and small
 #: enough that a typo cannot start a run that never ends.
-MAX_STEPS = 1_000_000
+_MAX_STEPS = 1_000_000
 
 
-def steps_argument(text: str) -> int:
+def _steps_argument(text: str) -> int:
     """Parse ``--steps``: an integer in ``[1, MAX_STEPS]``.
 
     Raises:
@@ -19,9 +19,9 @@ def steps_argument(text: str) -> int:
             turns it into a one-line usage error).
 
     Example:
-        >>> steps_argument("25")
+        >>> _steps_argument("25")
         25
-        >>> steps_argument("-1")
+        >>> _steps_argument("-1")
         Traceback (most recent call last):
         ...
         argparse.ArgumentTypeError: must be an integer in [1, 1000000], got -1
@@ -30,8 +30,8 @@ def steps_argument(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if not 1 <= value <= MAX_STEPS:
-        raise argparse.ArgumentTypeError(f"must be an integer in [1, {MAX_STEPS}], got {value}")
+    if not 1 <= value <= _MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"must be an integer in [1, {_MAX_STEPS}], got {value}")
     return value
 
 
@@ -51,7 +51,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--optimizer", choices=["lm", "adam", "lbfgs"], default="lm",
                    help="optimizer of fit_transform (default: lm)")
-    p.add_argument("--steps", type=steps_argument, default=None,
+    p.add_argument("--steps", type=_steps_argument, default=None,
                    help="iterations, 1 to 1000000 "
                         "(default: the optimizer's: lm 10, adam 200, lbfgs 50)")
     p.set_defaults(func=_run)

@@ -6,7 +6,7 @@ import argparse
 
 from torchgeo_cg.cli import CommandError
 
-__all__: list[str] = []  # a command: `torchgeo-cg` calls its add_parser
+__all__ = ["add_parser"]  # a command: `torchgeo-cg` calls its add_parser
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -6,16 +6,16 @@ import argparse
 import importlib
 import platform
 
-__all__: list[str] = []  # a command: `torchgeo-cg` calls its add_parser
+__all__ = ["add_parser"]  # a command: `torchgeo-cg` calls its add_parser
 
 _PACKAGES = ("torch", "kornia", "numpy", "trimesh", "skimage", "scipy", "matplotlib")
 
 
-def collect_info() -> dict[str, object]:
+def _collect_info() -> dict[str, object]:
     """Versions of torchgeo_cg and its dependencies, the devices and the threads.
 
     Example:
-        >>> info = collect_info()
+        >>> info = _collect_info()
         >>> info["devices"][0], info["threads"] >= 1
         ('cpu', True)
     """
@@ -43,7 +43,7 @@ def collect_info() -> dict[str, object]:
 
 
 def _run(args: argparse.Namespace) -> int:
-    info = collect_info()
+    info = _collect_info()
     if args.brief:
         print(
             f"torchgeo_cg {info['torchgeo_cg']} | torch {info['torch']} | "

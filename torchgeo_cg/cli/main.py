@@ -23,7 +23,7 @@ from torchgeo_cg.cli import CommandError
 __all__ = ["main"]
 
 
-class OneLineParser(argparse.ArgumentParser):
+class _OneLineParser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose errors are one line on stderr (exit 2), without usage.
 
     Subparsers made with ``add_subparsers`` inherit the class, so their errors
@@ -31,7 +31,7 @@ class OneLineParser(argparse.ArgumentParser):
 
     Example:
         >>> import contextlib, io
-        >>> parser = OneLineParser(prog="demo")
+        >>> parser = _OneLineParser(prog="demo")
         >>> _ = parser.add_argument("--n", type=int)
         >>> err = io.StringIO()
         >>> with contextlib.redirect_stderr(err):
@@ -48,9 +48,9 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _build_parser() -> argparse.ArgumentParser:
     """The ``torchgeo-cg`` parser, with one subparser per module of :mod:`torchgeo_cg.cli`."""
-    parser = OneLineParser(
+    parser = _OneLineParser(
         prog="torchgeo-cg",
         description="torchgeo_cg: batched, differentiable geometry in PyTorch.",
     )
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         torchgeo_cg ... | torch ... | threads ... | devices cpu...
         0
     """
-    args = build_parser().parse_args(argv)
+    args = _build_parser().parse_args(argv)
     prog = f"torchgeo-cg {args.command}"
     try:
         return int(args.func(args) or 0)

@@ -41,13 +41,13 @@ from pathlib import Path
 
 import numpy as np
 
-__all__: list[str] = []  # a command: `torchgeo-cg` calls its add_parser
+__all__ = ["add_parser"]  # a command: `torchgeo-cg` calls its add_parser
 
-SUFFIXES = (".obj", ".ply", ".off")
+_SUFFIXES = (".obj", ".ply", ".off")
 _ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
 
-def find_meshes(root: Path) -> list[str]:
+def _find_meshes(root: Path) -> list[str]:
     """Relative POSIX paths of the meshes under ``root`` (or ``[name]`` for a file), sorted.
 
     Example:
@@ -56,20 +56,20 @@ def find_meshes(root: Path) -> list[str]:
         >>> for name in ("b.OBJ", "a/c.ply", "notes.txt"):
         ...     (d / name).parent.mkdir(exist_ok=True)
         ...     _ = (d / name).write_text("")
-        >>> find_meshes(d)
+        >>> _find_meshes(d)
         ['a/c.ply', 'b.OBJ']
     """
     if root.is_file():
         return [root.name]
-    found = (p for p in root.rglob("*") if p.is_file() and p.suffix.lower() in SUFFIXES)
+    found = (p for p in root.rglob("*") if p.is_file() and p.suffix.lower() in _SUFFIXES)
     return sorted(p.relative_to(root).as_posix() for p in found)
 
 
-def mesh_seed(seed: int, relative_path: str) -> int:
+def _mesh_seed(seed: int, relative_path: str) -> int:
     """63-bit seed of one mesh from the run's seed and the mesh's relative path.
 
     Example:
-        >>> mesh_seed(0, "a.obj") == mesh_seed(0, "a.obj") != mesh_seed(1, "a.obj")
+        >>> _mesh_seed(0, "a.obj") == _mesh_seed(0, "a.obj") != _mesh_seed(1, "a.obj")
         True
     """
     digest = hashlib.sha256(relative_path.encode("utf-8")).digest()
@@ -78,13 +78,13 @@ def mesh_seed(seed: int, relative_path: str) -> int:
     return (int(state[0]) << 31 ^ int(state[1])) & (2**63 - 1)
 
 
-def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     """Write an uncompressed ``.npz`` atomically with fixed zip timestamps (reproducible bytes).
 
     Example:
         >>> import tempfile
         >>> p = Path(tempfile.mkdtemp()) / "x.npz"
-        >>> write_npz(p, {"a": np.arange(3)})
+        >>> _write_npz(p, {"a": np.arange(3)})
         >>> np.load(p)["a"].tolist()
         [0, 1, 2]
     """
@@ -119,7 +119,7 @@ def _load(path: Path):
     return mesh.verts, mesh.faces
 
 
-def sdf_samples_for_mesh(path: Path, relative: str, points: int, seed: int) -> dict:
+def _sdf_samples_for_mesh(path: Path, relative: str, points: int, seed: int) -> dict:
     """The arrays written for one mesh (see the module docstring for the format)."""
     import torch
 
@@ -137,7 +137,7 @@ def sdf_samples_for_mesh(path: Path, relative: str, points: int, seed: int) -> d
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "not watertight, using winding numbers"
         sampler = SDFSampler(((verts + offset) * scale, faces),
-                             generator=torch.Generator().manual_seed(mesh_seed(seed, relative)),
+                             generator=torch.Generator().manual_seed(_mesh_seed(seed, relative)),
                              dtype=torch.float64)
         samples = sampler.sample(points)
     return {
@@ -169,7 +169,7 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
-    meshes = find_meshes(src)[rank::world]
+    meshes = _find_meshes(src)[rank::world]
     base = src.parent if src.is_file() else src
     torch.set_num_threads(1)  # bit-identical results whichever process computes a mesh
     written = skipped = 0
@@ -182,7 +182,7 @@ def _run(args: argparse.Namespace) -> int:
             skipped += 1
             continue
         try:
-            write_npz(out, sdf_samples_for_mesh(base / rel, rel, args.points, args.seed))
+            _write_npz(out, _sdf_samples_for_mesh(base / rel, rel, args.points, args.seed))
             written += 1
         except Exception as err:  # noqa: BLE001 - a bad mesh is reported, never fatal
             failed.append(rel)

@@ -1,6 +1,8 @@
 """Core helpers: the validation helper, scale-safe numerics, coercion, THE grid convention
-(:mod:`torchgeo_cg.core.grid`) and test support."""
+(:mod:`torchgeo_cg.core.grid`), the autograd question (:func:`records_graph`) and test
+support."""
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
@@ -41,6 +43,7 @@ __all__ = [
     "hypot",
     "index_to_world",
     "power_of_two_scale",
+    "records_graph",
     "safe_div",
     "safe_norm",
     "safe_sqrt",

@@ -27,6 +27,7 @@ __all__ = [
     "check_broadcastable",
     "check_choice",
     "check_generator",
+    "format_shape",
 ]
 
 

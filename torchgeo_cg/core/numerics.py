@@ -29,6 +29,7 @@ import math
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import check_broadcastable, check_float
 from torchgeo_cg.core.coerce import check_same_dtype
 
@@ -242,6 +243,14 @@ class _Hypot(torch.autograd.Function):
     @staticmethod
     def setup_context(ctx, inputs, output) -> None:
         ctx.save_for_backward(output, *inputs)
+        ctx.save_for_forward(output, *inputs)
+
+    @staticmethod
+    def jvp(ctx, *tangents):
+        # forward mode: d r = sum c_i d c_i / r, 0 at r = 0 (as the backward)
+        out, *components = ctx.saved_tensors
+        total = sum(c * t for c, t in zip(components, tangents) if t is not None)
+        return total / torch.where(out > 0, out, torch.ones_like(out))
 
     @staticmethod
     def backward(ctx, grad: torch.Tensor):
@@ -283,7 +292,7 @@ def hypot(*components: torch.Tensor) -> torch.Tensor:
         return first.abs()
     if any(c.shape != first.shape for c in components):
         check_broadcastable({f"components[{i}]": c.shape for i, c in enumerate(components)})
-    if torch.is_grad_enabled() and any(c.requires_grad for c in components):
+    if records_graph(*components):
         return _Hypot.apply(*components)
     return _hypot_value(components)  # no autograd needed: skip the Function's overhead
 

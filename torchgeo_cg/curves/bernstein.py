@@ -22,7 +22,7 @@ import torch.nn.functional as F
 
 from torchgeo_cg.core.check import check_float, check_shape
 
-__all__ = ["bernstein_basis"]
+__all__ = ["bernstein_basis", "check_degree"]
 
 
 def check_degree(degree: object, name: str = "degree") -> int:

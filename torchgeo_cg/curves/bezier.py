@@ -33,6 +33,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
 from torchgeo_cg.core.numerics import safe_div, safe_norm, safe_sqrt
@@ -621,7 +622,7 @@ def bezier_length(
     wk = torch.as_tensor(wk_np, dtype=work, device=hodograph.device)
     wg = torch.as_tensor(wg_np, dtype=work, device=hodograph.device)
     coefficients = _speed_coefficients(hodograph)  # (B, 2n - 1) or (B, n, D)
-    track = torch.is_grad_enabled() and coefficients.requires_grad
+    track = records_graph(coefficients)
     eps = torch.finfo(work).eps
     floor = torch.finfo(work).tiny
     with torch.no_grad():

@@ -24,13 +24,21 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import (
+    ShapeError,
+    check_broadcastable,
+    check_choice,
+    check_float,
+    check_shape,
+)
 from torchgeo_cg.core.numerics import safe_norm, safe_sqrt
+from torchgeo_cg.curves._basis import find_spans, local_basis
+from torchgeo_cg.curves._bspline_core import prepare_bspline
+from torchgeo_cg.curves._knot_checks import check_knots
+from torchgeo_cg.curves._strokes import as_padded_strokes, stroke_parameters
 from torchgeo_cg.curves.bernstein import check_degree
-from torchgeo_cg.curves.bspline import BSplineControls, prepare_bspline
-from torchgeo_cg.curves.fitting import as_padded_strokes, stroke_parameters
-from torchgeo_cg.curves.hermite import check_knots
-from torchgeo_cg.curves.knots import check_bspline_knots, find_spans, local_basis
+from torchgeo_cg.curves.bspline import BSplineControls
+from torchgeo_cg.curves.knots import check_bspline_knots
 
 __all__ = ["BSplineFit", "interpolate_bspline", "fit_bspline", "collocation_matrix",
            "averaged_knots"]
@@ -269,8 +277,7 @@ def fit_bspline(points, degree: int, num_control_points: int | None = None,
         (torch.Size([10, 2]), True)
     """
     degree = check_degree(degree)
-    if parametrization not in _METHODS:
-        raise ValueError(f"parametrization: expected one of {_METHODS}, got {parametrization!r}")
+    check_choice(parametrization, _METHODS, "parametrization")
     if (num_control_points is None) == (knots is None):
         raise ValueError("num_control_points, knots: give exactly one of the two")
     points, valid, weights = as_padded_strokes(points, lengths, weights)

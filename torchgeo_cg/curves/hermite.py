@@ -33,8 +33,10 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_module_dtype
+from torchgeo_cg.curves._knot_checks import check_knots
 
 __all__ = [
     "hermite_basis",
@@ -244,43 +246,6 @@ class HermiteCurve(nn.Module):
 
 
 # --------------------------------------------------------------------------- splines
-
-
-def check_knots(knots: torch.Tensor, name: str = "knots") -> dict:
-    """Check that knots are a float ``(*, K)`` tensor, ``K >= 2``, strictly increasing.
-
-    Args:
-        knots: ``(*, K)``.
-        name: argument name for messages.
-
-    Returns:
-        The bound sizes (``{"K": K, "*": batch}``).
-
-    Raises:
-        ShapeError: fewer than 2 knots.
-        ValueError: not strictly increasing (or NaN); names the first offending index.
-
-    Example:
-        >>> check_knots(torch.tensor([0.0, 1.0, 1.0, 2.0]))
-        Traceback (most recent call last):
-        ...
-        ValueError: knots: must be strictly increasing, but knots[..., 2] = 1.0 is not ...
-    """
-    check_float(knots, name, low_precision=False)
-    sizes = check_shape(knots, ["*", "K"], name)
-    if sizes["K"] < 2:
-        raise ShapeError(f"{name}: expected at least 2 knots, got shape {tuple(knots.shape)}")
-    bad = ~(knots[..., 1:] > knots[..., :-1])  # (*, K - 1); NaN counts as bad
-    if bool(bad.any()):
-        flat = bad.reshape(-1, bad.shape[-1])
-        column = int(flat.any(0).nonzero()[0, 0])
-        row = int(flat[:, column].nonzero()[0, 0])
-        k = knots.reshape(-1, knots.shape[-1])[row]
-        raise ValueError(
-            f"{name}: must be strictly increasing, but {name}[..., {column + 1}] = "
-            f"{float(k[column + 1])} is not greater than {name}[..., {column}] = {float(k[column])}"
-        )
-    return sizes
 
 
 def _check_series(knots, values, name, knots_name: str = "knots") -> tuple[int, ...]:
@@ -586,7 +551,7 @@ class PchipInterpolator(nn.Module):
         self.register_buffer("knots", x, persistent=False)
         self.register_buffer("values", y, persistent=False)
         y_flat = y.expand(*batch, k).reshape(-1, k)  # (B, K)
-        needs_grad = torch.is_grad_enabled() and (x.requires_grad or y.requires_grad)
+        needs_grad = records_graph(x, y)
         if x.dim() == 1 and not needs_grad:
             # Shared knots, no autograd: build the knots-first table in place.
             table = y.new_empty(2 * k, y_flat.shape[0])  # (2K, B): values, then tangents

@@ -24,8 +24,10 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import as_tensor_like
+from torchgeo_cg.curves._bspline_core import prepare_bspline
 from torchgeo_cg.curves.bernstein import check_degree
-from torchgeo_cg.curves.bspline import BSplineControls, bspline, prepare_bspline
+from torchgeo_cg.curves.bspline import BSplineControls, bspline
 
 __all__ = ["BezierSegments", "insert_knot", "bspline_to_bezier", "bezier_to_bspline"]
 
@@ -82,7 +84,10 @@ def insert_knot(control_points: torch.Tensor, value, degree: int,
 
     Args:
         control_points: ``(*, n + 1, D)``.
-        value: a float or a ``(*,)`` tensor (one knot per curve).
+        value: a number (it takes the knots' dtype, so ``0.37`` is inserted exactly as
+            ``knots.new_tensor(0.37)``) or a ``(*,)`` float tensor (one knot per curve,
+            promoted with the control points and knots as ``t`` is in
+            :func:`~torchgeo_cg.curves.bspline`).
         degree: ``p >= 0``.
         knots: ``(n + p + 2,)`` or ``(*, n + p + 2)``, or ``None``.
         times: how many insertions (``>= 0``).
@@ -107,12 +112,17 @@ def insert_knot(control_points: torch.Tensor, value, degree: int,
                 [4.0000, 0.0000]])
     """
     times = check_degree(times, "times")
-    value = torch.as_tensor(value)
-    cp, _, knots = prepare_bspline(control_points, control_points.new_zeros(1), degree,
-                                   knots)
+    check_float(control_points, "control_points", low_precision=False)
+    if isinstance(value, torch.Tensor):  # a tensor joins the dtype promotion, as t does
+        check_float(value, "value", low_precision=False)
+        probe = value.new_zeros(1, device=control_points.device)
+    else:  # numbers take the knots' dtype
+        probe = control_points.new_zeros(1)
+    cp, _, knots = prepare_bspline(control_points, probe, degree, knots)
+    value = as_tensor_like(value, knots, "value", like_name="knots", cast=True)
     if value.dim() > 0:
         check_shape(value, [*cp.shape[:-2]], "value")
-    value = value.to(knots)[..., None]  # (*, 1)
+    value = value[..., None]  # (*, 1)
     count = cp.shape[-2]
     inside = (value > knots[..., degree:degree + 1]) & (value < knots[..., count:count + 1])
     if not bool(inside.all()):

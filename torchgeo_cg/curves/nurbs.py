@@ -26,11 +26,11 @@ from torch import nn
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import safe_div
+from torchgeo_cg.curves._basis import find_spans, local_basis
+from torchgeo_cg.curves._bspline_core import evaluate_local, prepare_bspline
 from torchgeo_cg.curves.bernstein import check_degree
-from torchgeo_cg.curves.bspline import evaluate_local, prepare_bspline
-from torchgeo_cg.curves.knots import find_spans, local_basis
 
-__all__ = ["NURBSCurve", "nurbs", "nurbs_derivative"]
+__all__ = ["NURBSCurve", "nurbs", "nurbs_derivative", "check_weights"]
 
 
 def check_weights(weights: torch.Tensor, control_points: torch.Tensor,
@@ -54,7 +54,7 @@ def check_weights(weights: torch.Tensor, control_points: torch.Tensor,
     return weights
 
 
-def rational_derivatives(homogeneous: list[torch.Tensor]) -> list[torch.Tensor]:
+def _rational_derivatives(homogeneous: list[torch.Tensor]) -> list[torch.Tensor]:
     """Derivatives ``C, C', ..., C^(k)`` from homogeneous ones ``[A|w]^(0..k)`` (eq. 4.8).
 
     Args:
@@ -64,7 +64,7 @@ def rational_derivatives(homogeneous: list[torch.Tensor]) -> list[torch.Tensor]:
         ``k + 1`` tensors ``(*, D)``.
 
     Example:
-        >>> rational_derivatives([torch.tensor([2.0, 2.0]), torch.tensor([1.0, 0.0])])
+        >>> _rational_derivatives([torch.tensor([2.0, 2.0]), torch.tensor([1.0, 0.0])])
         [tensor([1.]), tensor([0.5000])]
     """
     w0 = homogeneous[0][..., -1:]
@@ -126,7 +126,7 @@ def nurbs(control_points: torch.Tensor, weights: torch.Tensor, t: torch.Tensor, 
         tensor([1.0000, 1.0000, 1.0000, 1.0000, 1.0000])
     """
     homogeneous = _homogeneous(control_points, weights, t, degree, knots, periodic, 0)
-    return rational_derivatives(homogeneous)[0]
+    return _rational_derivatives(homogeneous)[0]
 
 
 def nurbs_derivative(control_points: torch.Tensor, weights: torch.Tensor, t: torch.Tensor,
@@ -159,7 +159,7 @@ def nurbs_derivative(control_points: torch.Tensor, weights: torch.Tensor, t: tor
     """
     order = check_degree(order, "order")
     homogeneous = _homogeneous(control_points, weights, t, degree, knots, periodic, order)
-    return rational_derivatives(homogeneous)[order]
+    return _rational_derivatives(homogeneous)[order]
 
 
 class NURBSCurve(nn.Module):

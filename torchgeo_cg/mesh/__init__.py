@@ -33,6 +33,7 @@ from torchgeo_cg.mesh.subdivision import (
     LimitStencils,
     LimitSurfaceSample,
     LoopSubdivision,
+    SchemeOptions,
     StencilMatrix,
     SubdivisionOperator,
     SubdivisionTags,
@@ -60,6 +61,7 @@ __all__ += [
     "pad_faces", "face_sizes", "check_faces", "check_mesh", "triangulate_faces", "unpad_faces"
 ]
 __all__ += [
+    "SchemeOptions",
     "SubdivisionOperator",
     "catmull_clark_operator",
     "apply_operator",

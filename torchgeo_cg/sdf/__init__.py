@@ -21,6 +21,19 @@ Layout (one topic per file):
 - :mod:`~torchgeo_cg.sdf.sampler`: ``SDFSampler`` (DeepSDF distribution), ``.npz`` I/O.
 
 Convention: SDFs are negative inside; points are ``(*, N, 3)`` (or ``(*, N, 2)``).
+
+Parameters against points (one rule for every primitive, operator and module here):
+a shape's parameters (radii, centres, half sizes, normals, offsets, rotation matrices,
+scale factors, blend widths ``k``), whether given beside the points
+(``sphere(points, radius)``), when a shape is built (``translate``, ``rotate``,
+``scale``) or held by a module, are numbers or tensors. Numbers, numpy values and
+lists have no dtype of their own: they take the points' dtype and device at each call
+(a list given to ``rotate`` is never rounded through float32). A tensor keeps its
+dtype: it must have the points' dtype and device, else a ``TypeError`` names both
+(float16, bfloat16 and float32 meet each other and are computed in float32). Nothing
+is cast silently, so a float64 ``rotate`` never computes in float32 and a float32
+pipeline never turns float64, as with the modules (``Sphere().double()(points_f32)``
+raises) and peer tensors. The rule lives in ``torchgeo_cg.sdf._params``.
 """
 
 from torchgeo_cg.sdf._triangle import TriangleClosestPoint, closest_point_on_triangle

@@ -154,11 +154,11 @@ def _scaled(verts_bv3: torch.Tensor, points_bn3: torch.Tensor):
     return verts_bv3 / scale, pull_in_far_points(points)
 
 
-def build_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, backend: str) -> object:
+def _build_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, backend: str) -> object:
     """The search structure of a backend for scaled vertices ``(B, V, 3)``.
 
     Example:
-        >>> s = build_search(torch.eye(3)[None], torch.tensor([[0, 1, 2]]), "torch")
+        >>> s = _build_search(torch.eye(3)[None], torch.tensor([[0, 1, 2]]), "torch")
         >>> s.faces_per_mesh
         1
     """
@@ -208,14 +208,14 @@ def _structure(verts, tris, scaled_v, backend: str, key: int):
         cached = _CACHE.get(key)
         if cached is not None and cached[0] == fingerprint:
             return cached[1]
-        structure = build_search(scaled_v, tris, backend)
+        structure = _build_search(scaled_v, tris, backend)
         _CACHE[key] = (fingerprint, structure)
         return structure
     if backend == "torch":  # its grids are large and cheap to rebuild: not kept
-        return build_search(scaled_v, tris, backend)
+        return _build_search(scaled_v, tris, backend)
     if _LAST and _same_mesh(_LAST[0], verts, tris, backend):
         return _LAST[0][3]
-    structure = build_search(scaled_v, tris, backend)
+    structure = _build_search(scaled_v, tris, backend)
     _LAST[:] = [(backend, verts.clone(), tris.clone(), structure)]
     return structure
 

@@ -46,7 +46,7 @@ def _resolution(resolution: int | Sequence[int]) -> tuple[int, int, int]:
     return res  # type: ignore[return-value]
 
 
-def parse_bounds(bounds, device=None, dtype=None) -> torch.Tensor:
+def _parse_bounds(bounds, device=None, dtype=None) -> torch.Tensor:
     """``bounds`` as a checked ``(2, 3)`` float tensor ``((x0, y0, z0), (x1, y1, z1))``.
 
     Accepts ``(lo, hi)`` shared by the axes or a ``(2, 3)`` tensor/sequence.
@@ -56,7 +56,7 @@ def parse_bounds(bounds, device=None, dtype=None) -> torch.Tensor:
         ValueError: not finite, or ``lo >= hi`` on an axis.
 
     Example:
-        >>> parse_bounds((-1.0, 2.0))
+        >>> _parse_bounds((-1.0, 2.0))
         tensor([[-1., -1., -1.],
                 [ 2.,  2.,  2.]])
     """
@@ -95,7 +95,7 @@ def grid_spacing(
         (tensor([-1., -1., -1.]), tensor([0.5000, 0.5000, 0.5000]))
     """
     res = _resolution(resolution)
-    b = parse_bounds(bounds, device, dtype)
+    b = _parse_bounds(bounds, device, dtype)
     return b[0].clone(), (b[1] - b[0]) / b.new_tensor([r - 1 for r in res])
 
 
@@ -129,7 +129,7 @@ def grid_points(
     """
     check_choice(indexing, ("ij", "xy"), "indexing")
     res = _resolution(resolution)
-    b = parse_bounds(bounds, device, dtype)
+    b = _parse_bounds(bounds, device, dtype)
     axes = [torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device, dtype=b.dtype)
             for a in range(3)]
     return torch.stack(torch.meshgrid(*axes, indexing=indexing), dim=-1)
@@ -166,7 +166,7 @@ def sample_grid(
         grad: keep the autograd graph (memory then grows with the grid); by default the
             evaluation runs under ``torch.no_grad()``.
         progress: show a tqdm bar over the x-slab chunks (off by default, as in
-            ``fit_transform(progress=...)``).
+            ``SolverOptions(progress=...)`` of :func:`~torchgeo_cg.transforms.fit_transform`).
 
     Returns:
         :class:`Volume` with ``values (X, Y, Z)`` or ``(B, X, Y, Z)``, ``origin (3,)``,
@@ -182,7 +182,7 @@ def sample_grid(
     if not isinstance(chunk, int) or chunk < 1:
         raise ValueError(f"chunk: expected a positive int, got {chunk!r}")
     origin, spacing = grid_spacing(res, bounds, device, dtype)
-    b = parse_bounds(bounds, device, dtype)
+    b = _parse_bounds(bounds, device, dtype)
     xs, ys, zs = (torch.linspace(float(b[0, a]), float(b[1, a]), res[a], device=b.device,
                                  dtype=b.dtype) for a in range(3))
     X, Y, Z = res

@@ -41,6 +41,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import (
     check_broadcastable,
     check_choice,
@@ -392,8 +393,7 @@ def _search_and_evaluate(verts_bv3: torch.Tensor, tris_t3: torch.Tensor,
     evaluates the same formulas as :func:`_evaluate_sdf` in float64; otherwise the
     distance is evaluated in torch from the face found, where gradients flow.
     """
-    needs_grad = torch.is_grad_enabled() and (verts_bv3.requires_grad
-                                              or points_bn3.requires_grad)
+    needs_grad = records_graph(verts_bv3, points_bn3)
     if (engine != "torch" and sign in ("pseudonormal", "none") and not return_closest
             and not needs_grad and not _has_far_points(verts_bv3, points_bn3)):
         face_ids, sdf = engine_sdf(verts_bv3, tris_t3, points_bn3, engine,

@@ -14,10 +14,13 @@ Convention:
     - Rotations are column-vector ``world_from_local`` matrices (``p_world = R @
       p_local``), as everywhere in torchgeo_cg.
     - dtypes: the values combined by a CSG operator share one dtype and device (else
-      ``TypeError`` naming both); parameters (``k``, offsets, rotations, factors;
-      numbers, numpy values or tensors) follow the dtype and device of the values or
-      points they act on. float16/bfloat16 blends are computed in float32 and
-      returned in the input dtype (min/max/negation are exact in any dtype).
+      ``TypeError`` naming both). Parameters (``k``, offsets, rotations, factors)
+      follow the rule of :mod:`torchgeo_cg.sdf`: numbers, numpy values and lists take
+      the dtype and device of the values or points they act on, at each call; a
+      tensor keeps its dtype and must match them (``TypeError`` naming both; float16,
+      bfloat16 and float32 meet), so a float64 ``rotate`` never computes in float32.
+      float16/bfloat16 blends are computed in float32 and returned in the input dtype
+      (min/max/negation are exact in any dtype).
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from torch import nn
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype, check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.sdf._params import shape_parameter
 
 __all__ = [
     "union",
@@ -52,7 +56,7 @@ __all__ = [
     "Scale",
 ]
 
-SDF = Callable[[torch.Tensor], torch.Tensor]
+_SDF = Callable[[torch.Tensor], torch.Tensor]
 
 
 def _values(*values: torch.Tensor) -> None:
@@ -131,8 +135,8 @@ def difference(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return torch.maximum(a, -b)
 
 
-def _check_k(k, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    k = as_tensor_like(k, a, "k", cast=True)
+def _check_k(k, a: torch.Tensor, b: torch.Tensor, given: torch.Tensor) -> torch.Tensor:
+    k = shape_parameter(k, "k", a, given, "sdf[0]")
     check_broadcastable({"sdf[0]": a.shape, "sdf[1]": b.shape, "k": k.shape})
     if bool((k <= 0).any()):  # NaN passes (NaN in, NaN out)
         raise ValueError(f"k: expected a positive blend radius, got {k.min().item()}")
@@ -160,10 +164,10 @@ def smooth_union(a: torch.Tensor, b: torch.Tensor, k: torch.Tensor | float = 0.1
         tensor([-0.1250, -1.0000])
     """
     _values(a, b)
-    dtype = a.dtype
+    given, dtype = a, a.dtype
     work = working_dtype(dtype)
     a, b = a.to(work), b.to(work)
-    k = _check_k(k, a, b)
+    k = _check_k(k, a, b, given)
     h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0)
     return cast_back(b * (1.0 - h) + a * h - k * h * (1.0 - h), dtype)
 
@@ -220,13 +224,25 @@ def product(a: torch.Tensor, b: torch.Tensor, *more: torch.Tensor) -> torch.Tens
     return cast_back(out, a.dtype)
 
 
-def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
+def _built(value, name: str) -> torch.Tensor:
+    """A parameter given when a shape is built, as a tensor for the checks made then.
+
+    Numbers and lists are read in float64 here (shape and sign only); each call
+    converts the value as given, so it takes the points' dtype (no float32 rounding).
+    """
+    if isinstance(value, torch.Tensor):
+        return as_tensor_like(value, None, name)
+    return as_tensor_like(value, torch.empty((), dtype=torch.float64), name)
+
+
+def translate(sdf_fn: _SDF, offset: torch.Tensor) -> _SDF:
     """Move a shape by ``offset``: returns ``p -> sdf_fn(p - offset)`` (exact).
 
     Convention:
         ``offset`` is in world units, ``(D,)`` or ``(*, D)`` broadcasting against the
-        points' leading dims (one offset per shape of a batch); a tensor, numpy array
-        or list, cast to the points' dtype and device at each call.
+        points' leading dims (one offset per shape of a batch). A numpy array or list
+        takes the points' dtype and device at each call; a tensor must have them
+        (the rule of :mod:`torchgeo_cg.sdf`).
 
     Args:
         sdf_fn: callable ``(*, N, D) -> (*, N)``.
@@ -241,27 +257,30 @@ def translate(sdf_fn: SDF, offset: torch.Tensor) -> SDF:
         >>> moved(torch.tensor([[2.0, 0.0, 0.0], [0.0, 0.0, 0.0]]))
         tensor([-1.,  1.])
     """
-    offset = as_tensor_like(offset, None, "offset")
+    given = offset
+    offset = _built(offset, "offset")
     check_shape(offset, ["*", "D"], "offset")
-    shift = offset if offset.dim() == 1 else offset.unsqueeze(-2)
 
     def moved(points: torch.Tensor) -> torch.Tensor:
         check_float(points, "points")
         check_shape(points, ["*", "N", offset.shape[-1]], "points")
         check_broadcastable({"points": points.shape[:-2], "offset": offset.shape[:-1]})
-        return sdf_fn(points - shift.to(dtype=points.dtype, device=points.device))
+        shift = shape_parameter(given, "offset", points, points)
+        return sdf_fn(points - (shift if shift.dim() == 1 else shift.unsqueeze(-2)))
 
     return moved
 
 
-def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
+def rotate(sdf_fn: _SDF, world_from_local: torch.Tensor) -> _SDF:
     """Rotate a shape: returns ``p -> sdf_fn(R^T p)`` for ``R = world_from_local`` (exact).
 
     Convention:
         Column vectors: the shape's local point ``q`` appears at ``R @ q`` in the world,
         so the world point ``p`` is evaluated at ``q = R^T p``. ``R`` must be a rotation
-        (orthonormal, det +1); it is not re-orthonormalized. It is cast to the
-        points' dtype and device at each call (float16/bfloat16 points: float32).
+        (orthonormal, det +1); it is not re-orthonormalized. A tensor ``R`` must have
+        the points' dtype and device (``TypeError`` naming both; float16, bfloat16 and
+        float32 meet and are computed in float32); a numpy array or list takes them at
+        each call (the rule of :mod:`torchgeo_cg.sdf`).
 
     Args:
         sdf_fn: callable ``(*, N, D) -> (*, N)``.
@@ -276,7 +295,8 @@ def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
         >>> rotate(capsule, R)(torch.tensor([[0.0, -1.0, 0.0]]))  # the axis now points to -y
         tensor([-0.5000])
     """
-    world_from_local = as_tensor_like(world_from_local, None, "world_from_local")
+    given = world_from_local
+    world_from_local = _built(world_from_local, "world_from_local")
     check_shape(world_from_local, ["*", "D", "D"], "world_from_local")
 
     def rotated(points: torch.Tensor) -> torch.Tensor:
@@ -285,18 +305,20 @@ def rotate(sdf_fn: SDF, world_from_local: torch.Tensor) -> SDF:
         check_broadcastable({"points": points.shape[:-2],
                              "world_from_local": world_from_local.shape[:-2]})
         work = points.to(working_dtype(points.dtype))
-        rotation = world_from_local.to(dtype=work.dtype, device=work.device)
+        rotation = shape_parameter(given, "world_from_local", work, points)
         # row form of q = R^T p: q^T = p^T R
         return cast_back(sdf_fn(work @ rotation), points.dtype)
 
     return rotated
 
 
-def scale(sdf_fn: SDF, factor: torch.Tensor | float) -> SDF:
+def scale(sdf_fn: _SDF, factor: torch.Tensor | float) -> _SDF:
     """Uniformly scale a shape about the origin: ``p -> s * sdf_fn(p / s)`` (exact).
 
     Convention:
-        ``factor`` is a positive number or ``(*)`` tensor (one per shape of a batch).
+        ``factor`` is a positive number or ``(*)`` tensor (one per shape of a batch);
+        a tensor must have the points' dtype and device, a number takes them (the rule
+        of :mod:`torchgeo_cg.sdf`).
 
     Args:
         sdf_fn: callable ``(*, N, D) -> (*, N)``.
@@ -310,7 +332,8 @@ def scale(sdf_fn: SDF, factor: torch.Tensor | float) -> SDF:
         >>> scale(sphere, 3.0)(torch.tensor([[5.0, 0.0, 0.0]]))
         tensor([2.])
     """
-    factor = as_tensor_like(factor, None, "factor")
+    given = factor
+    factor = _built(factor, "factor")
     if bool((factor <= 0).any()):  # NaN passes (NaN in, NaN out)
         raise ValueError(f"factor: expected a positive scale factor, got {factor.min().item()}")
 
@@ -318,7 +341,7 @@ def scale(sdf_fn: SDF, factor: torch.Tensor | float) -> SDF:
         check_float(points, "points")
         check_shape(points, ["*", "N", "D"], "points")
         check_broadcastable({"points": points.shape[:-2], "factor": factor.shape})
-        s = factor.to(dtype=points.dtype, device=points.device)
+        s = shape_parameter(given, "factor", points, points)
         return s.unsqueeze(-1) * sdf_fn(points / s.unsqueeze(-1).unsqueeze(-1))
 
     return scaled

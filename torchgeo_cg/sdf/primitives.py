@@ -17,9 +17,11 @@ Convention:
       with a zero gradient at the zero vector (no inf, no NaN). A value is finite
       wherever the true distance is, over the whole range of the dtype
       (``|p| = 2e19`` in float32 included).
-    - Parameters (numbers, numpy values or tensors) follow the dtype and device of
-      ``points``. float16/bfloat16 points are computed in float32 and the result is
-      returned in their dtype. NaN in any input gives NaN out.
+    - Parameters follow the rule of :mod:`torchgeo_cg.sdf`: numbers, numpy values and
+      lists take the dtype and device of ``points``; a tensor parameter must have the
+      points' dtype and device (``TypeError`` naming both otherwise; float16, bfloat16
+      and float32 meet). float16/bfloat16 points are computed in float32 and the
+      result is returned in their dtype. NaN in any input gives NaN out.
     - :func:`sphere`, :func:`box`, :func:`capsule` and :func:`plane` work in 2D and 3D;
       :func:`circle`, :func:`rectangle` and :func:`annulus` are the named 2D counterparts.
 """
@@ -30,8 +32,9 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.coerce import as_tensor_like, check_module_dtype
+from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, hypot, safe_div, working_dtype
+from torchgeo_cg.sdf._params import shape_parameter
 
 __all__ = [
     "sphere",
@@ -54,7 +57,7 @@ __all__ = [
     "Annulus",
 ]
 
-Number = float | int
+_Number = float | int
 
 
 def _norm(v: torch.Tensor) -> torch.Tensor:
@@ -77,18 +80,23 @@ def _points(points: torch.Tensor, dims: tuple[int, ...] = (2, 3)) -> torch.Tenso
     return points.to(working_dtype(points.dtype))
 
 
-def _scalar(x: torch.Tensor | Number, name: str, like: torch.Tensor) -> torch.Tensor:
-    """A ``(*)`` parameter as a tensor shaped ``(*, 1)`` to broadcast against ``(*, N)``."""
-    x = as_tensor_like(x, like, name, cast=True)
+def _scalar(x: torch.Tensor | _Number, name: str, like: torch.Tensor,
+            points: torch.Tensor) -> torch.Tensor:
+    """A ``(*)`` parameter as a tensor shaped ``(*, 1)`` to broadcast against ``(*, N)``.
+
+    ``like`` is the points in the working dtype, ``points`` as given (the dtype rule).
+    """
+    x = shape_parameter(x, name, like, points)
     return x.unsqueeze(-1) if x.dim() > 0 else x
 
 
-def _vector(x: torch.Tensor | None, name: str, like: torch.Tensor, default=0.0) -> torch.Tensor:
+def _vector(x: torch.Tensor | None, name: str, like: torch.Tensor, points: torch.Tensor,
+            default=0.0) -> torch.Tensor:
     """A ``(D,)`` or ``(*, D)`` parameter shaped ``(*, 1, D)`` to broadcast against points."""
     dim = like.shape[-1]
     if x is None:
         return like.new_full((dim,), float(default))
-    x = as_tensor_like(x, like, name, cast=True)
+    x = shape_parameter(x, name, like, points)
     check_shape(x, ["*", dim], name)
     return x if x.dim() == 1 else x.unsqueeze(-2)
 
@@ -107,7 +115,7 @@ def _batches(work: torch.Tensor, scalars: dict[str, torch.Tensor],
 
 
 def sphere(
-    points: torch.Tensor, radius: torch.Tensor | Number = 1.0, center: torch.Tensor | None = None
+    points: torch.Tensor, radius: torch.Tensor | _Number = 1.0, center: torch.Tensor | None = None
 ) -> torch.Tensor:
     """Exact SDF of a sphere (a circle in 2D): ``|p - center| - radius``.
 
@@ -127,14 +135,14 @@ def sphere(
         tensor([-1.,  1.])
     """
     work = _points(points)
-    r = _scalar(radius, "radius", work)
-    c = _vector(center, "center", work)
+    r = _scalar(radius, "radius", work, points)
+    c = _vector(center, "center", work, points)
     _batches(work, {"radius": r}, {"center": c})
     return cast_back(_norm(work - c) - r, points.dtype)
 
 
 def circle(
-    points: torch.Tensor, radius: torch.Tensor | Number = 1.0, center: torch.Tensor | None = None
+    points: torch.Tensor, radius: torch.Tensor | _Number = 1.0, center: torch.Tensor | None = None
 ) -> torch.Tensor:
     """Exact 2D SDF of a disk: :func:`sphere` restricted to ``points (*, N, 2)``.
 
@@ -160,7 +168,7 @@ def circle(
 def box(
     points: torch.Tensor,
     half_size: torch.Tensor | None = None,
-    radius: torch.Tensor | Number = 0.0,
+    radius: torch.Tensor | _Number = 0.0,
     center: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Exact SDF of an axis-aligned box with rounded edges (2D: a rectangle).
@@ -187,9 +195,9 @@ def box(
         tensor([-1.0000,  1.4142])
     """
     work = _points(points)
-    b = _vector(half_size, "half_size", work, default=1.0)
-    r = _scalar(radius, "radius", work)
-    c = _vector(center, "center", work)
+    b = _vector(half_size, "half_size", work, points, default=1.0)
+    r = _scalar(radius, "radius", work, points)
+    c = _vector(center, "center", work, points)
     _batches(work, {"radius": r}, {"half_size": b, "center": c})
     q = (work - c).abs() - b + r.unsqueeze(-1)
     outside = _norm(q.clamp_min(0.0))
@@ -200,7 +208,7 @@ def box(
 def rectangle(
     points: torch.Tensor,
     half_size: torch.Tensor | None = None,
-    radius: torch.Tensor | Number = 0.0,
+    radius: torch.Tensor | _Number = 0.0,
     center: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Exact 2D SDF of a (rounded) rectangle: :func:`box` for ``points (*, N, 2)``.
@@ -229,7 +237,7 @@ def capsule(
     points: torch.Tensor,
     start: torch.Tensor | None = None,
     end: torch.Tensor | None = None,
-    radius: torch.Tensor | Number = 0.5,
+    radius: torch.Tensor | _Number = 0.5,
 ) -> torch.Tensor:
     """Exact SDF of a capsule: points within ``radius`` of the segment ``start -> end``.
 
@@ -252,12 +260,12 @@ def capsule(
     """
     work = _points(points)
     dim = work.shape[-1]
-    a = _vector(start, "start", work)
+    a = _vector(start, "start", work, points)
     if end is None:
         end = work.new_zeros(dim)
         end[-1] = 1.0
-    b = _vector(end, "end", work)
-    r = _scalar(radius, "radius", work)
+    b = _vector(end, "end", work, points)
+    r = _scalar(radius, "radius", work, points)
     _batches(work, {"radius": r}, {"start": a, "end": b})
     pa, ba = work - a, b - a
     # t = (pa . ba) / |ba|^2 as (pa . u) / |ba| with u = ba / |ba|: no |ba|^2 to overflow
@@ -268,7 +276,7 @@ def capsule(
 
 
 def plane(
-    points: torch.Tensor, normal: torch.Tensor | None = None, offset: torch.Tensor | Number = 0.0
+    points: torch.Tensor, normal: torch.Tensor | None = None, offset: torch.Tensor | _Number = 0.0
 ) -> torch.Tensor:
     """Exact SDF of the half-space ``n . p <= offset`` with ``n = normal / |normal|``.
 
@@ -294,8 +302,8 @@ def plane(
     if normal is None:
         normal = work.new_zeros(dim)
         normal[-1] = 1.0
-    n = _vector(normal, "normal", work)
-    d = _scalar(offset, "offset", work)
+    n = _vector(normal, "normal", work, points)
+    d = _scalar(offset, "offset", work, points)
     _batches(work, {"offset": d}, {"normal": n})
     length = _norm(n).unsqueeze(-1)
     if bool((length == 0).any()):
@@ -305,8 +313,8 @@ def plane(
 
 def torus(
     points: torch.Tensor,
-    major_radius: torch.Tensor | Number = 1.0,
-    minor_radius: torch.Tensor | Number = 0.25,
+    major_radius: torch.Tensor | _Number = 1.0,
+    minor_radius: torch.Tensor | _Number = 0.25,
     exact: bool = True,
 ) -> torch.Tensor:
     """SDF of a torus around the z axis (exact, or the algebraic torus of the course report).
@@ -334,8 +342,8 @@ def torus(
         (tensor([-0.2500,  0.7500]), tensor([-0.0625,  0.9375]))
     """
     work = _points(points, (3,))
-    big = _scalar(major_radius, "major_radius", work)
-    small = _scalar(minor_radius, "minor_radius", work)
+    big = _scalar(major_radius, "major_radius", work, points)
+    small = _scalar(minor_radius, "minor_radius", work, points)
     _batches(work, {"major_radius": big, "minor_radius": small})
     x, y, z = work.unbind(-1)
     rho = hypot(x, y) - big
@@ -347,8 +355,8 @@ def torus(
 
 def annulus(
     points: torch.Tensor,
-    major_radius: torch.Tensor | Number = 1.0,
-    minor_radius: torch.Tensor | Number = 0.25,
+    major_radius: torch.Tensor | _Number = 1.0,
+    minor_radius: torch.Tensor | _Number = 0.25,
 ) -> torch.Tensor:
     """Exact 2D SDF of a ring, the torus' cross-section: ``| |p| - R | - r``.
 
@@ -369,14 +377,15 @@ def annulus(
         tensor([-0.2500,  0.7500])
     """
     work = _points(points, (2,))
-    big = _scalar(major_radius, "major_radius", work)
-    small = _scalar(minor_radius, "minor_radius", work)
+    big = _scalar(major_radius, "major_radius", work, points)
+    small = _scalar(minor_radius, "minor_radius", work, points)
     _batches(work, {"major_radius": big, "minor_radius": small})
     return cast_back((_norm(work) - big).abs() - small, points.dtype)
 
 
 def gyroid(
-    points: torch.Tensor, scale: torch.Tensor | Number = 1.0, thickness: torch.Tensor | Number = 0.1
+    points: torch.Tensor, scale: torch.Tensor | _Number = 1.0,
+    thickness: torch.Tensor | _Number = 0.1,
 ) -> torch.Tensor:
     """Approximate SDF of a gyroid sheet (a triply periodic minimal surface).
 
@@ -402,8 +411,8 @@ def gyroid(
         tensor([-0.0500,  0.9500])
     """
     work = _points(points, (3,))
-    s = _scalar(scale, "scale", work)
-    t = _scalar(thickness, "thickness", work)
+    s = _scalar(scale, "scale", work, points)
+    t = _scalar(thickness, "thickness", work, points)
     _batches(work, {"scale": s, "thickness": t})
     if bool((s <= 0).any()):  # NaN passes (NaN in, NaN out)
         raise ValueError(f"scale: expected a positive spatial frequency, got {s.min().item()}")

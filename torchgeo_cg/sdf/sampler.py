@@ -71,14 +71,14 @@ class SDFSamples(NamedTuple):
     sdf: torch.Tensor
 
 
-def worker_seed(seed: int | None) -> int | None:
+def _worker_seed(seed: int | None) -> int | None:
     """Seed of the current DataLoader worker's stream, or ``None`` outside workers.
 
     ``SeedSequence([seed, worker_id])`` when ``seed`` is given, else the worker's own
     seed (from the DataLoader's base seed).
 
     Example:
-        >>> worker_seed(0) is None  # not inside a DataLoader worker
+        >>> _worker_seed(0) is None  # not inside a DataLoader worker
         True
     """
     from torch.utils.data import get_worker_info
@@ -280,7 +280,7 @@ class SDFSampler:
         info = get_worker_info()
         if info is not None and self._worker != info.id:
             self._worker = info.id
-            self.generator.manual_seed(worker_seed(self._seed))
+            self.generator.manual_seed(_worker_seed(self._seed))
 
     # ----------------------------------------------------------------- pieces
     def _uniform(self, n: int) -> torch.Tensor:
@@ -404,8 +404,9 @@ class SDFSampler:
 
         Args:
             n: number of samples (per mesh).
-            progress: show a tqdm bar over the SDF evaluation chunks (off by default,
-                as in ``fit_transform(progress=...)``).
+            progress: show a tqdm bar over the SDF evaluation chunks (off by default, as
+                in ``SolverOptions(progress=...)`` of
+                :func:`~torchgeo_cg.transforms.fit_transform`).
 
         Example:
             >>> from torchgeo_cg.sdf.primitives import sphere

@@ -24,7 +24,7 @@ from torchgeo_cg.core.numerics import safe_sqrt
 from torchgeo_cg.curves.bspline_fitting import averaged_knots, collocation_matrix
 from torchgeo_cg.curves.fitting import fit_parameters
 from torchgeo_cg.curves.knots import check_bspline_knots
-from torchgeo_cg.surfaces.patches import check_surface_degree
+from torchgeo_cg.surfaces._degree import check_surface_degree
 
 __all__ = ["SurfaceFit", "fit_bspline_surface"]
 

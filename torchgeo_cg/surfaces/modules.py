@@ -14,13 +14,13 @@ import torch
 from torch import nn
 
 from torchgeo_cg.core.coerce import check_module_dtype
+from torchgeo_cg.surfaces._degree import check_surface_degree
 from torchgeo_cg.surfaces.patches import (
     SurfaceDerivatives,
     bezier_surface,
     bezier_surface_derivatives,
     bspline_surface,
     bspline_surface_derivatives,
-    check_surface_degree,
     nurbs_surface,
     nurbs_surface_derivatives,
 )

@@ -37,9 +37,9 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import safe_div, safe_norm
-from torchgeo_cg.curves.bernstein import check_degree
 from torchgeo_cg.curves.knots import (
     check_bspline_knots,
     find_spans,
@@ -47,6 +47,7 @@ from torchgeo_cg.curves.knots import (
     uniform_knots,
 )
 from torchgeo_cg.curves.nurbs import check_weights
+from torchgeo_cg.surfaces._degree import check_surface_degree
 
 __all__ = [
     "SurfaceDerivatives",
@@ -80,21 +81,6 @@ class SurfaceDerivatives(NamedTuple):
     normals: torch.Tensor | None
 
 
-def check_surface_degree(degree) -> tuple[int, int]:
-    """``degree`` as a pair ``(p, q)`` of non-negative ints (an int means both).
-
-    Example:
-        >>> check_surface_degree(3), check_surface_degree((2, 1))
-        ((3, 3), (2, 1))
-    """
-    if isinstance(degree, (tuple, list)):
-        if len(degree) != 2:
-            raise ValueError(f"degree: expected an int or a pair (p, q), got {degree!r}")
-        return check_degree(degree[0], "degree[0]"), check_degree(degree[1], "degree[1]")
-    d = check_degree(degree)
-    return d, d
-
-
 def _check_grid(control_grid: torch.Tensor, p: int, q: int) -> tuple[int, int]:
     check_float(control_grid, "control_grid", low_precision=False)
     sizes = check_shape(control_grid, ["*", "M", "N", "D"], "control_grid")
@@ -122,7 +108,7 @@ def _knots(knots, count, degree, name, like):
 
 
 #: parameters per chunk of a patch evaluation (its intermediates stay in cache)
-CHUNK = 8192
+_CHUNK = 8192
 
 
 def _tensor_product(grid, u, v, knots_u, knots_v, p, q, derivatives: bool):
@@ -145,9 +131,8 @@ def _tensor_product(grid, u, v, knots_u, knots_v, p, q, derivatives: bool):
     knots_u = knots_u.expand(*batch, knots_u.shape[-1])
     knots_v = knots_v.expand(*batch, knots_v.shape[-1])
     u, v = u.expand(*batch, n), v.expand(*batch, n)
-    record = torch.is_grad_enabled() and any(
-        x.requires_grad for x in (grid, u, v, knots_u, knots_v))
-    step = n if record else max(1, CHUNK // max(1, batch.numel()))
+    record = records_graph(grid, u, v, knots_u, knots_v)
+    step = n if record else max(1, _CHUNK // max(1, batch.numel()))
     keys = [(0, 0), (1, 0), (0, 1), (1, 1)] if derivatives else [(0, 0)]
     out = {}
     for c in range(0, n, step):  # loop over chunks of parameters
@@ -176,9 +161,7 @@ def _patch_chunk(planes, knots_u, knots_v, u, v, p, q, cols, e, derivatives):
     bu = local_basis_list(knots_u, u, su, p, order)  # [order][i] (*, n)
     bv = local_basis_list(knots_v, v, sv, q, order)
     base = (su - p) * cols + (sv - q)  # flat index of the local corner
-    inplace = not (torch.is_grad_enabled() and (planes.requires_grad or u.requires_grad
-                                                or v.requires_grad or knots_u.requires_grad
-                                                or knots_v.requires_grad))
+    inplace = not records_graph(planes, u, v, knots_u, knots_v)
     sums: dict = {}
     for i in range(p + 1):  # loop over the p + 1 local rows
         along = [None] * (order + 1)
@@ -211,7 +194,7 @@ def _end_sign(x, low, high):
     return torch.where(x >= high, -1.0, 1.0).to(x.dtype) if x.numel() else x
 
 
-def surface_normals(du: torch.Tensor, dv: torch.Tensor, duv: torch.Tensor,
+def _surface_normals(du: torch.Tensor, dv: torch.Tensor, duv: torch.Tensor,
                     degenerate_u: torch.Tensor, degenerate_v: torch.Tensor,
                     sign_u: torch.Tensor, sign_v: torch.Tensor) -> torch.Tensor:
     """Unit normals ``(*, N, 3)`` with the degenerate-edge rule of the module docstring.
@@ -225,7 +208,7 @@ def surface_normals(du: torch.Tensor, dv: torch.Tensor, duv: torch.Tensor,
         >>> du = torch.tensor([[0.0, 0.0, 0.0]])  # a pole: du vanishes
         >>> dv, duv = torch.tensor([[0.0, 1.0, 0.0]]), torch.tensor([[1.0, 0.0, 0.0]])
         >>> no = torch.tensor([False])
-        >>> surface_normals(du, dv, duv, torch.tensor([True]), no, torch.ones(1), torch.ones(1))
+        >>> _surface_normals(du, dv, duv, torch.tensor([True]), no, torch.ones(1), torch.ones(1))
         tensor([[0., 0., 1.]])
     """
     du = torch.where(degenerate_u[..., None], 0.0, du)
@@ -260,7 +243,7 @@ def _derivatives(parts, rational: bool, p: int, q: int) -> SurfaceDerivatives:
         eps = torch.finfo(s.dtype).eps * 8 * (p + q + 2)
         degenerate_u = du.detach().abs().sum(-1) <= eps * bound_u
         degenerate_v = dv.detach().abs().sum(-1) <= eps * bound_v
-        normals = surface_normals(du, dv, duv, degenerate_u, degenerate_v, parts["sign_u"],
+        normals = _surface_normals(du, dv, duv, degenerate_u, degenerate_v, parts["sign_u"],
                                   parts["sign_v"])
     return SurfaceDerivatives(s, du, dv, normals)
 

@@ -29,7 +29,7 @@ class SurfaceMesh(NamedTuple):
         faces: ``(2 (R_u - 1)(R_v - 1), 3)`` int64 triangles.
 
     Example:
-        >>> grid_faces(2, 2)
+        >>> _grid_faces(2, 2)
         tensor([[0, 2, 3],
                 [0, 3, 1]])
     """
@@ -38,11 +38,11 @@ class SurfaceMesh(NamedTuple):
     faces: torch.Tensor
 
 
-def grid_faces(rows: int, cols: int, device=None) -> torch.Tensor:
+def _grid_faces(rows: int, cols: int, device=None) -> torch.Tensor:
     """Triangles ``(2 (rows - 1)(cols - 1), 3)`` of a ``rows x cols`` vertex grid (see above).
 
     Example:
-        >>> grid_faces(2, 3).shape
+        >>> _grid_faces(2, 3).shape
         torch.Size([4, 3])
     """
     i = torch.arange(rows - 1, device=device)[:, None]
@@ -105,4 +105,4 @@ def surface_mesh(surface, resolution, *, dtype=None, device=None) -> SurfaceMesh
     v = torch.linspace(v0, v1, cols, dtype=dtype, device=device)
     uu, vv = torch.meshgrid(u, v, indexing="ij")
     verts = surface(uu.reshape(-1), vv.reshape(-1))
-    return SurfaceMesh(verts, grid_faces(rows, cols, device=verts.device))
+    return SurfaceMesh(verts, _grid_faces(rows, cols, device=verts.device))

@@ -14,7 +14,13 @@ from torchgeo_cg.transforms.estimation import (
     find_similarity,
     find_translation,
 )
-from torchgeo_cg.transforms.fitting import FitResult, HomographyModel, fit_transform
+from torchgeo_cg.transforms.fitting import (
+    FitResult,
+    HomographyModel,
+    LossOptions,
+    SolverOptions,
+    fit_transform,
+)
 from torchgeo_cg.transforms.homogeneous import (
     compose,
     compose_trs,
@@ -83,6 +89,8 @@ from torchgeo_cg.transforms.scene_graph import (
 __all__ = [
     "AffineDecomposition",
     "FitResult",
+    "SolverOptions",
+    "LossOptions",
     "HartleyNormalization",
     "TransformFit",
     "HomographyModel",

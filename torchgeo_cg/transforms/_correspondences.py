@@ -13,7 +13,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.core.numerics import working_dtype
+from torchgeo_cg.core.numerics import power_of_two_scale, working_dtype
 
 
 class HartleyNormalization(NamedTuple):
@@ -118,19 +118,15 @@ def to_working(*tensors: torch.Tensor | None) -> tuple:
 def pow2_normalize(w: torch.Tensor, dim: int) -> torch.Tensor:
     """Non-negative weights scaled by a power of two so their largest is in [0.5, 1).
 
-    Weights are relative: the scaling is exact, so every fit is the same for any
+    Weights are relative: the scaling is exact
+    (:func:`~torchgeo_cg.core.power_of_two_scale`), so every fit is the same for any
     positive scale of the weights (1e-300 or 1e300 included), with no overflow.
     Negative weights count as 0; NaN stays NaN; an all-zero set is left as it is.
     """
     w = torch.where(w < 0, torch.zeros_like(w), w)  # NaN stays NaN
     if w.shape[dim] == 0:
         return w
-    top = w.detach().amax(dim, keepdim=True)
-    ok = (top > 0) & torch.isfinite(top)
-    _, exponent = torch.frexp(torch.where(ok, top, torch.ones_like(top)))
-    # an exact power of two (torch.ldexp has no gradient): 2^-e times w
-    factor = torch.exp2(torch.where(ok, -exponent, torch.zeros_like(exponent)).to(w.dtype))
-    return w * factor
+    return w / power_of_two_scale(w.detach().amax(dim, keepdim=True))
 
 
 def effective_weights(points: torch.Tensor, weights: torch.Tensor | None) -> torch.Tensor:

@@ -19,6 +19,8 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
+
 
 class HornSolution(NamedTuple):
     """quaternion (*, 4) of the optimum, value (*) ``tr(O S)``, improper (*) bool,
@@ -50,7 +52,7 @@ def _attached(k, vals, vecs, index: int):
     non-unique optimum, flagged by the caller) contribute no derivative.
     """
     v, lam = vecs[..., index], vals[..., index]
-    if not (k.requires_grad and torch.is_grad_enabled()):
+    if not records_graph(k):
         return v, lam
     others = [j for j in range(4) if j != index % 4]
     gaps = lam[..., None] - vals[..., others]  # (*, 3)

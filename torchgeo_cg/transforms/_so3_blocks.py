@@ -20,15 +20,15 @@ from collections.abc import Callable
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
+
 BLOCK = 1 << 14
 
 
 def blocks_apply(x: torch.Tensor) -> bool:
     """Whether ``x`` may take the block path (nothing needs a graph of the steps)."""
-    return (x.device.type == "cpu" and not (x.requires_grad and torch.is_grad_enabled())
-            and not torch.compiler.is_compiling()
-            and not torch._C._are_functorch_transforms_active()
-            and torch.autograd.forward_ad.unpack_dual(x).tangent is None)
+    return (x.device.type == "cpu" and not torch.compiler.is_compiling()
+            and not records_graph(x))
 
 
 def blockwise(entries: Callable, x: torch.Tensor, width: int) -> torch.Tensor:

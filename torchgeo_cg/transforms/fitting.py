@@ -23,12 +23,14 @@ Convention:
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import torch
 from torch import nn
 from tqdm.auto import tqdm
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
@@ -63,6 +65,8 @@ from torchgeo_cg.transforms.robust import LOSSES
 
 __all__ = [
     "FitResult",
+    "SolverOptions",
+    "LossOptions",
     "fit_transform",
     "HomographyModel",
 ]
@@ -73,6 +77,87 @@ _DEFAULT_STEPS = {"adam": 200, "lbfgs": 50, "lm": 10}
 _DEFAULT_LR = {"adam": 0.05, "lbfgs": 1.0, "lm": 1e-3}
 
 
+@dataclass(frozen=True)
+class SolverOptions:
+    """How :func:`fit_transform` optimizes: the optimizer and when it stops, validated once.
+
+    Attributes:
+        optimizer: ``"lm"`` (default, Levenberg-Marquardt; the only one in 3D),
+            ``"adam"`` or ``"lbfgs"``.
+        steps: maximum iterations, ``>= 0`` (``None``: adam 200, lbfgs 50, lm 10).
+        lr: learning rate (``None``: adam 0.05, lbfgs 1) or initial LM damping
+            (``None``: 1e-3).
+        tol: relative improvement below which a problem counts as converged, ``>= 0``
+            (``None``: ``1000 * eps`` of the dtype, 2.2e-13 in float64, 1.2e-4 in float32).
+        patience: adam/lbfgs stop after this many steps without improvement.
+        progress: show a tqdm progress bar.
+
+    Raises:
+        ValueError: an unknown optimizer, negative or non-integer ``steps``, a negative
+            or non-finite ``tol`` (the message names the field).
+
+    Example:
+        >>> SolverOptions(optimizer="adam", steps=500).steps
+        500
+    """
+
+    optimizer: str = "lm"
+    steps: int | None = None
+    lr: float | None = None
+    tol: float | None = None
+    patience: int = 20
+    progress: bool = False
+
+    def __post_init__(self) -> None:
+        check_choice(self.optimizer, _DEFAULT_STEPS, "optimizer")
+        steps = self.steps
+        if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int)
+                                  or steps < 0):
+            raise ValueError(f"steps: expected a non-negative int, got {steps!r}")
+        if self.tol is not None and not (math.isfinite(float(self.tol)) and self.tol >= 0):
+            raise ValueError(f"tol: expected a finite number >= 0 (a relative improvement), "
+                             f"got {self.tol!r}")
+
+
+@dataclass(frozen=True)
+class LossOptions:
+    """What :func:`fit_transform` minimizes: the (robust) transfer error, validated once.
+
+    Attributes:
+        loss: ``"l2"`` (default, the mean squared transfer error), ``"huber"``,
+            ``"cauchy"`` or ``"tukey"`` (:data:`~torchgeo_cg.transforms.LOSSES`, the
+            ``rho`` of :func:`~torchgeo_cg.transforms.robust_loss`).
+        scale: the robust scale ``c`` in input units (pixels), finite and ``> 0``;
+            unused by ``"l2"``.
+        symmetric: add the backward transfer error ``Σ w ρ(‖π(M⁻¹ q) - p‖²) / Σ w``
+            (2D only).
+
+    Raises:
+        ValueError: an unknown loss or a scale that is not finite and positive.
+
+    Example:
+        >>> LossOptions("tukey", scale=0.1)
+        LossOptions(loss='tukey', scale=0.1, symmetric=False)
+    """
+
+    loss: str = "l2"
+    scale: float = 1.0
+    symmetric: bool = False
+
+    def __post_init__(self) -> None:
+        check_choice(self.loss, LOSSES, "loss")
+        scale = float(self.scale)
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"scale: expected a finite positive number of pixels, "
+                             f"got {self.scale!r}")
+
+
+def _check_bundle(value, cls, name: str):
+    if not isinstance(value, cls):
+        raise TypeError(f"{name}: expected a {cls.__name__}, got {type(value).__name__}")
+    return value
+
+
 class FitResult(NamedTuple):
     """Result of :func:`fit_transform`.
 
@@ -81,7 +166,8 @@ class FitResult(NamedTuple):
         params: ``(*, P)`` parameters of the normalized transform (see
             :func:`parameters_to_matrix`).
         loss: ``(*)`` final loss in input units squared (mean squared transfer
-            error, robust ``ρ`` of ``loss``, plus the backward one if ``symmetric``).
+            error, robust ``ρ`` of :attr:`LossOptions.loss`, plus the backward one if
+            :attr:`LossOptions.symmetric`).
         history: ``(steps_run + 1, *)`` the loss at the start and after each step.
     """
 
@@ -95,18 +181,12 @@ def fit_transform(
     src: torch.Tensor,
     dst: torch.Tensor,
     model: str = "homography",
-    optimizer: str = "lm",
-    steps: int | None = None,
+    *,
+    weights: torch.Tensor | None = None,
     init: torch.Tensor | None = None,
     parametrization: str = "entries",
-    loss: str = "l2",
-    weights: torch.Tensor | None = None,
-    lr: float | None = None,
-    tol: float | None = None,
-    patience: int = 20,
-    progress: bool = False,
-    scale: float = 1.0,
-    symmetric: bool = False,
+    solver: SolverOptions = SolverOptions(),
+    loss: LossOptions = LossOptions(),
 ) -> FitResult:
     """Fit ``dst_from_src`` of a ``model`` to correspondences by iterative optimization, batched.
 
@@ -116,8 +196,8 @@ def fit_transform(
     Convention:
         Column vectors; ``dst ~ matrix @ [x, y, 1]ᵀ``. The loss is the weighted
         mean robust transfer error ``Σ w ρ(‖π(M p) - q‖²) / Σ w`` (plus
-        ``Σ w ρ(‖π(M⁻¹ q) - p‖²) / Σ w`` if ``symmetric``), with ``ρ`` of
-        :func:`robust_loss` at ``scale`` (input units, pixels): ``"l2"`` is the
+        ``Σ w ρ(‖π(M⁻¹ q) - p‖²) / Σ w`` if ``loss.symmetric``), with ``ρ`` of
+        :func:`robust_loss` at ``loss.scale`` (input units, pixels): ``"l2"`` is the
         plain mean squared error. It is optimized in the Hartley-normalized
         frame (the scale moves with it) and reported in input units squared.
         ``"lm"`` solves robust losses by iteratively reweighted least squares
@@ -146,30 +226,22 @@ def fit_transform(
         ``scale``: with many outliers start it from a Cauchy fit or
         :func:`find_transform_ransac`); ``params`` are
         ``se3_log`` of the normalized ``[[R, t̂], [0, 1]]`` (``(*, 6)``), with
-        ``log s`` appended for a similarity (``(*, 7)``). ``symmetric`` and
+        ``log s`` appended for a similarity (``(*, 7)``). ``loss.symmetric`` and
         ``parametrization`` do not apply in 3D (ValueError).
 
     Args:
         src: ``(*, N, 2)`` or ``(*, N, 3)`` source points.
         dst: ``(*, N, 2)`` or ``(*, N, 3)`` destination points.
         model: one of :data:`MODELS` (``"trs"`` is the report's ``T·R·Xs·Ys``).
-        optimizer: ``"adam"``, ``"lbfgs"`` or ``"lm"`` (Levenberg-Marquardt).
-        steps: maximum iterations (default: adam 200, lbfgs 50, lm 10).
+        weights: optional ``(*, N)`` non-negative weights.
         init: optional ``(*, 3, 3)`` (3D: ``(*, 4, 4)``, rigid or a similarity)
             starting ``dst_from_src``.
         parametrization: for ``model="homography"``: ``"entries"``, ``"corners"``
             (4-corner offsets) or ``"sl3"`` (Lie-algebra exponential).
-        loss: ``"l2"``, ``"huber"``, ``"cauchy"`` or ``"tukey"`` (:data:`LOSSES`);
-            ``"transfer"`` (= ``"l2"``) and ``"symmetric"`` (= ``"l2"`` with
-            ``symmetric=True``) are kept for compatibility.
-        weights: optional ``(*, N)`` non-negative weights.
-        lr: learning rate (adam 0.05, lbfgs 1) or initial LM damping (1e-3).
-        tol: relative improvement below which a problem counts as converged
-            (default ``1000 * eps`` of the dtype: 2.2e-13 in float64, 1.2e-4 in float32).
-        patience: adam/lbfgs stop after this many steps without improvement.
-        progress: show a tqdm progress bar.
-        scale: robust scale ``c`` in input units (pixels), > 0; unused by ``"l2"``.
-        symmetric: add the backward transfer error.
+        solver: :class:`SolverOptions`: optimizer, steps, learning rate or damping,
+            tolerance, patience, progress bar.
+        loss: :class:`LossOptions`: the robust loss, its scale, and whether the error
+            is symmetric.
 
     Returns:
         :class:`FitResult` ``(matrix (*, 3, 3), params (*, P), loss (*),
@@ -180,7 +252,7 @@ def fit_transform(
         >>> h = homography(torch.tensor([0.27, 0, -0.85, -0.25, -0.2, 5.65, -0.02, -0.09],
         ...                             dtype=torch.float64))
         >>> src = torch.tensor([[0.0, 0], [4, 0], [4, 5], [0, 5], [2, 1]], dtype=torch.float64)
-        >>> fit = fit_transform(src, transform_points(h, src), optimizer="lm")
+        >>> fit = fit_transform(src, transform_points(h, src), solver=SolverOptions("lm"))
         >>> torch.allclose(fit.matrix, h, atol=1e-9), fit.history.shape[0] <= 11
         (True, True)
 
@@ -193,37 +265,32 @@ def fit_transform(
         >>> src = torch.randn(200, 3, generator=g, dtype=torch.float64)
         >>> dst = transform_points(m, src)
         >>> dst[:60] += 3 * torch.randn(60, 3, generator=g, dtype=torch.float64)
-        >>> fit = fit_transform(src, dst, "euclidean", loss="tukey", scale=0.1, steps=50)
+        >>> fit = fit_transform(src, dst, "euclidean", loss=LossOptions("tukey", scale=0.1),
+        ...                     solver=SolverOptions(steps=50))
         >>> fit.matrix.shape, bool((fit.matrix - m).abs().max() < 1e-12)
         (torch.Size([4, 4]), True)
     """
     weights = check_pair(src, dst, weights, dims=(2, 3))
+    solver = _check_bundle(solver, SolverOptions, "solver")
+    loss = _check_bundle(loss, LossOptions, "loss")
     if working_dtype(src.dtype) != src.dtype:  # float16/bfloat16: fitted in float32
         work = working_dtype(src.dtype)
-        fit = fit_transform(src.to(work), dst.to(work), model, optimizer, steps,
-                            None if init is None else check_float(init, "init").to(work),
-                            parametrization, loss, None if weights is None else weights.to(work),
-                            lr, tol, patience, progress, scale, symmetric)
+        fit = fit_transform(src.to(work), dst.to(work), model,
+                            weights=None if weights is None else weights.to(work),
+                            init=None if init is None else check_float(init, "init").to(work),
+                            parametrization=parametrization, solver=solver, loss=loss)
         return FitResult(*(cast_back(t, src.dtype) for t in fit))
     check_choice(model, MODELS, "model")
-    check_choice(optimizer, _DEFAULT_STEPS, "optimizer")
     check_choice(parametrization, PARAMETRIZATIONS, "parametrization")
-    check_choice(loss, (*LOSSES, "transfer", "symmetric"), "loss")
-    scale = float(scale)
-    if not (math.isfinite(scale) and scale > 0):
-        raise ValueError(f"scale: expected a finite positive number of pixels, got {scale!r}")
+    optimizer, scale, kind = solver.optimizer, float(loss.scale), loss.loss
     if src.shape[-1] == 3:
-        _check_3d(model, optimizer, parametrization, symmetric or loss == "symmetric")
-    steps = _DEFAULT_STEPS[optimizer] if steps is None else steps
-    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
-        raise ValueError(f"steps: expected a non-negative int, got {steps!r}")
-    lr = _DEFAULT_LR[optimizer] if lr is None else float(lr)
-    tol = 1000 * torch.finfo(src.dtype).eps if tol is None else float(tol)
-    if not (math.isfinite(tol) and tol >= 0):
-        raise ValueError(f"tol: expected a finite number >= 0 (a relative improvement), "
-                         f"got {tol!r}")
+        _check_3d(model, optimizer, parametrization, loss.symmetric)
+    steps = _DEFAULT_STEPS[optimizer] if solver.steps is None else solver.steps
+    lr = _DEFAULT_LR[optimizer] if solver.lr is None else float(solver.lr)
+    tol = 1000 * torch.finfo(src.dtype).eps if solver.tol is None else float(solver.tol)
+    progress = solver.progress
     if src.shape[-1] == 3:
-        return _fit_3d(src, dst, model, steps, init, loss, weights, lr, tol, progress, scale)
+        return _fit_3d(src, dst, model, steps, init, kind, weights, lr, tol, progress, scale)
     batch, n = src.shape[:-2], src.shape[-2]
     p_in, q_in = src.reshape(-1, n, 2), dst.reshape(-1, n, 2)
     w = effective_weights(p_in, None if weights is None else weights.reshape(-1, n))
@@ -238,20 +305,17 @@ def fit_transform(
     else:
         theta = src.new_zeros(p_in.shape[0], MODELS[model])
     fn = ParamFn(model, parametrization, base)
-    symmetric = bool(symmetric) or loss == "symmetric"
-    kind = "l2" if loss in ("transfer", "symmetric") else loss
-    objective = Objective(symmetric, kind, scale * prob.scale_dst, scale * prob.scale_src)
+    objective = Objective(bool(loss.symmetric), kind, scale * prob.scale_dst,
+                          scale * prob.scale_src)
     bar = tqdm(range(steps), disable=not progress, desc=f"fit {model} ({optimizer})")
     with torch.no_grad():
         history = [loss_terms(fn(theta), prob, objective)[1]]
     if optimizer == "lm":
         theta = levenberg_marquardt(fn, theta, prob, objective, steps, lr, tol, bar, history)
     else:
-        theta = first_order(optimizer, fn, theta, prob, objective, steps, lr, tol, patience,
-                             bar, history)
-        if torch.is_grad_enabled() and any(
-            t.requires_grad for t in (src, dst, weights) if t is not None
-        ):
+        theta = first_order(optimizer, fn, theta, prob, objective, steps, lr, tol,
+                            solver.patience, bar, history)
+        if records_graph(src, dst, weights):
             theta = gauss_newton_step(fn, theta, prob, objective)
     bar.close()
     hn = fn(theta)
@@ -301,9 +365,8 @@ def _fit_3d(src, dst, model, steps, init, loss, weights, lr, tol, progress, scal
         init = closed(p_in, q_in, w).matrix
     else:
         init = _expand_init(init, src, batch, 4)
-    kind = "l2" if loss == "transfer" else loss
     bar = tqdm(range(steps), disable=not progress, desc=f"fit {model} 3D (lm)")
-    matrix, params, final, history = lm_fit_3d(p_in, q_in, w, init, with_scale, kind, scale,
+    matrix, params, final, history = lm_fit_3d(p_in, q_in, w, init, with_scale, loss, scale,
                                                 steps, lr, tol, bar)
     bar.close()
     return FitResult(

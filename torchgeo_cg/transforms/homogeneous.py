@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
@@ -431,7 +432,7 @@ def transform_points(
     w = clamp_away_from_zero(w, eps)  # (*, N)
     x_out = torch.addcmul(torch.addcmul(m[..., 0, 2, :], m[..., 0, 0, :], x), m[..., 0, 1, :], y)
     y_out = torch.addcmul(torch.addcmul(m[..., 1, 2, :], m[..., 1, 0, :], x), m[..., 1, 1, :], y)
-    if torch.is_grad_enabled() and (matrix.requires_grad or points.requires_grad):
+    if records_graph(matrix, points):
         return cast_back(torch.stack([x_out / w, y_out / w], dim=-1), dtype)
     out = w.new_empty(*w.shape, 2)  # no autograd: divide straight into the result
     torch.div(x_out, w, out=out[..., 0])

@@ -13,6 +13,7 @@ import math
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
 from torchgeo_cg.transforms._correspondences import (
     TransformFit,
@@ -111,7 +112,7 @@ def find_homography_dlt(
     n_eff = (w > 0).sum(0) if w_in is None else (w_in > 0).sum(0)
     limit = min(max_condition, 0.3 / math.sqrt(shift))  # the shift hides larger conditions
     rank_ok = (n_eff >= 4) & (condition <= limit) & torch.isfinite(condition)
-    if torch.is_grad_enabled() and moments.requires_grad:
+    if records_graph(moments):
         # first-order eigenvector perturbation with a detached pseudo-inverse:
         # value = v, derivative = -(M - λ₁I)⁺ (dM) v, where (M - λ₁I)⁺ = P K⁻¹ P with
         # K = M - λ₁I + v vᵀ and P = I - v vᵀ.

@@ -45,7 +45,7 @@ from torchgeo_cg.transforms.estimation import (
     find_euclidean,
     find_similarity,
 )
-from torchgeo_cg.transforms.fitting import fit_transform
+from torchgeo_cg.transforms.fitting import SolverOptions, fit_transform
 
 __all__ = ["RobustFit", "SAMPLE_SIZES", "SAMPLE_SIZES_3D", "find_transform_ransac"]
 
@@ -337,8 +337,8 @@ def _refit(model: str, frame: _Frame, w_fit: torch.Tensor, init: torch.Tensor, f
         return _dlt_in_frame(frame, w_fit)
     ok = (w_fit > 0).sum(-1) >= 4
     safe_w = torch.where(ok[:, None], w_fit, frame.w)
-    return fit_transform(frame.p, frame.q, "homography", "lm", steps=5, init=init,
-                         weights=safe_w).matrix, ok
+    return fit_transform(frame.p, frame.q, "homography", init=init, weights=safe_w,
+                         solver=SolverOptions("lm", steps=5)).matrix, ok
 
 
 def _local_optimization(frame: _Frame, model, best, score, lo_iterations: int):

@@ -35,6 +35,7 @@ from typing import NamedTuple
 import torch
 import torch.nn.functional as F
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 
@@ -137,7 +138,7 @@ def _sampling_grid(matrix: torch.Tensor, out_hw, in_hw):
     if not bool((den > 0).all()):  # points at or behind infinity: sampled as 0, finite
         gx, gy = (torch.nan_to_num(g, nan=-2.0, posinf=-2.0, neginf=-2.0) for g in (gx, gy))
     # clamped (far points give no huge indices inside grid_sample) and interleaved
-    if torch.is_grad_enabled() and matrix.requires_grad:
+    if records_graph(matrix):
         return torch.stack([gx, gy], -1).clamp(-2.0, 2.0), valid[:, None]
     grid = gx.new_empty(*gx.shape, 2)
     torch.clamp(gx, -2.0, 2.0, out=grid[..., 0])  # written in place: no stack copy

@@ -22,7 +22,7 @@ import torch
 
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.transforms.decompose import decompose_affine
-from torchgeo_cg.transforms.fitting import fit_transform
+from torchgeo_cg.transforms.fitting import SolverOptions, fit_transform
 from torchgeo_cg.transforms.homogeneous import (
     compose,
     homography,
@@ -36,12 +36,15 @@ from torchgeo_cg.transforms.homogeneous import (
 )
 from torchgeo_cg.transforms.homography_dlt import find_homography_dlt
 
-__all__ = ["ReportShapes", "ShapeFit", "report_shapes", "fit_report_shapes", "format_report_table"]
+__all__ = [
+    "ReportShapes", "ShapeFit", "report_shapes", "fit_report_shapes", "format_report_table",
+    "format_transform",
+]
 
 #: Table 3's shape names.
-REPORT_NAMES: tuple[str, ...] = ("A", "B", "C", "D", "E", "F", "G", "H")
+_REPORT_NAMES: tuple[str, ...] = ("A", "B", "C", "D", "E", "F", "G", "H")
 #: Table 3's estimates, as the report writes them.
-REPORT_FORMULAS: tuple[str, ...] = (
+_REPORT_FORMULAS: tuple[str, ...] = (
     "T(5,1)",
     "T(7,0)·S(1/2.45)",
     "T(9.5,1.55)·Xs(1.2)·Ys(0.4)",
@@ -136,7 +139,7 @@ def report_shapes(device=None, dtype=None) -> ReportShapes:
     start = torch.tensor(_START_F, **kw)
     targets = transform_points(matrices, start.expand(8, -1, -1))
     start, matrices, targets = (cast_back(x, dtype) for x in (start, matrices, targets))
-    return ReportShapes(start, matrices, targets, REPORT_NAMES, REPORT_FORMULAS)
+    return ReportShapes(start, matrices, targets, _REPORT_NAMES, _REPORT_FORMULAS)
 
 
 class ShapeFit(NamedTuple):
@@ -190,8 +193,10 @@ def fit_report_shapes(optimizer: str = "lm", steps: int | None = None,
     dtype = _float_dtype(dtype)
     shapes = report_shapes(device=device, dtype=working_dtype(dtype))
     src = shapes.start.expand(8, -1, -1)
-    fit_h = fit_transform(src, shapes.targets, "homography", optimizer, steps=steps)
-    fit_a = fit_transform(src, shapes.targets, "affine", optimizer, steps=steps)
+    fit_h = fit_transform(src, shapes.targets, "homography",
+                          solver=SolverOptions(optimizer, steps=steps))
+    fit_a = fit_transform(src, shapes.targets, "affine",
+                          solver=SolverOptions(optimizer, steps=steps))
     dlt = find_homography_dlt(src, shapes.targets).matrix
     err_h = (fit_h.matrix - shapes.matrices).abs().amax((-2, -1))
     err_a = (fit_a.matrix - shapes.matrices).abs().amax((-2, -1))

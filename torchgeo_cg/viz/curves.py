@@ -138,7 +138,7 @@ def _bezier(path: Path) -> None:
 
 
 #: Report Figure 4 tangent variants, endpoints (0, 0) -> (1, 0).
-HERMITE_VARIANTS = {
+_HERMITE_VARIANTS = {
     "original": ((1.0, 1.0), (1.0, -1.0)),
     "exaggerated": ((5.0, 5.0), (5.0, -5.0)),
     "vertical": ((0.0, 3.0), (0.0, -3.0)),
@@ -160,7 +160,7 @@ def _hermite(path: Path) -> None:
     p1 = torch.tensor([1.0, 0.0], dtype=_F64)
     t = torch.linspace(0, 1, 100, dtype=_F64)
     variants = [(name, torch.tensor(m0, dtype=_F64), torch.tensor(m1, dtype=_F64))
-                for name, (m0, m1) in HERMITE_VARIANTS.items()]
+                for name, (m0, m1) in _HERMITE_VARIANTS.items()]
     curves = [hermite(p0, p1, m0, m1, t) for _, m0, m1 in variants]  # each (100, 2)
     tips = [torch.stack([p0 + 0.2 * m0, p1 + 0.2 * m1]) for _, m0, m1 in variants]  # (2, 2)
     extent = torch.cat([*curves, *tips, torch.stack([p0, p1])])  # every point drawn

@@ -7,6 +7,7 @@ from pathlib import Path
 import torch
 
 from torchgeo_cg.transforms import (
+    SolverOptions,
     find_homography_dlt,
     fit_report_shapes,
     fit_transform,
@@ -103,8 +104,8 @@ def _convergence(path: Path) -> None:
     dlt = reprojection_error(find_homography_dlt(src, dst).matrix, src, dst)
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
     for optimizer, steps, style in (("lm", 10, "o-"), ("lbfgs", 60, "s-"), ("adam", 200, "-")):
-        hist = fit_transform(src, dst, optimizer=optimizer, steps=steps, tol=0.0,
-                             patience=10**6).history
+        solver = SolverOptions(optimizer, steps=steps, tol=0.0, patience=10**6)
+        hist = fit_transform(src, dst, solver=solver).history
         ratio = (hist / dlt).mean(-1).numpy()
         ax.semilogy(range(len(ratio)), ratio, style, ms=3, label=optimizer)
     ax.axhline(1.0, color="k", lw=0.8, ls=":")

@@ -58,11 +58,11 @@ class GlyphFit(NamedTuple):
     losses: torch.Tensor
 
 
-def glyph_polygon(char: str = "d") -> np.ndarray:
+def _glyph_polygon(char: str = "d") -> np.ndarray:
     """``(K, 2)`` vertices of the longest (outer) outline of ``char``, not repeated at the end.
 
     Example:
-        >>> poly = glyph_polygon("d")
+        >>> poly = _glyph_polygon("d")
         >>> poly.ndim, poly.shape[1], bool((poly[0] != poly[-1]).any())
         (2, 2, True)
     """
@@ -107,7 +107,7 @@ def glyph_pieces(
         >>> bool(torch.allclose(parts.runs[:-1, -1], parts.runs[1:, 0]))  # joined
         True
     """
-    polygon = glyph_polygon(char)
+    polygon = _glyph_polygon(char)
     closed = np.concatenate([polygon, polygon[:1]])  # (K + 1, 2)
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
     total = arc[-1]

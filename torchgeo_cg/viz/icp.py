@@ -78,7 +78,8 @@ def _rmse_curve(pairs, method, max_distance, normals, iterations):
     "inlier RMSE after each iteration, point-to-plane and point-to-point, down to the noise.",
 )
 def _icp_figure(path: Path) -> None:
-    pairs = rabbit_scan_pairs(1, 8000, seed=4, angles=(30.0, 40.0))
+    pairs = rabbit_scan_pairs(1, 8000, generator=torch.Generator().manual_seed(4),
+                              angles=(30.0, 40.0))
     normals = estimate_normals(pairs.target, 10)
     md = 0.2 * pairs.size
     plane, out = _rmse_curve(pairs, "point_to_plane", md, normals, 15)

@@ -19,7 +19,7 @@ from torchgeo_cg.viz.registry import figure
 __all__: list[str] = []
 
 
-def plot_registration(source: torch.Tensor, target: torch.Tensor, matrix: torch.Tensor,
+def _plot_registration(source: torch.Tensor, target: torch.Tensor, matrix: torch.Tensor,
                       path: str | Path) -> None:
     """Source, target and ``|target(M p) - source(p)|`` before (M = I) and after, to ``path``.
 
@@ -36,7 +36,7 @@ def plot_registration(source: torch.Tensor, target: torch.Tensor, matrix: torch.
         >>> import pathlib, tempfile
         >>> out = pathlib.Path(tempfile.mkdtemp()) / "reg.png"
         >>> img = torch.rand(32, 32)
-        >>> plot_registration(img, img, torch.eye(3), out)
+        >>> _plot_registration(img, img, torch.eye(3), out)
         >>> out.stat().st_size > 5_000
         True
     """
@@ -62,7 +62,7 @@ def plot_registration(source: torch.Tensor, target: torch.Tensor, matrix: torch.
     save(fig, Path(path))
 
 
-def plot_robust_fit(image0: np.ndarray, image1: np.ndarray, src: torch.Tensor,
+def _plot_robust_fit(image0: np.ndarray, image1: np.ndarray, src: torch.Tensor,
                     dst: torch.Tensor, fit: RobustFit, path: str | Path) -> None:
     """Two views side by side with their matches: inliers green, outliers red, to ``path``.
 
@@ -79,7 +79,7 @@ def plot_robust_fit(image0: np.ndarray, image1: np.ndarray, src: torch.Tensor,
         >>> out = pathlib.Path(tempfile.mkdtemp()) / "ransac.png"
         >>> pts = torch.rand(30, 2) * 31
         >>> fit = find_transform_ransac(pts, pts + 1.0, generator=torch.Generator().manual_seed(0))
-        >>> plot_robust_fit(np.zeros((32, 32)), np.zeros((32, 32)), pts, pts + 1.0, fit, out)
+        >>> _plot_robust_fit(np.zeros((32, 32)), np.zeros((32, 32)), pts, pts + 1.0, fit, out)
         >>> out.stat().st_size > 5_000
         True
     """
@@ -124,7 +124,7 @@ def _camera_pair(size: int = 256, off: int = 128):
 def _registration(path: Path) -> None:
     source, target = _camera_pair()
     fit = register_images(source[None, None], target[None, None], loss="ncc")
-    plot_registration(source, target, fit.matrix[0], path)
+    _plot_registration(source, target, fit.matrix[0], path)
 
 
 @figure(
@@ -153,4 +153,4 @@ def _ransac(path: Path) -> None:
     src = torch.tensor(found[0][0][pairs[:, 0]], dtype=torch.float32)
     dst = torch.tensor(found[1][0][pairs[:, 1]], dtype=torch.float32)
     fit = find_transform_ransac(src, dst, threshold=2.0, generator=torch.Generator().manual_seed(0))
-    plot_robust_fit(image, view, src, dst, fit, path)
+    _plot_robust_fit(image, view, src, dst, fit, path)

@@ -27,7 +27,7 @@ _N, _BLOCK = 65, 8
     "that slice the field was evaluated at (the active blocks; the coarse-to-fine block "
     "centres are not drawn). Right: the mesh, identical to marching_cubes on the full grid.",
 )
-def sparse_figure(path: Path) -> None:
+def _sparse_figure(path: Path) -> None:
     seen: list[torch.Tensor] = []
 
     def field(p: torch.Tensor) -> torch.Tensor:

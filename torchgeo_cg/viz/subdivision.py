@@ -10,7 +10,7 @@ import torch
 from torchgeo_cg.mesh import data as sample_data
 from torchgeo_cg.mesh.faces import pad_faces
 from torchgeo_cg.mesh.io import to_trimesh
-from torchgeo_cg.mesh.subdivision import catmull_clark
+from torchgeo_cg.mesh.subdivision import SchemeOptions, catmull_clark
 from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
 
@@ -120,7 +120,8 @@ def _open_modes(path: Path) -> None:
     faces = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1).reshape(-1, 4)
     fig = plt.figure(figsize=(11, 4.2))
     for k, mode in enumerate(("edge_only", "edge_and_corner")):
-        v, f = catmull_clark(verts, torch.from_numpy(faces), levels=3, boundary=mode)
+        v, f = catmull_clark(verts, torch.from_numpy(faces), levels=3,
+                             options=SchemeOptions(boundary=mode))
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
         _draw(ax, v, f, edges=False, view=(35, -60))
         ctrl = verts.numpy()

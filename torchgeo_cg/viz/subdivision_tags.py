@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from torchgeo_cg.mesh.subdivision import catmull_clark
+from torchgeo_cg.mesh.subdivision import SchemeOptions, catmull_clark
 from torchgeo_cg.mesh.subdivision.face_varying import face_varying_subdivide
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
 from torchgeo_cg.viz._style import plt, save
@@ -196,7 +196,7 @@ def _uv_checkerboard(path: Path) -> None:
         ax = fig.add_subplot(2, 4, 4 * row + 1)
         ax.imshow(image, origin="lower", extent=(0, 4, 0, 3), interpolation="nearest")
         uv2, uvf2 = face_varying_subdivide(uvs, _CUBE_F, uv_faces, 8, levels=2,
-                                           interpolation=mode)
+                                           options=SchemeOptions(fvar_interpolation=mode))
         for quad in uv2[uvf2].numpy():
             ax.fill(*quad.T, fill=False, ec=(0.0, 0.0, 0.0, 0.7), lw=0.5)
         for quad in uvs[uv_faces].numpy():
@@ -208,7 +208,7 @@ def _uv_checkerboard(path: Path) -> None:
         for level in range(3):
             v, f = catmull_clark(_CUBE_V, _CUBE_F, levels=level)
             uv_l, uvf_l = face_varying_subdivide(uvs, _CUBE_F, uv_faces, 8, levels=level,
-                                                 interpolation=mode)
+                                                 options=SchemeOptions(fvar_interpolation=mode))
             ax = fig.add_subplot(2, 4, 4 * row + level + 2, projection="3d")
             _textured(ax, v.numpy(), f.numpy(), uv_l.numpy(), uvf_l.numpy(),
                       samples=(16, 8, 4)[level])
@@ -232,7 +232,7 @@ def _fvar_modes(path: Path) -> None:
     fig, axes = plt.subplots(1, 4, figsize=(14, 3.2))
     for ax, mode in zip(axes, ("none", "corners_only", "boundaries", "all")):
         uv2, uvf2 = face_varying_subdivide(uvs, _CUBE_F, uv_faces, 8, levels=2,
-                                           interpolation=mode)
+                                           options=SchemeOptions(fvar_interpolation=mode))
         for quad in uv2[uvf2].numpy():
             ax.fill(*quad.T, fc=(0.55, 0.7, 0.9, 0.5), ec=(0.1, 0.2, 0.4), lw=0.5)
         for quad in uvs[uv_faces].numpy():

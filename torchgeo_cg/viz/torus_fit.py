@@ -29,9 +29,9 @@ __all__ = ["TRUE_RADII", "TorusFit", "fit_torus_radii", "plot_torus_fit"]
 
 #: The target torus ``(R, r)`` and the deliberately poor starting guess.
 TRUE_RADII = (0.65, 0.25)
-START_RADII = (0.40, 0.40)
+_START_RADII = (0.40, 0.40)
 #: Grid samples per axis and its bounds.
-N, LO, HI = 32, -1.2, 1.2
+_N, _LO, _HI = 32, -1.2, 1.2
 
 
 class TorusFit(NamedTuple):
@@ -50,7 +50,7 @@ class TorusFit(NamedTuple):
     after: MarchingCubesResult
 
 
-def torus_grid_sdf(R: torch.Tensor, r: torch.Tensor, n: int = N) -> torch.Tensor:
+def _torus_grid_sdf(R: torch.Tensor, r: torch.Tensor, n: int = _N) -> torch.Tensor:
     """Exact torus SDF around the z axis on an ``(n, n, n)`` grid over ``[LO, HI]^3``.
 
     Args:
@@ -62,20 +62,20 @@ def torus_grid_sdf(R: torch.Tensor, r: torch.Tensor, n: int = N) -> torch.Tensor
         ``(n, n, n)`` values, ``indexing="ij"``, negative inside, in ``R``'s dtype.
 
     Example:
-        >>> f = torus_grid_sdf(torch.tensor(0.65), torch.tensor(0.25), n=5)
+        >>> f = _torus_grid_sdf(torch.tensor(0.65), torch.tensor(0.25), n=5)
         >>> f.shape, round(float(f[2, 2, 2]), 4)  # the centre: distance R - r to the tube
         (torch.Size([5, 5, 5]), 0.4)
     """
-    x = torch.linspace(LO, HI, n, dtype=R.dtype, device=R.device)
+    x = torch.linspace(_LO, _HI, n, dtype=R.dtype, device=R.device)
     X, Y, Z = torch.meshgrid(x, x, x, indexing="ij")
     return ((X**2 + Y**2).sqrt() - R).hypot(Z) - r
 
 
-def sample_torus_surface(R: float, r: float, count: int, seed: int = 0) -> torch.Tensor:
+def _sample_torus_surface(R: float, r: float, count: int, seed: int = 0) -> torch.Tensor:
     """``(count, 3)`` float64 points on the torus (uniform in the two angles, seeded).
 
     Example:
-        >>> p = sample_torus_surface(0.65, 0.25, 4)
+        >>> p = _sample_torus_surface(0.65, 0.25, 4)
         >>> p.shape, bool(((p[:, :2].norm(dim=1) - 0.65).hypot(p[:, 2]) - 0.25).abs().max() < 1e-12)
         (torch.Size([4, 3]), True)
     """
@@ -85,13 +85,13 @@ def sample_torus_surface(R: float, r: float, count: int, seed: int = 0) -> torch
     return torch.stack([ring * u.cos(), ring * u.sin(), r * v.sin()], 1)
 
 
-def extract_torus(R: torch.Tensor, r: torch.Tensor, temperature: float) -> MarchingCubesResult:
+def _extract_torus(R: torch.Tensor, r: torch.Tensor, temperature: float) -> MarchingCubesResult:
     """Marching cubes of :func:`torus_grid_sdf` with soft face weights at ``temperature``."""
-    origin, spacing = grid_spacing(N, (LO, HI), device=R.device, dtype=R.dtype)
-    return marching_cubes(Volume(torus_grid_sdf(R, r), origin, spacing), temperature=temperature)
+    origin, spacing = grid_spacing(_N, (_LO, _HI), device=R.device, dtype=R.dtype)
+    return marching_cubes(Volume(_torus_grid_sdf(R, r), origin, spacing), temperature=temperature)
 
 
-def soft_chamfer(mesh: MarchingCubesResult, target: torch.Tensor) -> torch.Tensor:
+def _soft_chamfer(mesh: MarchingCubesResult, target: torch.Tensor) -> torch.Tensor:
     """Two-sided chamfer distance between face centroids (weighted) and ``(P, 3)`` points.
 
     Returns:
@@ -130,16 +130,16 @@ def fit_torus_radii(
         >>> fit.history.shape, fit.history[0, 1:3].tolist()
         (torch.Size([3, 4]), [0.4, 0.4])
     """
-    target = sample_torus_surface(*TRUE_RADII, count=points)
-    R = torch.tensor(START_RADII[0], dtype=torch.float64, requires_grad=True)
-    r = torch.tensor(START_RADII[1], dtype=torch.float64, requires_grad=True)
+    target = _sample_torus_surface(*TRUE_RADII, count=points)
+    R = torch.tensor(_START_RADII[0], dtype=torch.float64, requires_grad=True)
+    r = torch.tensor(_START_RADII[1], dtype=torch.float64, requires_grad=True)
     opt = torch.optim.Adam([R, r], lr=lr)
     schedule = torch.optim.lr_scheduler.ExponentialLR(opt, gamma=0.95)
     with torch.no_grad():
-        before = extract_torus(R, r, temperature)
+        before = _extract_torus(R, r, temperature)
     history = []
     for step in range(steps + 1):  # a loop over optimisation steps
-        loss = soft_chamfer(extract_torus(R, r, temperature), target)
+        loss = _soft_chamfer(_extract_torus(R, r, temperature), target)
         history.append((step, R.item(), r.item(), loss.item()))
         if verbose and step % 10 == 0:
             print(f"step {step:3d}  loss {loss.item():.5f}  R {R.item():.4f}  r {r.item():.4f}")
@@ -150,7 +150,7 @@ def fit_torus_radii(
         opt.step()
         schedule.step()
     with torch.no_grad():
-        after = extract_torus(R, r, temperature)
+        after = _extract_torus(R, r, temperature)
     return TorusFit(target, torch.tensor(history, dtype=torch.float64), before, after)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 import trimesh
 
+from torchgeo_cg.core.check import check_generator
 from torchgeo_cg.mesh.io import load_mesh, to_trimesh
 from torchgeo_cg.mesh.subdivision.catmark import catmull_clark
 
@@ -58,7 +59,8 @@ def _rotation(rng, lo_deg, hi_deg):
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
 
 
-def rabbit_scan_pairs(count: int, points: int = 8000, *, seed: int = 0, dropped: float = 0.2,
+def rabbit_scan_pairs(count: int, points: int = 8000, *,
+                      generator: torch.Generator | None = None, dropped: float = 0.2,
                       noise: float = 0.002, outliers: float = 0.0,
                       angles: tuple[float, float] = (10.0, 45.0),
                       shift: float = 0.1) -> ScanPairs:
@@ -71,15 +73,18 @@ def rabbit_scan_pairs(count: int, points: int = 8000, *, seed: int = 0, dropped:
     in ``angles`` (degrees, random axis, about its centroid) and a shift of length
     ``shift`` x size.
 
-    ``seed`` names the data set, as trimesh's ``sample_surface(seed=)`` does: the same
-    seed gives the same pairs on every machine (numpy's and trimesh's generators are
-    seeded from it; no torch generator is involved).
+    Randomness is ``generator=`` as everywhere (a CPU :class:`torch.Generator`; ``None``
+    uses torch's default one): one number drawn from it seeds numpy's and trimesh's
+    samplers, so a generator seeded alike gives the same pairs on every machine.
 
     Example:
-        >>> pairs = rabbit_scan_pairs(2, 1000)
+        >>> pairs = rabbit_scan_pairs(2, 1000, generator=torch.Generator().manual_seed(0))
         >>> pairs.source.shape, pairs.target.shape, pairs.truth.shape
         (torch.Size([2, 800, 3]), torch.Size([2, 1000, 3]), torch.Size([2, 4, 4]))
     """
+    if generator is not None:
+        check_generator(generator)
+    seed = int(torch.randint(0, 2**31 - 1, (), generator=generator))
     surface = rabbit_surface()
     size = float(np.linalg.norm(surface.bounds[1] - surface.bounds[0]))
     rng = np.random.default_rng(seed)

@@ -19,7 +19,7 @@ Convention:
     - What real exporters write outside the format but cannot change positions or
       faces (an unknown OBJ statement, non-UTF-8 bytes in an OBJ comment or name,
       non-ASCII bytes in a PLY ``comment``/``obj_info`` line) is skipped with one
-      :class:`~torchgeo_cg.mesh.io._text.MeshFileWarning` (a ``UserWarning``) per
+      :class:`~torchgeo_cg.mesh.io.MeshFileWarning` (a ``UserWarning``) per
       file, naming the file, the first line skipped and how many were.
     - trimesh holds triangles only: :func:`to_trimesh` fan-triangulates polygons.
 """
@@ -44,7 +44,7 @@ from torchgeo_cg.mesh.io._text import MeshFileWarning
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 from torchgeo_cg.mesh.subdivision.tags import check_tags as check_tensor_tags
 
-__all__ = ["Mesh", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
+__all__ = ["Mesh", "MeshFileWarning", "load_mesh", "save_mesh", "from_trimesh", "to_trimesh"]
 
 
 class Mesh(NamedTuple):

@@ -15,7 +15,7 @@ Convention:
     - Known statements that do not describe polygons (``o g s usemtl mtllib l p``,
       free-form curves, ...) and comments are skipped silently.
     - What the format does not allow but cannot change positions or faces is
-      skipped with one :class:`~torchgeo_cg.mesh.io._text.MeshFileWarning` per file,
+      skipped with one :class:`~torchgeo_cg.mesh.io.MeshFileWarning` per file,
       naming the first such line and how many there are: an unknown statement
       (``vx``, ``newmtl``, ``call`` and ``csh``, which are not run), and bytes that
       are not UTF-8 (latin-1, say) in a comment or in a name (``g``, ``o``,

@@ -6,7 +6,7 @@ Convention:
       ``property`` (scalar or ``list``), ``comment``/``obj_info`` lines, and a line
       reading ``end_header``. The header is ASCII, except that ``comment`` and
       ``obj_info`` lines with other bytes (UTF-8, latin-1, ...) are skipped with one
-      :class:`~torchgeo_cg.mesh.io._text.MeshFileWarning` naming the first. Scalar
+      :class:`~torchgeo_cg.mesh.io.MeshFileWarning` naming the first. Scalar
       types: ``char uchar short ushort int uint float double`` and their
       ``int8 .. float64`` aliases.
     - A ``vertex`` element with ``x, y, z`` is required; ``face`` needs one integer

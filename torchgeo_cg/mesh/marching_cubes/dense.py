@@ -77,6 +77,7 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.grid import Volume, index_to_world
@@ -292,9 +293,7 @@ def marching_cubes(
 
 def _needs_grad(args) -> bool:
     """Whether autograd records the call (a differentiable input under grad mode)."""
-    return torch.is_grad_enabled() and any(
-        x is not None and x.requires_grad for x in (args.vol, args.iso, args.origin,
-                                                     args.spacing))
+    return records_graph(args.vol, args.iso, args.origin, args.spacing)
 
 
 def _slab_plan(cell_id, cases_a, shape):

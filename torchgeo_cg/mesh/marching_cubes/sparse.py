@@ -23,6 +23,7 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.marching_cubes._blocks import band_blocks, lipschitz_blocks
 from torchgeo_cg.mesh.marching_cubes._extract import assemble, extract_group
@@ -158,7 +159,7 @@ def sparse_marching_cubes(
         blocks = lipschitz_blocks(evaluate, grid, float(iso_t), L, block, progress)
     work = torch.float32 if grid.origin.dtype in (torch.float16, torch.bfloat16) else (
         grid.origin.dtype)
-    grad = torch.is_grad_enabled() and (iso_t.requires_grad or _output_needs_grad(field, grid))
+    grad = records_graph(iso_t, *_field_tensors(field, grid))
     per_group = max(1, max(GROUP_SAMPLES, max_points_per_call) // (block + 1) ** 3)
     parts = []
     starts = range(0, blocks.shape[0], per_group)
@@ -203,12 +204,12 @@ def _parse(field, bounds, resolution, iso, lipschitz, band, block, max_points_pe
     return grid, iso_t, L, FieldEvaluator(field, max_points_per_call, distributed)
 
 
-def _output_needs_grad(field, grid: Grid) -> bool:
-    """Whether the field's output at one grid point requires grad (it has parameters)."""
+def _field_tensors(field, grid: Grid) -> tuple:
+    """The field's differentiable tensors: its parameters, or its output at one grid point."""
     if isinstance(field, nn.Module):
-        return any(p.requires_grad for p in field.parameters())
+        return tuple(field.parameters())
     out = field(grid.points(torch.zeros(1, 3, dtype=torch.long, device=grid.origin.device)))
-    return isinstance(out, torch.Tensor) and out.requires_grad
+    return (out,) if isinstance(out, torch.Tensor) else ()
 
 
 def _grad_lookup(evaluate: FieldEvaluator, grid: Grid):

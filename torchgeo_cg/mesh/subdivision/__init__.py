@@ -1,6 +1,9 @@
 """torchgeo_cg.mesh.subdivision: subdivision surfaces as sparse operators built once.
 
 Layout:
+    - :mod:`~torchgeo_cg.mesh.subdivision.options`: :class:`SchemeOptions`, the rules
+      (boundary, crease method, triangle rule, face-varying interpolation) every builder
+      and module takes as ``options=``, documented once.
     - :mod:`~torchgeo_cg.mesh.subdivision.operator`: the scheme-neutral
       :class:`SubdivisionOperator` and :func:`apply_operator`.
     - :mod:`~torchgeo_cg.mesh.subdivision.catmark`, :mod:`~torchgeo_cg.mesh.subdivision.loop`,
@@ -15,7 +18,6 @@ Layout:
 from torchgeo_cg.mesh.subdivision.bilinear import bilinear_operator
 from torchgeo_cg.mesh.subdivision.catmark import CatmullClark, catmull_clark, catmull_clark_operator
 from torchgeo_cg.mesh.subdivision.face_varying import (
-    FVAR_INTERPOLATIONS,
     FaceVaryingSubdivision,
     face_varying_operator,
     face_varying_subdivide,
@@ -23,6 +25,7 @@ from torchgeo_cg.mesh.subdivision.face_varying import (
 from torchgeo_cg.mesh.subdivision.limit import LimitFrames, limit_frames, limit_positions
 from torchgeo_cg.mesh.subdivision.loop import LoopSubdivision, loop_operator, loop_subdivide
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator, apply_operator
+from torchgeo_cg.mesh.subdivision.options import FVAR_INTERPOLATIONS, SchemeOptions
 from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils
 from torchgeo_cg.mesh.subdivision.surface import (
     LimitStencils,
@@ -35,6 +38,7 @@ from torchgeo_cg.mesh.subdivision.surface import (
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__ = [
+    "SchemeOptions",
     "SubdivisionOperator",
     "apply_operator",
     "catmull_clark_operator",

@@ -46,7 +46,6 @@ from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags,
 
 __all__: list[str] = []
 
-CREASE_METHODS = ("uniform", "chaikin")
 SMOOTH, CREASE, CORNER = 0, 1, 2
 
 

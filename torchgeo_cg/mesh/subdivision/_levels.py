@@ -3,16 +3,25 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import torch
 from torch import nn
 
 from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.mesh.faces import check_faces
-from torchgeo_cg.mesh.subdivision._topology import check_boundary, check_crease_method, check_verts
+from torchgeo_cg.mesh.subdivision._stencil_build import StencilMatrix, check_out
+from torchgeo_cg.mesh.subdivision._topology import check_verts
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, check_out
+from torchgeo_cg.mesh.subdivision.options import SchemeOptions
+from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
+
+
+def children_options(options: SchemeOptions) -> SchemeOptions:
+    """The options of the levels after the first: OpenSubdiv applies boundary ``"none"``
+    (boundary faces become holes) at the base level only; their children stay holes."""
+    return replace(options, boundary="edge_only") if options.boundary == "none" else options
 
 
 class SubdivisionModule(nn.Module):
@@ -21,8 +30,8 @@ class SubdivisionModule(nn.Module):
     scheme = ""  # the subclass's scheme name
 
     @staticmethod
-    def _build_operator(faces, num_vertices, boundary, dtype=None, tags=None,
-                        crease_method="uniform", edge_tags=None) -> SubdivisionOperator:
+    def _build_operator(faces, num_vertices, dtype=None, tags=None, edge_tags=None, *,
+                        options=SchemeOptions()) -> SubdivisionOperator:
         raise NotImplementedError
 
     def __init__(
@@ -30,19 +39,16 @@ class SubdivisionModule(nn.Module):
         faces: torch.Tensor | Sequence[Sequence[int]],
         num_vertices: int,
         levels: int = 1,
-        boundary: str = "edge_only",
         device: torch.device | str | None = None,
         dtype: torch.dtype | None = None,
         tags: SubdivisionTags | None = None,
-        crease_method: str = "uniform",
-        **options: str,
+        *,
+        options: SchemeOptions = SchemeOptions(),
     ) -> None:
         super().__init__()
         if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
             raise ValueError(f"levels: expected an int >= 0, got {levels!r}")
-        check_boundary(boundary)
-        check_crease_method(crease_method)
-        self.levels, self.boundary, self.crease_method = levels, boundary, crease_method
+        self.levels, self.options = levels, SchemeOptions.check(options)
         self.num_vertices_in = num_vertices
         faces_fk = check_faces(faces, num_vertices, allow_duplicates=True, allow_degenerate=True)
         if device is not None:
@@ -51,11 +57,10 @@ class SubdivisionModule(nn.Module):
         count = num_vertices
         self.sizes: list[tuple[int, int, int, int]] = []  # (V_in, V_out, F_in, E_in)
         self._child_tag_levels: list[bool] = []
-        level_boundary, edge_tags = boundary, None
+        level_options, edge_tags = options, None
         for level in range(levels):  # loop over levels only
-            op = self._build_operator(faces_fk, count, level_boundary, dtype=dtype, tags=tags,
-                                      crease_method=crease_method, edge_tags=edge_tags,
-                                      **options)
+            op = self._build_operator(faces_fk, count, dtype=dtype, tags=tags,
+                                      edge_tags=edge_tags, options=level_options)
             for field, tensor in zip(StencilMatrix._fields, op.stencils):
                 self.register_buffer(f"{field}_{level}", tensor, persistent=False)
             self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
@@ -73,7 +78,7 @@ class SubdivisionModule(nn.Module):
             edge_tags = op.child_edge_tags
             # OpenSubdiv applies boundary "none" (boundary faces become holes) at the base
             # level only; the children of those holes are holes of the next levels
-            level_boundary = "edge_only" if boundary == "none" else boundary
+            level_options = children_options(options)
         self.num_vertices_out = count
 
     @property
@@ -92,10 +97,10 @@ class SubdivisionModule(nn.Module):
             tags = SubdivisionTags(
                 *(getattr(self, f"tags_{f}_{level + 1}") for f in SubdivisionTags._fields)
             )
-        boundary = "edge_only" if level and self.boundary == "none" else self.boundary
+        options = children_options(self.options) if level else self.options
         return SubdivisionOperator(
             self._stencils(level), getattr(self, f"faces_{level + 1}"),
-            v_in, v_out, f_in, e_in, boundary, self.scheme,
+            v_in, v_out, f_in, e_in, options.boundary, self.scheme,
             getattr(self, f"child_faces_{level + 1}"), tags,
             getattr(self, f"child_edge_tags_{level + 1}"),
         )
@@ -119,6 +124,6 @@ class SubdivisionModule(nn.Module):
 
     def extra_repr(self) -> str:
         return (
-            f"levels={self.levels}, boundary={self.boundary!r}, "
+            f"levels={self.levels}, options={self.options!r}, "
             f"num_vertices={self.num_vertices_in} -> {self.num_vertices_out}"
         )

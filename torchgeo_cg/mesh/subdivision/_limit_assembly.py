@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, index_dtype
+from torchgeo_cg.mesh.subdivision._stencil_build import StencilMatrix, index_dtype
 
 _CHUNK = 1 << 13  # points per batched product: the gathered patch matrices stay in cache
 

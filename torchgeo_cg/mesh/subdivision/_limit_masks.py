@@ -13,8 +13,8 @@ import math
 import torch
 
 from torchgeo_cg.mesh.subdivision._creasing import limit_rules
+from torchgeo_cg.mesh.subdivision._stencil_build import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision._topology import mesh_topology
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 

@@ -10,10 +10,7 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_choice, check_float, check_shape, check_tensor
-from torchgeo_cg.mesh.subdivision._creasing import CREASE_METHODS
-
-BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")
+from torchgeo_cg.core.check import check_float, check_shape, check_tensor
 
 
 class Topology(NamedTuple):
@@ -34,14 +31,6 @@ class Topology(NamedTuple):
     kind_v: torch.Tensor  # (V,) 0 isolated, 1 smooth/dart, 2 crease, 3 corner
     repeat_e: torch.Tensor | None = None  # (E,) bool: a face uses its pair twice (None: none)
     inherited_e: torch.Tensor | None = None  # (E,) bool: non-manifold by the parent level
-
-
-def check_crease_method(crease_method: str) -> str:
-    return check_choice(crease_method, CREASE_METHODS, "crease_method")
-
-
-def check_boundary(boundary: str) -> str:
-    return check_choice(boundary, BOUNDARY_MODES, "boundary")
 
 
 def check_verts(verts: torch.Tensor, num_vertices: int, name: str = "verts") -> None:

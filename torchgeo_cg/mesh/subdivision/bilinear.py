@@ -18,9 +18,9 @@ from collections.abc import Sequence
 import torch
 
 from torchgeo_cg.mesh.faces import check_faces
+from torchgeo_cg.mesh.subdivision._stencil_build import stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision._topology import mesh_topology
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
-from torchgeo_cg.mesh.subdivision.stencils import stencil_matrix, weights_dtype
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags, check_tags
 
 __all__ = ["bilinear_operator"]

@@ -29,8 +29,8 @@ Convention:
       ``s = 2`` (boundary/crease): ``3/4 V + 1/8 (a + b)``, ``a, b`` its sharp
       neighbours; ``s > 2`` (e.g. non-manifold fins): corner, kept.
       A *corner* is a boundary vertex of valence 2 (one face): it is kept with
-      ``boundary="edge_and_corner"`` and smoothed by the boundary rule with
-      ``boundary="edge_only"`` (OpenSubdiv ``VTX_BOUNDARY_EDGE_ONLY``, the default).
+      ``SchemeOptions(boundary="edge_and_corner")`` and smoothed by the boundary rule
+      with ``boundary="edge_only"`` (OpenSubdiv ``VTX_BOUNDARY_EDGE_ONLY``, the default).
       Non-manifold vertices (several face fans) are corners, except along an
       interior non-manifold crease (OpenSubdiv).
     - Tags (:class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags`): creases and corners
@@ -49,40 +49,29 @@ from collections.abc import Sequence
 
 import torch
 
-from torchgeo_cg.core.check import check_choice, check_float, check_shape
+from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.faces import check_faces
 from torchgeo_cg.mesh.subdivision._creasing import child_tags, subdivision_rules
 from torchgeo_cg.mesh.subdivision._levels import SubdivisionModule
 from torchgeo_cg.mesh.subdivision._parallel_edges import catmark_child_edge_tags
-from torchgeo_cg.mesh.subdivision._topology import (
-    check_boundary,
-    check_crease_method,
-    mesh_topology,
-)
+from torchgeo_cg.mesh.subdivision._stencil_build import stencil_matrix, weights_dtype
+from torchgeo_cg.mesh.subdivision._topology import mesh_topology
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
-from torchgeo_cg.mesh.subdivision.stencils import stencil_matrix, weights_dtype
+from torchgeo_cg.mesh.subdivision.options import SchemeOptions
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 __all__ = ["catmull_clark_operator", "catmull_clark", "CatmullClark"]
 
-TRIANGLE_RULES = ("catmark", "smooth")
-
-
-def _check_triangle_rule(triangle_rule: str) -> str:
-    return check_choice(triangle_rule, TRIANGLE_RULES, "triangle_rule")
-
-
 def catmull_clark_operator(
     faces: torch.Tensor | Sequence[Sequence[int]],
     num_vertices: int,
-    boundary: str = "edge_only",
     device: torch.device | str | None = None,
     dtype: torch.dtype | None = None,
     tags: SubdivisionTags | None = None,
-    crease_method: str = "uniform",
-    triangle_rule: str = "catmark",
     edge_tags: torch.Tensor | None = None,
+    *,
+    options: SchemeOptions = SchemeOptions(),
 ) -> SubdivisionOperator:
     """Build one level of Catmull-Clark subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -96,25 +85,22 @@ def catmull_clark_operator(
         faces: ``(F0, K)`` long padded with ``-1``, or a list of index lists;
             triangles, quads and n-gons may be mixed.
         num_vertices: ``V0`` (vertices not used by any face pass through).
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
         device: device of the operator (default: that of ``faces``, CPU for lists).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
         tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
             or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
-        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
-        triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (OpenSubdiv's
-            ``TRI_SUB_SMOOTH`` edge weights next to triangles).
         edge_tags: ``(C,)`` long per corner of ``faces`` or ``None``: the previous
             operator's ``child_edge_tags`` when ``faces`` is its ``child_faces``.
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` (boundary,
+            crease method, triangle rule); the defaults are OpenSubdiv's.
 
     Returns:
         :class:`SubdivisionOperator` with ``matrix`` ``(V1, V0)``, ``matrix_t``
         ``(V0, V1)``, ``faces`` ``(F1, 4)`` and the sizes.
 
     Raises:
-        ValueError: bad ``boundary``; indices out of range or negative other than
+        TypeError: ``options`` is not a :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions`.
+        ValueError: indices out of range or negative other than
             trailing ``-1`` padding (the message names the face index). Faces that
             repeat a vertex (degenerate quads as poles) and repeated faces
             (back-to-back, duplicated) are refined as OpenSubdiv refines them: a
@@ -137,9 +123,8 @@ def catmull_clark_operator(
         >>> holed.faces.shape, holed.child_faces.shape, holed.child_tags.holes.tolist()
         (torch.Size([0, 4]), torch.Size([4, 4]), [0, 1, 2, 3])
     """
-    check_boundary(boundary)
-    check_crease_method(crease_method)
-    _check_triangle_rule(triangle_rule)
+    options = SchemeOptions.check(options)
+    boundary, crease_method = options.boundary, options.crease_method
     with torch.no_grad():
         faces_fk = check_faces(faces, num_vertices, allow_duplicates=True, allow_degenerate=True)
         if device is not None:
@@ -153,7 +138,8 @@ def catmull_clark_operator(
         row_face, row_edge = V0, V0 + F0
         entries = [
             (row_face + topo.face_c, topo.vert_c, 1.0 / topo.size_c.to(wdtype)),  # face points
-            *_catmark_edge_entries(faces_fk, topo, rules, row_edge, wdtype, triangle_rule),
+            *_catmark_edge_entries(faces_fk, topo, rules, row_edge, wdtype,
+                                   options.triangle_rule),
             *_catmark_vertex_entries(faces_fk, topo, rules, wdtype),
         ]
         rows, cols, vals = (torch.cat(parts) for parts in zip(*entries))
@@ -251,10 +237,9 @@ def catmull_clark(
     verts: torch.Tensor,
     faces: torch.Tensor | Sequence[Sequence[int]],
     levels: int = 1,
-    boundary: str = "edge_only",
     tags: SubdivisionTags | None = None,
-    crease_method: str = "uniform",
-    triangle_rule: str = "catmark",
+    *,
+    options: SchemeOptions = SchemeOptions(),
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Subdivide ``levels`` times; convenience wrapper over :class:`CatmullClark`.
 
@@ -267,13 +252,10 @@ def catmull_clark(
         faces: ``(F, K)`` long padded with ``-1`` (same device as ``verts``), or
             a list of index lists.
         levels: number of subdivision steps, ``>= 0``.
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
         tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None`` (see
             :func:`catmull_clark_operator`); carried from level to level.
-        crease_method: ``"uniform"`` (default) or ``"chaikin"``.
-        triangle_rule: ``"catmark"`` (default) or ``"smooth"``.
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` (boundary,
+            crease method, triangle rule); the defaults are OpenSubdiv's.
 
     Returns:
         ``(verts (*, V_L, D), faces (F_L, 4) long)``; ``levels = 0`` returns the
@@ -299,11 +281,8 @@ def catmull_clark(
             f"verts and faces must be on the same device, got {verts.device} and {faces.device}"
         )
     check_shape(verts, ["*", "V", "D"], "verts")
-    module = CatmullClark(
-        faces, verts.shape[-2], levels=levels, boundary=boundary,
-        device=verts.device, dtype=working_dtype(verts.dtype),
-        tags=tags, crease_method=crease_method, triangle_rule=triangle_rule,
-    )
+    module = CatmullClark(faces, verts.shape[-2], levels=levels, device=verts.device,
+                          dtype=working_dtype(verts.dtype), tags=tags, options=options)
     return module(verts), module.faces
 
 
@@ -321,16 +300,12 @@ class CatmullClark(SubdivisionModule):
         faces: ``(F, K)`` long padded with ``-1``, or a list of index lists.
         num_vertices: ``V``.
         levels: number of subdivision steps, ``>= 0`` (default 1).
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
         tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
             or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
-        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
-        triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (OpenSubdiv's
-            ``TRI_SUB_SMOOTH`` edge weights next to triangles).
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` (boundary,
+            crease method, triangle rule); the defaults are OpenSubdiv's.
 
     Shape:
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
@@ -355,16 +330,12 @@ class CatmullClark(SubdivisionModule):
         faces: torch.Tensor | Sequence[Sequence[int]],
         num_vertices: int,
         levels: int = 1,
-        boundary: str = "edge_only",
         device: torch.device | str | None = None,
         dtype: torch.dtype | None = None,
         tags: SubdivisionTags | None = None,
-        crease_method: str = "uniform",
-        triangle_rule: str = "catmark",
+        *,
+        options: SchemeOptions = SchemeOptions(),
     ) -> None:
-        _check_triangle_rule(triangle_rule)
-        super().__init__(faces, num_vertices, levels, boundary, device, dtype, tags,
-                         crease_method, triangle_rule=triangle_rule)
-        self.triangle_rule = triangle_rule
+        super().__init__(faces, num_vertices, levels, device, dtype, tags, options=options)
 
 

@@ -9,7 +9,7 @@ the value mesh is refined by the same Catmark or Loop builders as the positions,
 tags that encode the chosen linear interpolation:
 
 ============================  ===========================================================
-``interpolation``             OpenSubdiv ``FVarLinearInterpolation`` and what is pinned
+``fvar_interpolation``        OpenSubdiv ``FVarLinearInterpolation`` and what is pinned
 ============================  ===========================================================
 ``"none"``                    ``FVAR_LINEAR_NONE``: smooth everywhere; seams are smooth
                               boundary curves (crease rule), seam corners are smoothed.
@@ -33,7 +33,7 @@ Convention:
     - The child value faces line up with the child position faces of
       :func:`~torchgeo_cg.mesh.subdivision.catmull_clark_operator` (or
       :func:`~torchgeo_cg.mesh.subdivision.loop.loop_operator`) built from the same ``faces``,
-      ``boundary`` and ``tags``: same face order, same corner order, same holes left out.
+      ``options`` and ``tags``: same face order, same corner order, same holes left out.
     - Child value order: ``[value points (T') | face points (F) | edge points (E_uv)]``
       with ``T' >= T``; value ``i < T`` is the vertex point of input value ``i`` (for the
       first vertex using it), extra rows come from values shared by several vertices.
@@ -49,6 +49,7 @@ Convention:
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import NamedTuple
 
 import torch
@@ -59,29 +60,27 @@ from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import working_dtype
 from torchgeo_cg.mesh.faces import check_faces, pad_faces
 from torchgeo_cg.mesh.subdivision._creasing import subdivision_rules
-from torchgeo_cg.mesh.subdivision._topology import mesh_topology
-from torchgeo_cg.mesh.subdivision.catmark import catmull_clark_operator
-from torchgeo_cg.mesh.subdivision.loop import loop_operator
-from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
-from torchgeo_cg.mesh.subdivision.stencils import (
+from torchgeo_cg.mesh.subdivision._levels import children_options
+from torchgeo_cg.mesh.subdivision._stencil_build import (
     StencilMatrix,
-    apply_stencils,
     check_out,
     stencil_matrix,
     weights_dtype,
 )
+from torchgeo_cg.mesh.subdivision._topology import mesh_topology
+from torchgeo_cg.mesh.subdivision.catmark import catmull_clark_operator
+from torchgeo_cg.mesh.subdivision.loop import loop_operator
+from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
+from torchgeo_cg.mesh.subdivision.options import SchemeOptions
+from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__ = [
-    "FVAR_INTERPOLATIONS",
     "face_varying_operator",
     "FaceVaryingSubdivision",
     "face_varying_subdivide",
 ]
 
-FVAR_INTERPOLATIONS = (
-    "none", "corners_only", "corners_plus1", "corners_plus2", "boundaries", "all"
-)
 _SCHEMES = ("catmark", "loop")
 _CORNER_RULE = 2  # SubdivisionRules.rule_v: 0 smooth, 1 crease, 2 corner
 
@@ -299,13 +298,11 @@ def face_varying_operator(
     num_vertices: int,
     num_uvs: int,
     scheme: str = "catmark",
-    interpolation: str = "corners_only",
-    boundary: str = "edge_only",
     tags: SubdivisionTags | None = None,
-    crease_method: str = "uniform",
-    triangle_rule: str = "catmark",
     device: torch.device | str | None = None,
     dtype: torch.dtype | None = None,
+    *,
+    options: SchemeOptions = SchemeOptions(),
 ) -> SubdivisionOperator:
     """Build one level of face-varying subdivision as a sparse ``(T1, T)`` operator.
 
@@ -313,7 +310,7 @@ def face_varying_operator(
         See the module docstring: the value mesh is refined by the ``scheme``'s builder
         with tags from :func:`_face_varying_tags`; ``operator.faces`` are the child value
         faces, row for row and corner for corner those of the position operator built
-        from ``(faces, num_vertices, boundary, tags)``. Apply it with
+        from ``(faces, num_vertices, tags, options)``. Apply it with
         :func:`~torchgeo_cg.mesh.subdivision.apply_operator`.
 
     Args:
@@ -323,13 +320,11 @@ def face_varying_operator(
         num_vertices: ``V``, number of positions.
         num_uvs: ``T``, number of input values.
         scheme: ``"catmark"`` (default) or ``"loop"``.
-        interpolation: one of :data:`FVAR_INTERPOLATIONS` (default ``"corners_only"``).
-        boundary: position boundary mode, as for the position operator.
         tags: position :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None``.
-        crease_method: ``"uniform"`` (default) or ``"chaikin"``.
-        triangle_rule: ``"catmark"`` (default) or ``"smooth"`` (Catmark only).
         device: device of the operator (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions`: the position
+            rules (boundary, crease method, triangle rule) and ``fvar_interpolation``.
 
     Returns:
         :class:`~torchgeo_cg.mesh.subdivision.SubdivisionOperator` with
@@ -337,7 +332,8 @@ def face_varying_operator(
         ``(F1, 3)``) child value faces and ``scheme``.
 
     Raises:
-        ValueError: unknown ``scheme``/``interpolation``; ``uv_faces`` out of range or
+        TypeError: ``options`` is not a :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions`.
+        ValueError: unknown ``scheme``; ``uv_faces`` out of range or
             padded unlike ``faces``; invalid faces or tags (the message names them).
         ShapeError: ``uv_faces`` not shaped like ``faces``.
 
@@ -345,7 +341,9 @@ def face_varying_operator(
         >>> # two quads side by side with a UV seam along their shared edge (1, 4)
         >>> faces = [[0, 1, 4, 3], [1, 2, 5, 4]]
         >>> uv_faces = [[0, 1, 2, 3], [4, 5, 6, 7]]
-        >>> op = face_varying_operator(faces, uv_faces, 6, 8, interpolation="corners_only")
+        >>> from torchgeo_cg.mesh.subdivision import SchemeOptions
+        >>> op = face_varying_operator(faces, uv_faces, 6, 8,
+        ...                            options=SchemeOptions(fvar_interpolation="corners_only"))
         >>> op.num_vertices_in, op.num_vertices_out, op.faces.shape
         (8, 18, torch.Size([8, 4]))
         >>> uvs = torch.tensor([[0., 0.], [1., 0.], [1., 1.], [0., 1.],
@@ -358,8 +356,8 @@ def face_varying_operator(
                 [0., 1.]])
     """
     check_choice(scheme, _SCHEMES, "scheme")
-    check_choice(interpolation, FVAR_INTERPOLATIONS, "interpolation")
-    check_choice(boundary, ("edge_only", "edge_and_corner", "none"), "boundary")
+    options = SchemeOptions.check(options)
+    boundary, crease_method = options.boundary, options.crease_method
     if isinstance(num_uvs, bool) or not isinstance(num_uvs, int) or num_uvs < 0:
         raise ValueError(f"num_uvs: expected an int >= 0, got {num_uvs!r}")
     wdtype = weights_dtype(dtype)
@@ -369,15 +367,12 @@ def face_varying_operator(
             faces_fk = faces_fk.to(device)
         uv_fk = _check_uv_faces(faces_fk, uv_faces, num_uvs)
         vm = _value_mesh(faces_fk, uv_fk, num_vertices, num_uvs)
-        uv_tags, uv_boundary = _face_varying_tags(faces_fk, num_vertices, vm, interpolation,
-                                                 boundary, tags, crease_method, wdtype)
-        if scheme == "catmark":
-            op = catmull_clark_operator(vm.faces, vm.num_values, uv_boundary, dtype=wdtype,
-                                        tags=uv_tags, crease_method=crease_method,
-                                        triangle_rule=triangle_rule)
-        else:
-            op = loop_operator(vm.faces, vm.num_values, uv_boundary, dtype=wdtype,
-                               tags=uv_tags, crease_method=crease_method)
+        uv_tags, uv_boundary = _face_varying_tags(faces_fk, num_vertices, vm,
+                                                 options.fvar_interpolation, boundary, tags,
+                                                 crease_method, wdtype)
+        build = catmull_clark_operator if scheme == "catmark" else loop_operator
+        op = build(vm.faces, vm.num_values, dtype=wdtype, tags=uv_tags,
+                   options=replace(options, boundary=uv_boundary))
         stencils = op.stencils
         if vm.num_values != num_uvs:
             stencils = _compose_columns(stencils, vm.source, num_uvs)
@@ -402,13 +397,11 @@ class FaceVaryingSubdivision(nn.Module):
         num_uvs: ``T``.
         levels: number of steps, ``>= 0`` (default 1).
         scheme: ``"catmark"`` (default) or ``"loop"``.
-        interpolation: one of :data:`FVAR_INTERPOLATIONS` (default ``"corners_only"``).
-        boundary: position boundary mode (default ``"edge_only"``).
         tags: position :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None``.
-        crease_method: ``"uniform"`` (default) or ``"chaikin"``.
-        triangle_rule: ``"catmark"`` (default) or ``"smooth"``.
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions`: the position
+            rules (boundary, crease method, triangle rule) and ``fvar_interpolation``.
 
     Shape:
         - forward input ``uvs``: ``(*, T, D)`` float, any ``D``.
@@ -429,39 +422,34 @@ class FaceVaryingSubdivision(nn.Module):
         num_uvs: int,
         levels: int = 1,
         scheme: str = "catmark",
-        interpolation: str = "corners_only",
-        boundary: str = "edge_only",
         tags: SubdivisionTags | None = None,
-        crease_method: str = "uniform",
-        triangle_rule: str = "catmark",
         device: torch.device | str | None = None,
         dtype: torch.dtype | None = None,
+        *,
+        options: SchemeOptions = SchemeOptions(),
     ) -> None:
         super().__init__()
         if isinstance(levels, bool) or not isinstance(levels, int) or levels < 0:
             raise ValueError(f"levels: expected an int >= 0, got {levels!r}")
-        self.levels, self.scheme, self.interpolation = levels, scheme, interpolation
+        self.levels, self.scheme, self.options = levels, scheme, SchemeOptions.check(options)
         self.num_uvs_in = num_uvs
         faces_fk = check_faces(faces, num_vertices)
         if device is not None:
             faces_fk = faces_fk.to(device)
         uv_fk = _check_uv_faces(faces_fk, uv_faces, num_uvs)
         self.register_buffer("faces_0", uv_fk, persistent=False)
-        count_v, count_t, level_boundary = num_vertices, num_uvs, boundary
+        count_v, count_t, level_options = num_vertices, num_uvs, options
+        build = catmull_clark_operator if scheme == "catmark" else loop_operator
         for level in range(levels):  # loop over levels only
-            common = {"boundary": level_boundary, "tags": tags, "crease_method": crease_method,
-                      "dtype": dtype}
-            op = face_varying_operator(faces_fk, uv_fk, count_v, count_t, scheme, interpolation,
-                                       triangle_rule=triangle_rule, **common)
-            pos = (catmull_clark_operator(faces_fk, count_v, triangle_rule=triangle_rule,
-                                          **common)
-                   if scheme == "catmark" else loop_operator(faces_fk, count_v, **common))
+            op = face_varying_operator(faces_fk, uv_fk, count_v, count_t, scheme, tags=tags,
+                                       dtype=dtype, options=level_options)
+            pos = build(faces_fk, count_v, dtype=dtype, tags=tags, options=level_options)
             for field, tensor in zip(StencilMatrix._fields, op.stencils):
                 self.register_buffer(f"{field}_{level}", tensor, persistent=False)
             self.register_buffer(f"faces_{level + 1}", op.faces, persistent=False)
             faces_fk, uv_fk, tags = pos.child_faces, op.child_faces, pos.child_tags
             count_v, count_t = pos.num_vertices_out, op.num_vertices_out
-            level_boundary = "edge_only" if boundary == "none" else boundary
+            level_options = children_options(options)
         self.num_uvs_out = count_t
 
     @property
@@ -488,7 +476,7 @@ class FaceVaryingSubdivision(nn.Module):
 
     def extra_repr(self) -> str:
         return (f"levels={self.levels}, scheme={self.scheme!r}, "
-                f"interpolation={self.interpolation!r}, "
+                f"options={self.options!r}, "
                 f"num_uvs={self.num_uvs_in} -> {self.num_uvs_out}")
 
 
@@ -499,18 +487,16 @@ def face_varying_subdivide(
     num_vertices: int,
     levels: int = 1,
     scheme: str = "catmark",
-    interpolation: str = "corners_only",
-    boundary: str = "edge_only",
     tags: SubdivisionTags | None = None,
-    crease_method: str = "uniform",
-    triangle_rule: str = "catmark",
+    *,
+    options: SchemeOptions = SchemeOptions(),
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Subdivide face-varying values ``levels`` times (wrapper over
     :class:`FaceVaryingSubdivision`).
 
     Convention:
         See the module docstring; the returned faces line up with those of
-        ``catmull_clark(verts, faces, levels, boundary, tags, ...)``.
+        ``catmull_clark(verts, faces, levels, tags, options=options)``.
 
     Args:
         uvs: ``(*, T, D)`` float values (UVs: ``D = 2``); float16 and bfloat16 are
@@ -519,8 +505,7 @@ def face_varying_subdivide(
         uv_faces: ``(F, K)`` long value indices padded like ``faces``.
         num_vertices: ``V``.
         levels: ``>= 0``.
-        scheme, interpolation, boundary, tags, crease_method, triangle_rule: as for
-            :func:`face_varying_operator`.
+        scheme, tags, options: as for :func:`face_varying_operator`.
 
     Returns:
         ``(uvs (*, T_L, D), uv_faces (F_L, 4) long)`` (Loop: ``(F_L, 3)``).
@@ -541,8 +526,7 @@ def face_varying_subdivide(
     check_float(uvs, "uvs")
     check_shape(uvs, ["*", "T", "D"], "uvs")
     module = FaceVaryingSubdivision(
-        faces, uv_faces, num_vertices, uvs.shape[-2], levels, scheme, interpolation,
-        boundary, tags, crease_method, triangle_rule, device=uvs.device,
-        dtype=working_dtype(uvs.dtype),
+        faces, uv_faces, num_vertices, uvs.shape[-2], levels, scheme, tags,
+        device=uvs.device, dtype=working_dtype(uvs.dtype), options=options,
     )
     return module(uvs), module.faces

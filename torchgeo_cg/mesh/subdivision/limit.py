@@ -42,9 +42,10 @@ from torchgeo_cg.mesh.subdivision._creasing import component_labels, limit_rules
 from torchgeo_cg.mesh.subdivision._limit_masks import catmark_limit_stencils, loop_limit_stencils
 from torchgeo_cg.mesh.subdivision._nonmanifold_order import nonmanifold_neighbourhoods
 from torchgeo_cg.mesh.subdivision._normals import power_of_two_scaled, unit_normals
+from torchgeo_cg.mesh.subdivision._stencil_build import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision._topology import check_verts, mesh_topology
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator, apply_operator
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
 
 __all__ = ["limit_positions", "LimitFrames", "limit_frames"]
 
@@ -79,9 +80,9 @@ def limit_positions(operator: SubdivisionOperator, verts: torch.Tensor) -> torch
             ``"catmark"`` and ``"loop"`` do).
 
     Example:
-        >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
+        >>> from torchgeo_cg.mesh.subdivision import SchemeOptions, catmull_clark_operator
         >>> square = torch.tensor([[0., 0.], [1., 0.], [1., 1.], [0., 1.]])
-        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, boundary="edge_and_corner")
+        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, options=SchemeOptions("edge_and_corner"))
         >>> limit_positions(op, square)[4:6]  # centre, then the middle of the bottom edge
         tensor([[0.5000, 0.5000],
                 [0.5000, 0.0000]])

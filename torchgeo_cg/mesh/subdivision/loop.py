@@ -18,7 +18,7 @@ Convention:
       sharp ones: ``s <= 1``: ``(1 - n beta) V + beta sum(nbrs)``,
       ``beta = (5/8 - (3/8 + 1/4 cos(2 pi / n))^2) / n``; ``s = 2``: ``3/4 V + 1/8 (a + b)``
       with ``a, b`` the sharp neighbours; ``s > 2``: kept; valence-2 boundary
-      vertices kept with ``boundary="edge_and_corner"``. Unreferenced vertices pass
+      vertices kept with ``SchemeOptions(boundary="edge_and_corner")``. Unreferenced vertices pass
       through. Rows of ``S`` sum to 1, so the scheme is translation- and
       rotation-equivariant on open meshes too (trimesh's ``subdivide_loop`` is not).
 """
@@ -36,13 +36,10 @@ from torchgeo_cg.mesh.subdivision._creasing import child_tags, subdivision_rules
 from torchgeo_cg.mesh.subdivision._levels import SubdivisionModule
 from torchgeo_cg.mesh.subdivision._limit_masks import loop_beta
 from torchgeo_cg.mesh.subdivision._parallel_edges import loop_child_edge_tags
-from torchgeo_cg.mesh.subdivision._topology import (
-    check_boundary,
-    check_crease_method,
-    mesh_topology,
-)
+from torchgeo_cg.mesh.subdivision._stencil_build import stencil_matrix, weights_dtype
+from torchgeo_cg.mesh.subdivision._topology import mesh_topology
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
-from torchgeo_cg.mesh.subdivision.stencils import stencil_matrix, weights_dtype
+from torchgeo_cg.mesh.subdivision.options import SchemeOptions
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 __all__ = ["loop_operator", "loop_subdivide", "LoopSubdivision"]
@@ -51,12 +48,12 @@ __all__ = ["loop_operator", "loop_subdivide", "LoopSubdivision"]
 def loop_operator(
     faces: torch.Tensor | Sequence[Sequence[int]],
     num_vertices: int,
-    boundary: str = "edge_only",
     device: torch.device | str | None = None,
     dtype: torch.dtype | None = None,
     tags: SubdivisionTags | None = None,
-    crease_method: str = "uniform",
     edge_tags: torch.Tensor | None = None,
+    *,
+    options: SchemeOptions = SchemeOptions(),
 ) -> SubdivisionOperator:
     """Build one level of Loop subdivision as a sparse ``(V1, V0)`` matrix.
 
@@ -67,16 +64,14 @@ def loop_operator(
     Args:
         faces: ``(F, 3)`` long triangles, or a list of index triples.
         num_vertices: ``V0``.
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
         device: device of the operator (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
         tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
             or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
-        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
         edge_tags: ``(3 F,)`` long per corner of ``faces`` or ``None``: the previous
             operator's ``child_edge_tags`` when ``faces`` is its ``child_faces``.
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` (boundary,
+            crease method; Loop ignores the triangle rule); the defaults are OpenSubdiv's.
 
     Returns:
         :class:`~torchgeo_cg.mesh.subdivision.SubdivisionOperator` with ``matrix``
@@ -84,7 +79,8 @@ def loop_operator(
 
     Raises:
         ShapeError: faces are not triangles.
-        ValueError: bad ``boundary`` or indices out of range or negative (the message
+        TypeError: ``options`` is not a :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions`.
+        ValueError: indices out of range or negative (the message
             names the face). Repeated vertices and repeated faces are refined as
             OpenSubdiv refines them (as :func:`catmull_clark_operator` does).
         TypeError, ShapeError: a tags field of the wrong dtype or shape (named).
@@ -102,8 +98,8 @@ def loop_operator(
         >>> loop_operator([[0, 1, 2], [0, 2, 3]], 4, tags=sharp).matrix.to_dense()[5]
         tensor([0.4375, 0.0625, 0.4375, 0.0625])
     """
-    check_boundary(boundary)
-    check_crease_method(crease_method)
+    options = SchemeOptions.check(options)
+    boundary, crease_method = options.boundary, options.crease_method
     with torch.no_grad():
         faces_f3 = check_faces(faces, num_vertices, allow_duplicates=True, allow_degenerate=True)
         if faces_f3.shape[0] and (faces_f3.shape[1] != 3 or bool((faces_f3 < 0).any())):
@@ -178,14 +174,12 @@ class LoopSubdivision(SubdivisionModule):
         faces: ``(F, 3)`` long triangles, or a list of index triples.
         num_vertices: ``V``.
         levels: number of steps, ``>= 0`` (default 1).
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
         device: device of the buffers (default: that of ``faces``).
         dtype: dtype of the weights (default: ``torch.get_default_dtype()``).
         tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` (creases, corners, holes)
             or ``None``; sharpness follows OpenSubdiv (OpenSubdiv's creasing rules).
-        crease_method: ``"uniform"`` (default) or ``"chaikin"`` decay of semi-sharp creases.
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` (boundary,
+            crease method; Loop ignores the triangle rule); the defaults are OpenSubdiv's.
 
     Shape:
         - forward input ``verts``: ``(*, V, D)`` float, any ``D``.
@@ -208,9 +202,9 @@ def loop_subdivide(
     verts: torch.Tensor,
     faces: torch.Tensor | Sequence[Sequence[int]],
     levels: int = 1,
-    boundary: str = "edge_only",
     tags: SubdivisionTags | None = None,
-    crease_method: str = "uniform",
+    *,
+    options: SchemeOptions = SchemeOptions(),
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Loop-subdivide ``levels`` times; convenience wrapper over :class:`LoopSubdivision`.
 
@@ -222,12 +216,10 @@ def loop_subdivide(
             bfloat16 are refined in float32 (weights and sums) and returned in their dtype.
         faces: ``(F, 3)`` long triangles on the device of ``verts``, or a list.
         levels: number of steps, ``>= 0``.
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
         tags: :class:`~torchgeo_cg.mesh.subdivision.SubdivisionTags` or ``None`` (see
             :func:`loop_operator`); carried from level to level.
-        crease_method: ``"uniform"`` (default) or ``"chaikin"``.
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` (boundary,
+            crease method; Loop ignores the triangle rule); the defaults are OpenSubdiv's.
 
     Returns:
         ``(verts (*, V_L, D), faces (4^L F, 3) long)``.
@@ -250,9 +242,6 @@ def loop_subdivide(
         )
     if verts.dim() < 2:
         raise ShapeError(f"verts: expected shape (*, V, D), got {tuple(verts.shape)}")
-    module = LoopSubdivision(
-        faces, verts.shape[-2], levels=levels, boundary=boundary,
-        device=verts.device, dtype=working_dtype(verts.dtype),
-        tags=tags, crease_method=crease_method,
-    )
+    module = LoopSubdivision(faces, verts.shape[-2], levels=levels, device=verts.device,
+                             dtype=working_dtype(verts.dtype), tags=tags, options=options)
     return module(verts), module.faces

@@ -13,8 +13,9 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.mesh.subdivision._stencil_build import StencilMatrix
 from torchgeo_cg.mesh.subdivision._topology import check_verts
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils
+from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
 from torchgeo_cg.mesh.subdivision.tags import SubdivisionTags
 
 __all__ = ["SubdivisionOperator", "apply_operator"]
@@ -32,9 +33,9 @@ class SubdivisionOperator(NamedTuple):
         num_vertices_out: ``V1 = V0 + F0 + E0`` (Loop: ``V0 + E0``).
         num_faces_in: ``F0`` (Catmark face points start at row ``V0``).
         num_edges_in: ``E0`` (edge points start at row ``V0 + F0``; Loop: ``V0``).
-        boundary: ``"edge_only"`` (default), ``"edge_and_corner"`` (keep valence-2
-            boundary vertices fixed) or ``"none"`` (faces touching an untagged boundary
-            become holes).
+        boundary: the boundary rule this level was built with
+            (:attr:`~torchgeo_cg.mesh.subdivision.SchemeOptions.boundary`; ``"none"`` acts
+            at the base level only, later levels record ``"edge_only"``).
         scheme: ``"catmark"`` or ``"loop"``, the rules that built it.
         child_faces: every child face, holes' children included (what the next level
             is built from); ``faces`` is this without the holes' children.

@@ -40,8 +40,9 @@ Convention:
       equals :func:`limit_positions`, and positions stay continuous across every edge,
       but normals there are those of the cap (off the limit's by up to the cap's
       chord error, and not continuous across its edges).
-    - Tags, holes and ``boundary`` are those the operator was built with; pass the same
-      ``crease_method`` (the operator does not record it). Points on holes raise.
+    - Tags, holes and the boundary are those the operator was built with; pass the same
+      ``options`` (the operator does not record the crease method and triangle rule).
+      Points on holes raise.
     - The result is linear in the control points: :func:`limit_stencils` builds sparse
       ``(N, V0)`` matrices once (under ``torch.no_grad()``, without Python loops over
       faces or points; a loop over the levels), and :func:`limit_surface` applies them,
@@ -51,6 +52,7 @@ Convention:
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import NamedTuple
 
 import torch
@@ -90,11 +92,13 @@ from torchgeo_cg.mesh.subdivision._patches import (
     quad_twins,
     regular_quads,
 )
+from torchgeo_cg.mesh.subdivision._stencil_build import StencilMatrix, stencil_matrix
 from torchgeo_cg.mesh.subdivision._topology import check_verts, mesh_topology
 from torchgeo_cg.mesh.subdivision.catmark import catmull_clark_operator
 from torchgeo_cg.mesh.subdivision.loop import loop_operator
 from torchgeo_cg.mesh.subdivision.operator import SubdivisionOperator
-from torchgeo_cg.mesh.subdivision.stencils import StencilMatrix, apply_stencils, stencil_matrix
+from torchgeo_cg.mesh.subdivision.options import SchemeOptions
+from torchgeo_cg.mesh.subdivision.stencils import apply_stencils
 from torchgeo_cg.mesh.subdivision.tags import INFINITELY_SHARP, SubdivisionTags
 
 __all__ = [
@@ -307,7 +311,7 @@ def _sub_tags(tags: SubdivisionTags, vmap, fmap, sub_faces) -> SubdivisionTags:
     )
 
 
-def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, num_cols):
+def _refine_around(level: _Level, faces_needed, options, dtype, num_cols):
     """The next level of the part of ``level`` within two rings of ``faces_needed``, and
     the map from this level's faces to the part's faces (``-1`` outside)."""
     faces, V = level.faces, level.num_vertices
@@ -327,8 +331,8 @@ def _refine_around(level: _Level, faces_needed, boundary, dtype, crease_method, 
     fmap[keep_f] = torch.arange(keep_f.numel(), device=faces.device)
     tags = _sub_tags(level.tags, vmap, fmap, sub_faces)
     build = loop_operator if faces.shape[1] == 3 else catmull_clark_operator
-    op = build(sub_faces, keep_v.numel(), boundary, dtype=dtype, tags=tags,
-               crease_method=crease_method, edge_tags=sub_edge_tags)
+    op = build(sub_faces, keep_v.numel(), dtype=dtype, tags=tags, edge_tags=sub_edge_tags,
+               options=options)
     st = op.stencils
     rows = torch.repeat_interleave(torch.arange(op.num_vertices_out, device=faces.device),
                                    st.crow[1:] - st.crow[:-1])
@@ -475,7 +479,7 @@ def limit_stencils(
     face_ids: torch.Tensor,
     uv: torch.Tensor,
     *,
-    crease_method: str = "uniform",
+    options: SchemeOptions = SchemeOptions(),
     max_level: int = 8,
 ) -> LimitStencils:
     """Sparse ``(N, V0)`` stencils of the Catmark or Loop limit surface at ptex points.
@@ -490,7 +494,9 @@ def limit_stencils(
             control mesh.
         face_ids: ``(*, N)`` integer ptex face ids; the rows are the flattened points.
         uv: ``(*, N, 2)`` float in ``[0, 1]`` (Loop: ``u + v <= 1``).
-        crease_method: the ``crease_method`` the operator was built with.
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` the operator
+            was built with; its crease method and triangle rule refine near irregular
+            features (the operator records its own boundary, which is used).
         max_level: refinement levels at most (``>= 1``; 8 by default).
 
     Returns:
@@ -506,9 +512,9 @@ def limit_stencils(
             ``max_level``.
 
     Example:
-        >>> from torchgeo_cg.mesh.subdivision import catmull_clark_operator
-        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, "edge_and_corner",
-        ...                             dtype=torch.float64)
+        >>> from torchgeo_cg.mesh.subdivision import SchemeOptions, catmull_clark_operator
+        >>> op = catmull_clark_operator([[0, 1, 2, 3]], 4, dtype=torch.float64,
+        ...                             options=SchemeOptions(boundary="edge_and_corner"))
         >>> st = limit_stencils(op, torch.tensor([0]), torch.tensor([[0.5, 0.5]]))
         >>> st.positions.dense()
         tensor([[0.2500, 0.2500, 0.2500, 0.2500]], dtype=torch.float64)
@@ -517,12 +523,13 @@ def limit_stencils(
     _check_points(operator, face_ids, uv)
     with torch.no_grad():
         return _build(operator, face_ids.reshape(-1).long(), uv.reshape(-1, 2),
-                      crease_method, max_level)
+                      SchemeOptions.check(options), max_level)
 
 
-def _build(operator, face_ids, uv, crease_method, max_level):
+def _build(operator, face_ids, uv, options, max_level):
     V0, dtype = operator.num_vertices_in, operator.stencils.weights.dtype
     boundary = "edge_only" if operator.boundary == "none" else operator.boundary
+    options = replace(options, boundary=boundary)
     st = operator.stencils
     faces = operator.faces if operator.child_faces is None else operator.child_faces
     tags = operator.child_tags if operator.child_tags is not None else SubdivisionTags.empty(
@@ -565,8 +572,7 @@ def _build(operator, face_ids, uv, crease_method, max_level):
         sample, face, s, t, jac = (x[rest] for x in points)
         if sample.numel() == 0:
             break
-        level, fmap = _refine_around(level, torch.unique(face), boundary, dtype, crease_method,
-                                     V0)
+        level, fmap = _refine_around(level, torch.unique(face), options, dtype, V0)
         p, s, t, jac = _to_child(s, t, jac, operator.scheme)
         face = 4 * fmap[face] + p
     return LimitStencils(*assemble_limit_stencils(out, face_ids.numel(), V0, dtype,
@@ -579,7 +585,7 @@ def limit_surface(
     face_ids: torch.Tensor,
     uv: torch.Tensor,
     *,
-    crease_method: str = "uniform",
+    options: SchemeOptions = SchemeOptions(),
     max_level: int = 8,
 ) -> LimitSurfaceSample:
     """Positions, derivatives and normals of the Catmark or Loop limit surface at ptex points.
@@ -598,7 +604,9 @@ def limit_surface(
         verts: ``(*B, V0, D)`` float control points (shapes sharing the topology).
         face_ids: ``(*P, N)`` integer ptex face ids.
         uv: ``(*P, N, 2)`` float in ``[0, 1]`` (Loop: ``u + v <= 1``).
-        crease_method: the ``crease_method`` the operator was built with.
+        options: the :class:`~torchgeo_cg.mesh.subdivision.SchemeOptions` the operator
+            was built with; its crease method and triangle rule refine near irregular
+            features (the operator records its own boundary, which is used).
         max_level: refinement levels at most (``>= 1``).
 
     Returns:
@@ -629,7 +637,7 @@ def limit_surface(
     """
     _check_operator(operator)
     check_verts(verts, operator.num_vertices_in)
-    st = limit_stencils(operator, face_ids, uv, crease_method=crease_method,
+    st = limit_stencils(operator, face_ids, uv, options=options,
                         max_level=max_level)
     shape = (*verts.shape[:-2], *face_ids.shape, verts.shape[-1])
     pos, du, dv = (apply_stencils(m, verts).reshape(shape) for m in st)
@@ -654,7 +662,7 @@ def sample_limit_surface(
     num_samples: int,
     *,
     generator: torch.Generator | None = None,
-    crease_method: str = "uniform",
+    options: SchemeOptions = SchemeOptions(),
     max_level: int = 8,
 ) -> SurfaceSamples:
     """Points uniformly distributed by area on the Catmark or Loop limit surface, with normals.
@@ -674,7 +682,7 @@ def sample_limit_surface(
         verts: ``(*B, V0, 3)`` float control points.
         num_samples: ``N >= 0``.
         generator: the ``torch.Generator`` for the draws (``None``: the global one).
-        crease_method, max_level: as in :func:`limit_stencils`.
+        options, max_level: as in :func:`limit_stencils`.
 
     Returns:
         :class:`SurfaceSamples`.
@@ -704,7 +712,7 @@ def sample_limit_surface(
         uv_g = uv_g[uv_g.sum(-1) <= 1]
     faces_g = torch.arange(P, device=device).repeat_interleave(uv_g.shape[0])
     probe = limit_surface(operator, first, faces_g, uv_g.repeat(P, 1),
-                          crease_method=crease_method, max_level=max_level)
+                          options=options, max_level=max_level)
     bound = 1.5 * torch.linalg.cross(probe.du, probe.dv).norm(dim=-1).reshape(P, -1).amax(1)
     chosen_f, chosen_uv = [], []
     have = 0
@@ -714,7 +722,7 @@ def sample_limit_surface(
         uv = torch.rand(n, 2, dtype=dtype, device=device, generator=generator)
         if loop:  # uniform on the triangle: fold the square's upper half onto the lower
             uv = torch.where(uv.sum(-1, keepdim=True) > 1, 1 - uv, uv)
-        at = limit_surface(operator, first, f, uv, crease_method=crease_method,
+        at = limit_surface(operator, first, f, uv, options=options,
                            max_level=max_level)
         area = torch.linalg.cross(at.du, at.dv).norm(dim=-1)
         keep = torch.rand(n, dtype=dtype, device=device, generator=generator) * bound[f] < area
@@ -725,6 +733,6 @@ def sample_limit_surface(
         0, dtype=torch.long, device=device)
     uv = torch.cat(chosen_uv)[:num_samples] if chosen_uv else torch.zeros(
         0, 2, dtype=dtype, device=device)
-    out = limit_surface(operator, verts, face_ids, uv, crease_method=crease_method,
+    out = limit_surface(operator, verts, face_ids, uv, options=options,
                         max_level=max_level)
     return SurfaceSamples(out.positions, out.normals, face_ids, uv)

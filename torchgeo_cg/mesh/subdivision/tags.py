@@ -20,7 +20,7 @@ import torch
 
 from torchgeo_cg.core.check import check_shape, check_tensor
 
-__all__ = ["SubdivisionTags", "INFINITELY_SHARP"]
+__all__ = ["SubdivisionTags", "INFINITELY_SHARP", "check_tags"]
 
 INFINITELY_SHARP = 10.0
 """OpenSubdiv's ``SHARPNESS_INFINITE``: a sharpness at or above it never decays."""
