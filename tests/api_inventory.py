@@ -460,10 +460,6 @@ INVENTORY: dict[str, list[str]] = {
         "MODELS",
         "icp",
     ],
-    "torchgeo_cg.points.icp_steps": [
-        "apply_transform",
-        "point_to_plane_step",
-    ],
     "torchgeo_cg.points.nearest_neighbors": [
         "KNNResult",
         "knn",

@@ -26,7 +26,9 @@ Convention:
     One builder per Python module (Warp hashes a module's kernels together: a module
     whose kernel set depended on which builder ran first would compile once per order).
     The module's kernels compile without adjoints (``enable_backward=False``): kernels
-    decide integers, torch differentiates. :func:`warm` compiles every registered set;
+    decide integers, torch differentiates; and without fused multiply-adds
+    (``fuse_fp=False``), so a kernel's arithmetic rounds as the same torch expression
+    does and both paths decide alike. :func:`warm` compiles every registered set;
     the compiled code is cached by Warp across processes (see
     :mod:`torchgeo_cg.engine.backend` for the cache directory).
 """
@@ -85,7 +87,8 @@ def register_kernels(builder: Callable[[ModuleType], _T]) -> Callable[[], _T]:
         with _LOCK:
             if not built:
                 wp = load_warp()
-                wp.set_module_options({"enable_backward": False}, module=name)
+                wp.set_module_options({"enable_backward": False, "fuse_fp": False},
+                                      module=name)
                 built.append(builder(wp))
         return built[0]
 

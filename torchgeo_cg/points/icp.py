@@ -49,9 +49,9 @@ import torch
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
+from torchgeo_cg.points._icp_steps import apply_transform, point_to_plane_step
+from torchgeo_cg.points._search import check_lengths, search_scale
 from torchgeo_cg.points._search_grid import build_grid, grid_knn_indices, grid_per_cell
-from torchgeo_cg.points.icp_steps import apply_transform, point_to_plane_step
-from torchgeo_cg.points.nearest_neighbors import check_lengths, search_scale
 from torchgeo_cg.points.normals import estimate_normals
 from torchgeo_cg.transforms.estimation import find_euclidean, find_similarity
 from torchgeo_cg.transforms.robust import LOSSES, robust_weights

@@ -25,7 +25,7 @@ import torch
 
 from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
-from torchgeo_cg.points.nearest_neighbors import check_lengths
+from torchgeo_cg.points._search import check_lengths
 
 __all__ = ["SampleResult", "farthest_point_sampling"]
 
