@@ -442,12 +442,18 @@ INVENTORY: dict[str, list[str]] = {
         "ChamferResult",
         "ICPResult",
         "KNNResult",
+        "RadiusResult",
         "SampleResult",
+        "VoxelResult",
         "chamfer_distance",
         "estimate_normals",
         "farthest_point_sampling",
         "icp",
         "knn",
+        "radius_search",
+        "remove_radius_outliers",
+        "remove_statistical_outliers",
+        "voxel_downsample",
     ],
     "torchgeo_cg.points.chamfer": [
         "ChamferDistance",
@@ -465,9 +471,21 @@ INVENTORY: dict[str, list[str]] = {
         "knn",
     ],
     "torchgeo_cg.points.normals": ["estimate_normals"],
+    "torchgeo_cg.points.outliers": [
+        "remove_radius_outliers",
+        "remove_statistical_outliers",
+    ],
+    "torchgeo_cg.points.radius": [
+        "RadiusResult",
+        "radius_search",
+    ],
     "torchgeo_cg.points.sampling": [
         "SampleResult",
         "farthest_point_sampling",
+    ],
+    "torchgeo_cg.points.voxels": [
+        "VoxelResult",
+        "voxel_downsample",
     ],
     "torchgeo_cg.sdf": [
         "Annulus",
