@@ -440,7 +440,9 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.points": [
         "ChamferDistance",
         "ChamferResult",
+        "ICPConvergence",
         "ICPResult",
+        "ICPRobust",
         "KNNResult",
         "RadiusResult",
         "SampleResult",
@@ -461,7 +463,9 @@ INVENTORY: dict[str, list[str]] = {
         "chamfer_distance",
     ],
     "torchgeo_cg.points.icp": [
+        "ICPConvergence",
         "ICPResult",
+        "ICPRobust",
         "METHODS",
         "MODELS",
         "icp",

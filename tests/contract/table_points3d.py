@@ -27,8 +27,8 @@ def _icp(method, model="euclidean", loss="l2"):
             return P.icp(source, source)  # the errors name the source
         rot = _ROT.to(source.dtype)
         target = source @ rot.T + 0.02 * source.abs().sum() / max(1, source.numel())
-        out = P.icp(source, target, method=method, model=model, loss=loss, max_iterations=60,
-                    tol=1e-9)
+        out = P.icp(source, target, method=method, model=model, robust=P.ICPRobust(loss),
+                    convergence=P.ICPConvergence(60, tol=1e-9))
         return out.transform[..., :3, :3], out.transform[..., :3, 3], out.inlier_fraction
     return call
 

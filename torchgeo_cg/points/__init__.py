@@ -3,7 +3,7 @@ farthest point sampling, voxel downsampling, outlier removal, normals and ICP; b
 and ragged, with compiled (Warp) and torch search paths that agree exactly."""
 
 from torchgeo_cg.points.chamfer import ChamferDistance, ChamferResult, chamfer_distance
-from torchgeo_cg.points.icp import ICPResult, icp
+from torchgeo_cg.points.icp import ICPConvergence, ICPResult, ICPRobust, icp
 from torchgeo_cg.points.nearest_neighbors import KNNResult, knn
 from torchgeo_cg.points.normals import estimate_normals
 from torchgeo_cg.points.outliers import remove_radius_outliers, remove_statistical_outliers
@@ -13,5 +13,6 @@ from torchgeo_cg.points.voxels import VoxelResult, voxel_downsample
 
 __all__ = ["KNNResult", "knn", "ChamferResult", "chamfer_distance", "ChamferDistance",
            "SampleResult", "farthest_point_sampling", "estimate_normals",
-           "ICPResult", "icp", "RadiusResult", "radius_search", "VoxelResult",
-           "voxel_downsample", "remove_statistical_outliers", "remove_radius_outliers"]
+           "ICPResult", "ICPConvergence", "ICPRobust", "icp", "RadiusResult",
+           "radius_search", "VoxelResult", "voxel_downsample", "remove_statistical_outliers",
+           "remove_radius_outliers"]
