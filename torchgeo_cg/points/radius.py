@@ -79,9 +79,13 @@ def _torch_radius(q, r, ql, rl, radius_b, slots):
 
 def _warp_radius(q, r, ql, rl, radius_b, slots):
     B, N, D = q.shape
-    grid = build_grid(r, rl, 1.0, radius_b)
     valid = (torch.arange(N, device=q.device) < ql[:, None]) & (rl > 0)[:, None]
     qb, qn = valid.nonzero(as_tuple=True)
+    if qb.numel() == 0:
+        K = slots or 0
+        return (torch.zeros(B, N, dtype=torch.long, device=q.device),
+                torch.full((B, N, K), -1, dtype=torch.long, device=q.device))
+    grid = build_grid(r, rl, 1.0, radius_b)
     rows = qb * N + qn
     q_qd = q.reshape(B * N, D).index_select(0, rows)
     counts = torch.zeros(B * N, dtype=torch.long, device=q.device)

@@ -43,6 +43,8 @@ class VoxelResult(NamedTuple):
 def _voxel_keys(p_bnd: torch.Tensor, ok_bn: torch.Tensor, voxel_size: float):
     """Integer voxel coordinates ``(B, N, D)`` of the valid points on Open3D's grid."""
     inf = float("inf")
+    if p_bnd.shape[1] == 0:
+        return p_bnd.new_zeros(p_bnd.shape, dtype=torch.long)
     lo_bd = p_bnd.masked_fill(~ok_bn[..., None], inf).amin(1)
     lo_bd = torch.where(torch.isfinite(lo_bd), lo_bd, torch.zeros_like(lo_bd))
     origin_bd = lo_bd - voxel_size * 0.5
