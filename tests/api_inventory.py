@@ -870,6 +870,7 @@ INVENTORY: dict[str, list[str]] = {
         "plot_glyph_fit",
     ],
     "torchgeo_cg.viz.icp": ["plot_icp"],
+    "torchgeo_cg.viz.points_cleanup": [],
     "torchgeo_cg.viz.limit_surface": [],
     "torchgeo_cg.viz.marching_cubes": [],
     "torchgeo_cg.viz.registration": [],
