@@ -33,6 +33,19 @@ __all__: list[str] = []
 
 #: Rings a kernel thread scans before it leaves its query to the torch search.
 KERNEL_RINGS = 24
+#: References per occupied cell of the kernel's grid, at least: coarser than the torch
+#: search's for small k (a thread pays per cell visited, the torch search per candidate).
+KERNEL_PER_CELL = 8.0
+
+
+def kernel_per_cell(k: int) -> float:
+    """Target references per occupied cell of the kernel's grid for ``k`` neighbours.
+
+    Example:
+        >>> kernel_per_cell(1), kernel_per_cell(16)
+        (8.0, 17.0)
+    """
+    return max(KERNEL_PER_CELL, grid_per_cell(k))
 
 
 def _ring_funcs(wp):
@@ -137,8 +150,12 @@ def _build(wp):
         while r <= r1 and r - r0 <= max_ring:
             for x in range(wp.max(cx - r, 0), wp.min(cx + r, dx - 1) + 1):
                 gx = gap(qx, lo[b, 0], h, x, slack)
+                if found == k and gx * gx > best[row, k - 1]:
+                    continue  # the whole slab is farther than the k-th found
                 for y in range(wp.max(cy - r, 0), wp.min(cy + r, dy - 1) + 1):
                     gy = gap(qy, lo[b, 1], h, y, slack)
+                    if found == k and gx * gx + gy * gy > best[row, k - 1]:
+                        continue
                     edge = wp.abs(x - cx) == r or wp.abs(y - cy) == r
                     z0 = wp.max(cz - r, 0)
                     z1 = wp.min(cz + r, dz - 1)
@@ -253,7 +270,7 @@ def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: in
         query_bnd, reference_bmd: ``(B, N, D)``, ``(B, M, D)`` finite, ``D`` in {2, 3}.
         k: neighbours, ``>= 1``.
         query_lengths_b, reference_lengths_b: ``(B,)`` long valid counts.
-        grid: the references' grid for ``min(k, M)`` neighbours
+        grid: the references' grid built with :func:`kernel_per_cell` of ``min(k, M)``
             (:func:`~torchgeo_cg.points._search_grid.build_grid`), reused when given.
 
     Example:
@@ -275,7 +292,7 @@ def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: in
     if qb.numel() == 0:
         return out_bnk
     if grid is None:
-        grid = build_grid(reference_bmd, reference_lengths_b, grid_per_cell(kk))
+        grid = build_grid(reference_bmd, reference_lengths_b, kernel_per_cell(kk))
     rows = qb * N + qn
     found = warp_grid_knn(grid, query_bnd.reshape(B * N, D).index_select(0, rows), qb, kk)
     out_bnk.view(B * N, k)[rows, :kk] = found

@@ -52,7 +52,7 @@ from torchgeo_cg.core.check import check_broadcastable, check_choice, check_floa
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
 from torchgeo_cg.engine import resolve_backend
 from torchgeo_cg.points._icp_steps import apply_transform, point_to_plane_step
-from torchgeo_cg.points._knn_kernels import warp_knn_indices
+from torchgeo_cg.points._knn_kernels import kernel_per_cell, warp_knn_indices
 from torchgeo_cg.points._search import check_lengths, search_scale
 from torchgeo_cg.points._search_grid import build_grid, grid_knn_indices, grid_per_cell
 from torchgeo_cg.points.normals import estimate_normals
@@ -447,7 +447,8 @@ def icp(
             target_normals_d = target.new_zeros(*batch, M, 3)
         pairs = _prepare(source, target, init, target_normals_d if method == "point_to_plane"
                          else None, sl, tl, batch)
-        grid = [build_grid(pairs.tgt.to(sdtype), pairs.tl, grid_per_cell(1))]  # reused
+        per_cell = kernel_per_cell(1) if backend == "warp" else grid_per_cell(1)
+        grid = [build_grid(pairs.tgt.to(sdtype), pairs.tl, per_cell)]  # reused
         max_d2_b = torch.full_like(pairs.scale_b, float("inf"))
         if max_distance is not None:
             max_d2_b = (max_distance / pairs.scale_b).square()
