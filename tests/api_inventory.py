@@ -245,6 +245,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.engine": [
         "BACKENDS",
         "DISABLE_ENV",
+        "kernel_ready",
         "launch",
         "load_warp",
         "register_kernels",
@@ -262,6 +263,7 @@ INVENTORY: dict[str, list[str]] = {
         "warp_status",
     ],
     "torchgeo_cg.engine.kernels": [
+        "kernel_ready",
         "launch",
         "register_kernels",
         "registered_kernels",

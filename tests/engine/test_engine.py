@@ -145,6 +145,7 @@ def forget_warp(monkeypatch):
     monkeypatch.setattr(engine_backend, "_STATE", {})
     monkeypatch.setattr(engine_backend, "_WARNED", set())
     monkeypatch.delitem(sys.modules, "warp", raising=False)
+    monkeypatch.delenv(DISABLE_ENV, raising=False)  # the states are simulated here
 
 
 def test_broken_warp_warns_once_and_raises_chained(forget_warp, monkeypatch):

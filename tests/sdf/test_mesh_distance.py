@@ -511,6 +511,7 @@ def _forget_warp(monkeypatch):
     for one test; the real state comes back after it."""
     monkeypatch.setattr(engine_backend, "_STATE", {})
     monkeypatch.setattr(engine_backend, "_WARNED", set())
+    monkeypatch.delenv(engine_backend.DISABLE_ENV, raising=False)
 
 
 def test_engine_that_fails_to_import(broken_warp):
@@ -612,8 +613,11 @@ failed, tried = doctest.testmod(engine_warp, optionflags=doctest.ELLIPSIS)
 assert failed == 0 and tried > 0, (failed, tried)
 print("ok")
 """
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != engine_backend.DISABLE_ENV}
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         timeout=300)
+                         timeout=300, env=env)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
 
 

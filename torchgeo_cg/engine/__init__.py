@@ -9,7 +9,8 @@ accelerated function keeps its torch path and takes ``backend="auto" | "torch" |
   :func:`warp_status` (lazy, quiet loading; the kernel cache; the environment variable
   ``TORCHGEO_CG_DISABLE_WARP``);
 - :mod:`~torchgeo_cg.engine.kernels`: :func:`register_kernels` (kernel sets defined at
-  first use), :func:`warm` (compile them all), :func:`to_warp` and :func:`launch`.
+  first use), :func:`warm` (compile them all), :func:`to_warp`, :func:`launch` and
+  :func:`kernel_ready` (plain tensors: not under ``torch.func`` or tracing).
 
 ``import torchgeo_cg`` does not import Warp.
 """
@@ -21,11 +22,19 @@ from torchgeo_cg.engine.backend import (
     resolve_backend,
     warp_status,
 )
-from torchgeo_cg.engine.kernels import launch, register_kernels, registered_kernels, to_warp, warm
+from torchgeo_cg.engine.kernels import (
+    kernel_ready,
+    launch,
+    register_kernels,
+    registered_kernels,
+    to_warp,
+    warm,
+)
 
 __all__ = [
     "BACKENDS",
     "DISABLE_ENV",
+    "kernel_ready",
     "launch",
     "load_warp",
     "register_kernels",

@@ -46,7 +46,8 @@ import torch
 
 from torchgeo_cg.engine.backend import load_warp
 
-__all__ = ["launch", "register_kernels", "registered_kernels", "to_warp", "warm"]
+__all__ = ["kernel_ready", "launch", "register_kernels", "registered_kernels", "to_warp",
+           "warm"]
 
 _T = TypeVar("_T")
 
@@ -148,6 +149,27 @@ def warm(devices: Sequence[str] | None = None) -> dict[str, float]:
         wp.load_module(name, device=list(devices))
         spent[name] = time.perf_counter() - start
     return spent
+
+
+def kernel_ready(*tensors: torch.Tensor) -> bool:
+    """Whether a kernel can read these tensors: plain tensors with storage. Under
+    ``torch.func`` transforms (``vmap``, ``jacrev``: wrapped tensors) and tracing (fake or
+    meta tensors) it is False, and a function runs its torch path instead.
+
+    Example:
+        >>> kernel_ready(torch.zeros(3), torch.ones(2))
+        True
+        >>> torch.func.vmap(lambda x: torch.tensor(kernel_ready(x)))(torch.zeros(2, 3))
+        tensor([False, False])
+    """
+    for t in tensors:
+        if torch._C._functorch.is_functorch_wrapped_tensor(t) or t.device.type == "meta":
+            return False
+        try:
+            t.untyped_storage().data_ptr()
+        except (RuntimeError, NotImplementedError):
+            return False
+    return True
 
 
 def to_warp(tensor: torch.Tensor, dtype: object = None) -> object:

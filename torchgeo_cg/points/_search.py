@@ -13,6 +13,7 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.numerics import power_of_two_scale
+from torchgeo_cg.engine import kernel_ready
 from torchgeo_cg.points._knn_kernels import warp_knn_indices
 from torchgeo_cg.points._search_brute import brute_knn_indices
 from torchgeo_cg.points._search_grid import grid_knn_indices
@@ -79,7 +80,7 @@ def find_neighbours(query_bnd, reference_bmd, k, ql_b, rl_b, backend: str = "tor
     resolved ``backend`` (the Warp kernel runs for ``D`` in {2, 3}; other ``D`` search
     in torch)."""
     B, N, D = query_bnd.shape
-    if backend == "warp" and D in (2, 3):
+    if backend == "warp" and D in (2, 3) and kernel_ready(query_bnd, reference_bmd):
         return warp_knn_indices(query_bnd, reference_bmd, k, ql_b, rl_b)
     M = reference_bmd.shape[1]
     small = B * N * M <= BRUTE_FORCE_PAIRS

@@ -50,7 +50,7 @@ import torch
 
 from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
-from torchgeo_cg.engine import resolve_backend
+from torchgeo_cg.engine import kernel_ready, resolve_backend
 from torchgeo_cg.points._icp_steps import apply_transform, point_to_plane_step
 from torchgeo_cg.points._knn_kernels import kernel_per_cell, warp_knn_indices
 from torchgeo_cg.points._search import check_lengths, search_scale
@@ -425,6 +425,8 @@ def icp(
     batch, N, M = _check_arguments(source, target, init, target_normals, method, model,
                                    options)
     backend = resolve_backend(backend, source.device)
+    if not kernel_ready(source, target):  # under torch.func or tracing: torch path
+        backend = "torch"
     loss, scale = robust.loss, robust.scale
     max_iterations, tol = convergence.max_iterations, convergence.tol
     sl = check_lengths(source_lengths, batch, N, "source_lengths", source.device)

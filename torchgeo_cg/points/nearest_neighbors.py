@@ -35,7 +35,7 @@ import torch
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
-from torchgeo_cg.engine import resolve_backend
+from torchgeo_cg.engine import kernel_ready, resolve_backend
 from torchgeo_cg.points._search import check_lengths, find_neighbours, search_scale
 
 __all__ = ["KNNResult", "knn"]
@@ -113,6 +113,8 @@ def knn(
     query, reference, ql, rl, batch = _prepare(query, reference, k, query_lengths,
                                                reference_lengths)
     backend = resolve_backend(backend, query.device)
+    if not kernel_ready(query, reference):  # under torch.func or tracing: torch path
+        backend = "torch"
     dtype = query.dtype  # float16/bfloat16: searched and computed in float32
     query, reference = query.to(working_dtype(dtype)), reference.to(working_dtype(dtype))
     N, D = query.shape[-2:]

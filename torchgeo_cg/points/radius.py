@@ -25,7 +25,7 @@ import torch
 
 from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, working_dtype
-from torchgeo_cg.engine import resolve_backend
+from torchgeo_cg.engine import kernel_ready, resolve_backend
 from torchgeo_cg.points._radius_kernels import warp_radius
 from torchgeo_cg.points._search import (
     check_lengths,
@@ -157,6 +157,8 @@ def radius_search(
         max_neighbors = int(check_positive(max_neighbors, "max_neighbors", integer=True))
     batch = check_broadcastable({"query": sq["*"], "ref": sr["*"]})
     backend = resolve_backend(backend, query.device)
+    if not kernel_ready(query, ref):  # under torch.func or tracing: torch path
+        backend = "torch"
     ql = check_lengths(query_lengths, batch, sq["N"], "query_lengths", query.device)
     rl = check_lengths(ref_lengths, batch, sr["M"], "ref_lengths", query.device)
     dtype = query.dtype

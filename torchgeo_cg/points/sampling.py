@@ -25,7 +25,7 @@ import torch
 
 from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
-from torchgeo_cg.engine import resolve_backend
+from torchgeo_cg.engine import kernel_ready, resolve_backend
 from torchgeo_cg.points._fps_kernels import warp_fps
 from torchgeo_cg.points._search import check_lengths
 
@@ -126,7 +126,8 @@ def farthest_point_sampling(
                             torch.full((*batch, k), -1, dtype=torch.long, device=points.device))
     with torch.no_grad():
         p_work = p_bnd.detach().to(working_dtype(points.dtype)).contiguous()
-        kernel = backend == "warp" and D in (2, 3) and bool(torch.isfinite(p_work).all())
+        kernel = (backend == "warp" and D in (2, 3) and kernel_ready(p_work)
+                  and bool(torch.isfinite(p_work).all()))
         pick = warp_fps if kernel else _pick_indices  # NaN rules: the torch loop
         idx_bk = pick(p_work, len_.reshape(B), k, start)
     picked = torch.gather(p_bnd, 1, idx_bk.clamp_min(0)[..., None].expand(B, k, D))
