@@ -243,13 +243,17 @@ class _Match(NamedTuple):
     r2: torch.Tensor  # (B, N) squared residual of the method
 
 
-def _match(pairs: _Pairs, grid, matrix, max_d2_b, search) -> _Match:
+def _match(pairs: _Pairs, grid, matrix, max_d2_b, search, previous=None, moved_b=None
+           ) -> _Match:
     """The nearest target point of every moved source point; ``search`` is ``(dtype,
-    backend)``: the Warp kernel reuses the target's finest grid ``grid[0]``."""
+    backend)``: the Warp kernel reuses the target's finest grid ``grid[0]``. With
+    ``previous`` and ``moved_b`` (the pairs whose transform changed), only those pairs are
+    searched; the others keep their previous match (the same answer)."""
     moved = apply_transform(matrix, pairs.src)
     B, N, _ = moved.shape
     dtype, backend = search
-    args = (moved.to(dtype), pairs.tgt.to(dtype), 1, pairs.sl, pairs.tl)
+    sl = pairs.sl if moved_b is None else torch.where(moved_b, pairs.sl, 0)
+    args = (moved.to(dtype), pairs.tgt.to(dtype), 1, sl, pairs.tl)
     if backend == "warp":
         idx = warp_knn_indices(*args, grid=grid[0])[..., 0]
     else:
@@ -263,7 +267,11 @@ def _match(pairs: _Pairs, grid, matrix, max_d2_b, search) -> _Match:
     if pairs.normals is not None:
         n = torch.gather(pairs.normals, 1, idx[..., None].expand(B, N, 3))
         r2 = ((moved - q) * n).sum(-1).square()
-    return _Match(idx, inlier, d2, r2)
+    match = _Match(idx, inlier, d2, r2)
+    if previous is None:
+        return match
+    keep = moved_b[:, None]
+    return _Match(*(torch.where(keep, new, old) for new, old in zip(match, previous)))
 
 
 def _weights(match: _Match, loss: str, scale_b) -> torch.Tensor:
@@ -331,8 +339,8 @@ def _iterate(pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations
         iterations += active.long()
         converged |= done
         matrix = new
+        match = _match(pairs, grid, matrix, max_d2_b, search, match, active.clone())
         active &= ~done
-        match = _match(pairs, grid, matrix, max_d2_b, search)
     return matrix, match, iterations, converged
 
 
