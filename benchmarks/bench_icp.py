@@ -26,7 +26,7 @@ import torch
 
 from benchmarks.harness import Case
 from torchgeo_cg.mesh.data import rabbit_scan_pairs
-from torchgeo_cg.points import estimate_normals, icp
+from torchgeo_cg.points import ICPConvergence, estimate_normals, icp
 from torchgeo_cg.transforms.rotations import rotation_angle
 
 ITERATIONS = 30
@@ -70,7 +70,8 @@ def _case(pairs, normals, label, target) -> Case:
 
     def ours():
         return icp(source, tgt, method="point_to_plane", max_distance=max_distance,
-                   target_normals=normals, max_iterations=ITERATIONS)
+                   target_normals=normals,
+                   convergence=ICPConvergence(ITERATIONS))
 
     peer = _open3d(source, tgt, normals, max_distance)
     mine, theirs = ours(), peer()

@@ -10,14 +10,16 @@ Subpackages, one per area:
 - :mod:`torchgeo_cg.sdf`: signed distance fields, grids and samplers;
 - :mod:`torchgeo_cg.mesh`: dense and sparse marching cubes, Catmull-Clark, Loop and bilinear
   subdivision, limit surfaces, mesh I/O;
-- :mod:`torchgeo_cg.points`: nearest neighbours, Chamfer distance, normals, sampling, ICP;
+- :mod:`torchgeo_cg.engine`: the compiled kernel layer (NVIDIA Warp, loaded at first use);
+- :mod:`torchgeo_cg.points`: nearest neighbours, Chamfer distance, normals, radius search,
+  voxel downsampling, outlier removal, sampling, ICP;
 - :mod:`torchgeo_cg.viz` and :mod:`torchgeo_cg.cli`: the gallery and ``torchgeo-cg``.
 """
 
-from torchgeo_cg import core, curves, mesh, points, sdf, surfaces, transforms
+from torchgeo_cg import core, curves, engine, mesh, points, sdf, surfaces, transforms
 from torchgeo_cg.core import ShapeError
 
 __version__ = "0.1.0"
 
-__all__ = ["ShapeError", "core", "curves", "mesh", "points", "sdf", "surfaces", "transforms",
-           "__version__"]
+__all__ = ["ShapeError", "core", "curves", "engine", "mesh", "points", "sdf", "surfaces",
+           "transforms", "__version__"]

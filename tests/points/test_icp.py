@@ -11,7 +11,7 @@ import torch
 
 from torchgeo_cg.core import ShapeError
 from torchgeo_cg.mesh.data import rabbit_scan_pairs
-from torchgeo_cg.points import estimate_normals, icp
+from torchgeo_cg.points import ICPConvergence, ICPRobust, estimate_normals, icp
 from torchgeo_cg.transforms import find_euclidean, find_similarity
 
 
@@ -49,7 +49,7 @@ def test_recovers_a_known_rigid_motion_exactly(method):
     target = _cloud(400, 0)
     truth = _rigid(0.12, [1.0, 2.0, 0.5], [0.03, -0.02, 0.01])
     source = _apply(torch.linalg.inv(truth), target)
-    res = icp(source, target, method=method, max_iterations=60)
+    res = icp(source, target, method=method, convergence=ICPConvergence(60))
     assert bool(res.converged) and int(res.iterations) < 60
     torch.testing.assert_close(res.transform, truth, atol=1e-9, rtol=0)
     assert float(res.rmse) < 1e-9 and float(res.inlier_fraction) == 1.0
@@ -61,8 +61,8 @@ def test_similarity_recovers_the_scale():
     truth[:3, :3] *= 1.1
     source = _apply(torch.linalg.inv(truth), target)
     for method in ("point_to_point", "point_to_plane"):
-        res = icp(source, target, model="similarity", method=method, max_iterations=80,
-                  tol=1e-12)
+        res = icp(source, target, model="similarity", method=method,
+                  convergence=ICPConvergence(80, tol=1e-12))
         torch.testing.assert_close(res.transform, truth, atol=1e-8, rtol=0)
 
 
@@ -86,9 +86,10 @@ def test_init_and_max_distance():
     truth = _rigid(0.9, [0.0, 0.0, 1.0], [0.3, 0.0, 0.0])  # far: needs the initial guess
     source = _apply(torch.linalg.inv(truth), target)
     near = _rigid(0.85, [0.0, 0.0, 1.0], [0.28, 0.0, 0.0])
-    res = icp(source, target, init=near, max_distance=0.2, max_iterations=60)
+    res = icp(source, target, init=near, max_distance=0.2,
+              convergence=ICPConvergence(60))
     torch.testing.assert_close(res.transform, truth, atol=1e-9, rtol=0)
-    tight = icp(source, target, max_distance=1e-3, max_iterations=5)
+    tight = icp(source, target, max_distance=1e-3, convergence=ICPConvergence(5))
     assert float(tight.inlier_fraction) < 0.1
 
 
@@ -100,7 +101,7 @@ def test_point_to_point_step_is_the_closed_form_on_the_last_matches():
     source = source + 1e-3 * torch.randn(300, 3, generator=torch.Generator().manual_seed(0),
                                          dtype=torch.float64)
     for model, closed in (("euclidean", find_euclidean), ("similarity", find_similarity)):
-        res = icp(source, target, model=model, max_iterations=60)
+        res = icp(source, target, model=model, convergence=ICPConvergence(60))
         moved = _apply(res.transform, source)
         nearest = target[torch.cdist(moved, target).argmin(-1)]  # brute-force matches
         torch.testing.assert_close(res.transform, closed(source, nearest).matrix,
@@ -111,7 +112,8 @@ def test_no_match_keeps_the_initial_transform():
     """Every match rejected by max_distance: the pair keeps init, not the identity."""
     target = _cloud(50, 7)
     init = _rigid(0.3, [0.0, 1.0, 0.0], [5.0, 0.0, 0.0])
-    res = icp(target + 100.0, target, init=init, max_distance=1e-3, max_iterations=3)
+    res = icp(target + 100.0, target, init=init, max_distance=1e-3,
+              convergence=ICPConvergence(3))
     torch.testing.assert_close(res.transform, init, atol=0, rtol=0)
     assert float(res.inlier_fraction) == 0.0
 
@@ -132,7 +134,7 @@ def test_gradcheck_given_the_last_correspondences(method):
 
     def f(src, tgt):
         out = icp(src, tgt, method=method, init=truth, target_normals=normals,
-                  max_iterations=100, tol=1e-12)
+                  convergence=ICPConvergence(100, tol=1e-12))
         if method == "point_to_plane":  # zero residuals: the RMSE has a kink there
             return out.transform[:3]
         return out.transform[:3], out.rmse
@@ -160,11 +162,17 @@ def test_nan_empty_and_bad_arguments():
     with pytest.raises(ShapeError, match="target_normals"):
         icp(target, target, target_normals=torch.zeros(4, 3, dtype=torch.float64))
     for kwargs, name in (({"method": "plane"}, "method"), ({"model": "affine"}, "model"),
-                         ({"loss": "l1"}, "loss"), ({"max_distance": 0.0}, "max_distance"),
-                         ({"scale": -1.0}, "scale"), ({"tol": 0}, "tol"),
-                         ({"max_iterations": -1}, "max_iterations")):
+                         ({"max_distance": 0.0}, "max_distance"),
+                         ({"backend": "fast"}, "backend")):
         with pytest.raises(ValueError, match=name):
             icp(target, target, **kwargs)
+    for make, name in ((lambda: ICPRobust("l1"), "loss"), (lambda: ICPRobust(scale=-1.0), "scale"),
+                       (lambda: ICPConvergence(tol=0), "tol"),
+                       (lambda: ICPConvergence(max_iterations=-1), "max_iterations")):
+        with pytest.raises(ValueError, match=name):
+            make()
+    with pytest.raises(TypeError, match="robust"):
+        icp(target, target, robust="cauchy")
 
 
 # ----------------------------------------------------------------------------- Open3D
@@ -195,7 +203,7 @@ def test_against_open3d_on_rabbit_scans(method):
     normals = estimate_normals(pairs.target, 10)
     iterations = 50 if method == "point_to_point" else 30
     ours = icp(pairs.source, pairs.target, method=method, max_distance=max_distance,
-               target_normals=normals, max_iterations=iterations)
+               target_normals=normals, convergence=ICPConvergence(iterations))
     peer, peer_rmse = _open3d_icp(o3d, pairs, method, max_distance, normals, iterations)
     ok_ours = _angle_deg(ours.transform, pairs.truth) < 0.5
     ok_peer = _angle_deg(peer, pairs.truth) < 0.5
@@ -221,9 +229,9 @@ def test_cauchy_with_outliers_beats_least_squares():
     40 iterations at 2000 and at 6000 points): each step only moves part of the way.
     """
     pairs = rabbit_scan_pairs(10, 3000, generator=torch.Generator().manual_seed(2), outliers=0.3)
-    l2 = icp(pairs.source, pairs.target, max_iterations=30)
-    cauchy = icp(pairs.source, pairs.target, loss="cauchy", method="point_to_plane",
-                 max_iterations=30)
+    l2 = icp(pairs.source, pairs.target, convergence=ICPConvergence(30))
+    cauchy = icp(pairs.source, pairs.target, robust=ICPRobust("cauchy"),
+                 method="point_to_plane", convergence=ICPConvergence(30))
     ok_l2 = _angle_deg(l2.transform, pairs.truth) < 0.5
     ok_cauchy = _angle_deg(cauchy.transform, pairs.truth) < 0.5
     assert int(ok_cauchy.sum()) >= 8 and int(ok_cauchy.sum()) > int(ok_l2.sum())
@@ -231,8 +239,7 @@ def test_cauchy_with_outliers_beats_least_squares():
 
 @pytest.mark.slow
 def test_tukey_from_a_rough_alignment():
-    pairs = rabbit_scan_pairs(3, 3000, generator=torch.Generator().manual_seed(3), outliers=0.3,
-                              angles=(3.0, 5.0), shift=0.01)
-    res = icp(pairs.source, pairs.target, loss="tukey", method="point_to_plane",
-              max_iterations=30)
+    pairs = rabbit_scan_pairs(3, 3000, generator=torch.Generator().manual_seed(3), outliers=0.3, angles=(3.0, 5.0), shift=0.01)
+    res = icp(pairs.source, pairs.target, robust=ICPRobust("tukey"), method="point_to_plane",
+              convergence=ICPConvergence(30))
     assert bool((_angle_deg(res.transform, pairs.truth) < 0.5).all())

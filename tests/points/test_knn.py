@@ -9,8 +9,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
+import torchgeo_cg.points._search as search_module
 import torchgeo_cg.points.nearest_neighbors as knn_module
 from torchgeo_cg.core import ShapeError
+from torchgeo_cg.engine import warp_status
 from torchgeo_cg.points import knn
 
 
@@ -31,10 +33,23 @@ def reference_knn(q, r, k, ql=None, rl=None):
     return dists, idx
 
 
-@pytest.fixture(params=["grid", "brute"])
+HAS_WARP = warp_status()[0] == "ok"
+
+
+def use_backend(monkeypatch, backend: str) -> None:
+    """Make every ``knn(backend="auto")`` of a test run ``backend``."""
+    monkeypatch.setattr(knn_module, "resolve_backend", lambda name, device=None: backend)
+
+
+@pytest.fixture(params=["grid", "brute", "warp"])
 def path(request, monkeypatch):
-    """Run each test through the grid search and through the brute-force search."""
-    monkeypatch.setattr(knn_module, "BRUTE_FORCE_PAIRS", 0 if request.param == "grid" else 1 << 62)
+    """Run each test through the torch grid search, the torch brute-force search and the
+    Warp kernel."""
+    if request.param == "warp" and not HAS_WARP:
+        pytest.skip("Warp is not available here")
+    use_backend(monkeypatch, "warp" if request.param == "warp" else "torch")
+    monkeypatch.setattr(search_module, "BRUTE_FORCE_PAIRS",
+                        0 if request.param == "grid" else 1 << 62)
     return request.param
 
 
@@ -82,8 +97,12 @@ def test_k_larger_than_m_is_padded(path):
     assert res.dists.tolist() == [[1.0, 4.0, 0.0, 0.0], [2.0, 3.0, 0.0, 0.0]]
 
 
-def test_grid_handles_surfaces_lines_and_far_queries(monkeypatch):
-    monkeypatch.setattr(knn_module, "BRUTE_FORCE_PAIRS", 0)
+@pytest.mark.parametrize("backend", ["torch", "warp"])
+def test_grid_handles_surfaces_lines_and_far_queries(monkeypatch, backend):
+    if backend == "warp" and not HAS_WARP:
+        pytest.skip("Warp is not available here")
+    use_backend(monkeypatch, backend)
+    monkeypatch.setattr(search_module, "BRUTE_FORCE_PAIRS", 0)
     gen = torch.Generator().manual_seed(3)
     sphere = torch.nn.functional.normalize(torch.randn(2000, 3, generator=gen, dtype=torch.float64),
                                            dim=-1)
@@ -103,13 +122,13 @@ def test_scale_invariance(seed, scale):
     gen = torch.Generator().manual_seed(seed)
     q = torch.randn(30, 3, generator=gen, dtype=torch.float64)
     r = torch.randn(25, 3, generator=gen, dtype=torch.float64)
-    base = knn(q, r, k=2)
-    for pairs in (0, 1 << 62):
-        knn_module.BRUTE_FORCE_PAIRS = pairs
+    base = knn(q, r, k=2, backend="torch")
+    for pairs, backend in ((0, "torch"), (1 << 62, "torch"), (0, "auto")):
+        search_module.BRUTE_FORCE_PAIRS = pairs
         try:
-            scaled = knn(q * scale, r * scale, k=2)
+            scaled = knn(q * scale, r * scale, k=2, backend=backend)
         finally:
-            knn_module.BRUTE_FORCE_PAIRS = 1 << 18
+            search_module.BRUTE_FORCE_PAIRS = 1 << 18
         assert torch.equal(scaled.idx, base.idx)
         torch.testing.assert_close(scaled.dists, base.dists * scale**2, rtol=1e-12, atol=0)
 

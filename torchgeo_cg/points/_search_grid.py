@@ -153,10 +153,24 @@ def _layout(points_td, batch_t, lo_bd, extent_bd, count_b, per_cell):
         h_b = torch.where(ratio_b > 1.5, h_b * ratio_b.clamp_min(1) ** -0.5, h_b)
 
 
+def _fixed_layout(points_td, batch_t, lo_bd, extent_bd, h_b):
+    """Keys for given cell sizes (raised where the grid would exceed its cap)."""
+    cap = float(2 ** (44 // lo_bd.shape[1]))
+    h_b = torch.maximum(h_b, (extent_bd / (cap - 1)).amax(-1))
+    h_b = torch.where(h_b > 0, h_b, torch.ones_like(h_b))
+    key_t, dims_bd, stride_bd, base_b, total = _grid_keys(points_td, batch_t, lo_bd,
+                                                          extent_bd, h_b, cap)
+    key_t, order_t = torch.sort(key_t, stable=True)
+    return h_b, (key_t, order_t, dims_bd, stride_bd, base_b, total)
+
+
 def build_grid(
-    reference_bmd: torch.Tensor, reference_lengths_b: torch.Tensor, per_cell: float
+    reference_bmd: torch.Tensor, reference_lengths_b: torch.Tensor, per_cell: float,
+    cell_b: torch.Tensor | None = None,
 ) -> GridIndex:
-    """Bin the valid references of each batch item into a uniform grid (see module).
+    """Bin the valid references of each batch item into a uniform grid (see module); with
+    ``cell_b`` ``(B,)`` the cell size of each item is given (at least the grid's cap
+    allows) instead of chosen for ``per_cell`` references per occupied cell.
 
     Example:
         >>> g = build_grid(torch.rand(2, 100, 3), torch.tensor([100, 50]), 2.0)
@@ -175,8 +189,11 @@ def build_grid(
     lo_bd = torch.where(empty_b[:, None], torch.zeros_like(lo_bd), lo_bd)
     hi_bd = torch.where(empty_b[:, None], torch.zeros_like(hi_bd), hi_bd)
     extent_bd = hi_bd - lo_bd
-    h_b, layout = _layout(points_td, batch_t, lo_bd, extent_bd, reference_lengths_b.to(lo_bd),
-                          per_cell)
+    if cell_b is None:
+        h_b, layout = _layout(points_td, batch_t, lo_bd, extent_bd,
+                              reference_lengths_b.to(lo_bd), per_cell)
+    else:
+        h_b, layout = _fixed_layout(points_td, batch_t, lo_bd, extent_bd, cell_b.to(lo_bd))
     key_t, order_t, dims_bd, stride_bd, base_b, total = layout
     if total <= 32 * key_t.numel() + 4096:
         count_c = torch.bincount(key_t, minlength=total)

@@ -24,7 +24,8 @@ from torch import nn
 from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
-from torchgeo_cg.points.nearest_neighbors import check_lengths, knn
+from torchgeo_cg.points._search import check_lengths
+from torchgeo_cg.points.nearest_neighbors import knn
 
 __all__ = ["ChamferResult", "chamfer_distance", "ChamferDistance"]
 

@@ -43,29 +43,86 @@ Convention:
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
+from torchgeo_cg.engine import kernel_ready, resolve_backend
+from torchgeo_cg.points._icp_steps import apply_transform, point_to_plane_step
+from torchgeo_cg.points._knn_kernels import kernel_per_cell, warp_knn_indices
+from torchgeo_cg.points._search import check_lengths, search_scale
 from torchgeo_cg.points._search_grid import build_grid, grid_knn_indices, grid_per_cell
-from torchgeo_cg.points.icp_steps import apply_transform, point_to_plane_step
-from torchgeo_cg.points.nearest_neighbors import check_lengths, search_scale
 from torchgeo_cg.points.normals import estimate_normals
 from torchgeo_cg.transforms.estimation import find_euclidean, find_similarity
 from torchgeo_cg.transforms.robust import LOSSES, robust_weights
 
-__all__ = ["ICPResult", "icp", "METHODS", "MODELS"]
+__all__ = ["ICPConvergence", "ICPResult", "ICPRobust", "icp", "METHODS", "MODELS"]
 
 #: Error functions of :func:`icp`.
 METHODS: tuple[str, ...] = ("point_to_point", "point_to_plane")
 #: Transform models of :func:`icp`.
 MODELS: tuple[str, ...] = ("euclidean", "similarity")
 #: Neighbours of the PCA normals :func:`icp` estimates for point-to-plane.
-NORMAL_NEIGHBOURS = 10
+_NORMAL_NEIGHBOURS = 10
 #: 95%-efficiency constants of the robust losses (in units of the residual's sigma).
 _EFFICIENCY = {"huber": 1.345, "cauchy": 2.385, "tukey": 4.685}
+
+
+@dataclass(frozen=True)
+class ICPConvergence:
+    """When :func:`icp` stops (Open3D's ``ICPConvergenceCriteria``, with one relative test).
+
+    Attributes:
+        max_iterations: at most this many updates, ``>= 0``.
+        tol: a pair has converged when an update moves its valid source points by at most
+            ``tol`` times their RMS radius about their centroid, ``> 0``.
+
+    Example:
+        >>> ICPConvergence(max_iterations=60).tol
+        1e-06
+        >>> ICPConvergence(tol=0)
+        Traceback (most recent call last):
+        ...
+        ValueError: tol: expected a finite positive number, got 0
+    """
+
+    max_iterations: int = 30
+    tol: float = 1e-6
+
+    def __post_init__(self):
+        _check_positive(self.tol, "tol", allow_none=False)
+        it = self.max_iterations
+        if isinstance(it, bool) or not isinstance(it, int) or it < 0:
+            raise ValueError(f"max_iterations: expected a non-negative int, got {it!r}")
+
+
+@dataclass(frozen=True)
+class ICPRobust:
+    """The robust loss of :func:`icp`'s IRLS weights (Open3D's robust kernels).
+
+    Attributes:
+        loss: ``"l2"``, ``"huber"``, ``"cauchy"`` or ``"tukey"``.
+        scale: the loss's scale ``c``, a length; None: estimated per pair and iteration
+            (see :mod:`torchgeo_cg.points.icp`).
+
+    Example:
+        >>> ICPRobust("cauchy").scale is None
+        True
+        >>> ICPRobust("l1")
+        Traceback (most recent call last):
+        ...
+        ValueError: loss: expected one of 'l2', 'huber', 'cauchy', 'tukey', got 'l1'
+    """
+
+    loss: str = "l2"
+    scale: float | None = None
+
+    def __post_init__(self):
+        check_choice(self.loss, LOSSES, "loss")
+        _check_positive(self.scale, "scale")
 
 
 class ICPResult(NamedTuple):
@@ -109,12 +166,6 @@ class _Pairs(NamedTuple):
     init: torch.Tensor  # (B, 4, 4), normalised
 
 
-def _check_choice(value, choices, name):
-    if value not in choices:
-        raise ValueError(f"{name}: expected one of {', '.join(map(repr, choices))}, "
-                         f"got {value!r}")
-
-
 def _check_positive(value, name, allow_none=True):
     if value is None and allow_none:
         return
@@ -123,7 +174,7 @@ def _check_positive(value, name, allow_none=True):
         raise ValueError(f"{name}: expected a finite positive number, got {value!r}")
 
 
-def _check_arguments(source, target, init, target_normals, method, model, loss, options):
+def _check_arguments(source, target, init, target_normals, method, model, options):
     check_float(source, "source")
     check_float(target, "target")
     ss = check_shape(source, ["*", "N", "3"], "source")
@@ -139,15 +190,13 @@ def _check_arguments(source, target, init, target_normals, method, model, loss, 
             if x.dtype != source.dtype:
                 raise TypeError(f"{name}: expected dtype {source.dtype} (of source), "
                                 f"got {x.dtype}")
-    _check_choice(method, METHODS, "method")
-    _check_choice(model, MODELS, "model")
-    _check_choice(loss, LOSSES, "loss")
+    check_choice(method, METHODS, "method")
+    check_choice(model, MODELS, "model")
     _check_positive(options["max_distance"], "max_distance")
-    _check_positive(options["scale"], "scale")
-    _check_positive(options["tol"], "tol", allow_none=False)
-    it = options["max_iterations"]
-    if isinstance(it, bool) or not isinstance(it, int) or it < 0:
-        raise ValueError(f"max_iterations: expected a non-negative int, got {it!r}")
+    for name, kind in (("robust", ICPRobust), ("convergence", ICPConvergence)):
+        if not isinstance(options[name], kind):
+            raise TypeError(f"{name}: expected a {kind.__name__}, got "
+                            f"{type(options[name]).__name__}")
     return check_broadcastable(shapes), ss["N"], st["M"]
 
 
@@ -194,11 +243,21 @@ class _Match(NamedTuple):
     r2: torch.Tensor  # (B, N) squared residual of the method
 
 
-def _match(pairs: _Pairs, grid, matrix, max_d2_b, search_dtype) -> _Match:
+def _match(pairs: _Pairs, grid, matrix, max_d2_b, search, previous=None, moved_b=None
+           ) -> _Match:
+    """The nearest target point of every moved source point; ``search`` is ``(dtype,
+    backend)``: the Warp kernel reuses the target's finest grid ``grid[0]``. With
+    ``previous`` and ``moved_b`` (the pairs whose transform changed), only those pairs are
+    searched; the others keep their previous match (the same answer)."""
     moved = apply_transform(matrix, pairs.src)
     B, N, _ = moved.shape
-    idx = grid_knn_indices(moved.to(search_dtype), pairs.tgt.to(search_dtype), 1, pairs.sl,
-                           pairs.tl, grid)[..., 0]
+    dtype, backend = search
+    sl = pairs.sl if moved_b is None else torch.where(moved_b, pairs.sl, 0)
+    args = (moved.to(dtype), pairs.tgt.to(dtype), 1, sl, pairs.tl)
+    if backend == "warp":
+        idx = warp_knn_indices(*args, grid=grid[0])[..., 0]
+    else:
+        idx = grid_knn_indices(*args, grid)[..., 0]
     found = idx >= 0
     idx = idx.clamp_min(0)
     q = torch.gather(pairs.tgt, 1, idx[..., None].expand(B, N, 3))
@@ -208,7 +267,11 @@ def _match(pairs: _Pairs, grid, matrix, max_d2_b, search_dtype) -> _Match:
     if pairs.normals is not None:
         n = torch.gather(pairs.normals, 1, idx[..., None].expand(B, N, 3))
         r2 = ((moved - q) * n).sum(-1).square()
-    return _Match(idx, inlier, d2, r2)
+    match = _Match(idx, inlier, d2, r2)
+    if previous is None:
+        return match
+    keep = moved_b[:, None]
+    return _Match(*(torch.where(keep, new, old) for new, old in zip(match, previous)))
 
 
 def _weights(match: _Match, loss: str, scale_b) -> torch.Tensor:
@@ -255,7 +318,7 @@ def _motion(pairs: _Pairs, old, new, radius_b):
     return (torch.where(pairs.src_valid, d2, 0.0).sum(-1) / count).sqrt() <= radius_b
 
 
-def _iterate(pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations, tol, sdtype):
+def _iterate(pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations, tol, search):
     """The IRLS loop over iterations; returns the last matrix, matches and counters."""
     B = pairs.src.shape[0]
     centre = pairs.src.sum(1) / pairs.sl.clamp_min(1)[:, None].to(pairs.src)
@@ -265,7 +328,7 @@ def _iterate(pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations
     active = (pairs.sl > 0) & (pairs.tl > 0) & ~pairs.bad_b
     iterations = torch.zeros(B, dtype=torch.long, device=matrix.device)
     converged = torch.zeros(B, dtype=torch.bool, device=matrix.device)
-    match = _match(pairs, grid, matrix, max_d2_b, sdtype)
+    match = _match(pairs, grid, matrix, max_d2_b, search)
     for _ in range(max_iterations):  # loop over iterations
         if not bool(active.any()):
             break
@@ -276,8 +339,8 @@ def _iterate(pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations
         iterations += active.long()
         converged |= done
         matrix = new
+        match = _match(pairs, grid, matrix, max_d2_b, search, match, active.clone())
         active &= ~done
-        match = _match(pairs, grid, matrix, max_d2_b, sdtype)
     return matrix, match, iterations, converged
 
 
@@ -319,11 +382,10 @@ def icp(
     method: str = "point_to_point",
     model: str = "euclidean",
     max_distance: float | None = None,
-    loss: str = "l2",
-    scale: float | None = None,
-    max_iterations: int = 30,
-    tol: float = 1e-6,
+    robust: ICPRobust = ICPRobust(),
+    convergence: ICPConvergence = ICPConvergence(),
     target_normals: torch.Tensor | None = None,
+    backend: str = "auto",
 ) -> ICPResult:
     """Register ``B`` pairs of point clouds by iterative closest point, all at once.
 
@@ -340,11 +402,15 @@ def icp(
             ``target_normals``, or :func:`estimate_normals` with 10 neighbours).
         model: ``"euclidean"`` (rotation + translation) or ``"similarity"`` (+ scale).
         max_distance: matches farther than this are rejected (default: none).
-        loss: ``"l2"``, ``"huber"``, ``"cauchy"`` or ``"tukey"`` (IRLS).
-        scale: the robust loss's scale ``c``, a length (default: estimated, see module).
-        max_iterations: at most this many updates, ``>= 0``.
-        tol: relative motion below which a pair has converged, ``> 0``.
+        robust: the loss of the IRLS weights and its scale (:class:`ICPRobust`; default
+            least squares).
+        convergence: the iteration limit and the relative tolerance
+            (:class:`ICPConvergence`).
         target_normals: ``(*, M, 3)`` unit normals of the target (point-to-plane).
+        backend: the nearest-neighbour search: ``"auto"``, ``"torch"`` or ``"warp"``
+            (:func:`torchgeo_cg.engine.resolve_backend`); identical matches, so identical
+            results. The target's grid is built once per call and reused by every
+            iteration.
 
     Returns:
         :class:`ICPResult` ``(transform (*, 4, 4), rmse (*,), inlier_fraction (*,),
@@ -363,10 +429,14 @@ def icp(
         >>> (res.transform[:3, :3] - rot).abs().max() < 1e-9
         tensor(True)
     """
-    options = {"max_distance": max_distance, "scale": scale, "tol": tol,
-               "max_iterations": max_iterations}
-    batch, N, M = _check_arguments(source, target, init, target_normals, method, model, loss,
+    options = {"max_distance": max_distance, "robust": robust, "convergence": convergence}
+    batch, N, M = _check_arguments(source, target, init, target_normals, method, model,
                                    options)
+    backend = resolve_backend(backend, source.device)
+    if not kernel_ready(source, target):  # under torch.func or tracing: torch path
+        backend = "torch"
+    loss, scale = robust.loss, robust.scale
+    max_iterations, tol = convergence.max_iterations, convergence.tol
     sl = check_lengths(source_lengths, batch, N, "source_lengths", source.device)
     tl = check_lengths(target_lengths, batch, M, "target_lengths", source.device)
     dtype = source.dtype
@@ -378,7 +448,7 @@ def icp(
                          torch.zeros(batch, dtype=torch.bool, device=source.device))
     with torch.no_grad():
         if method == "point_to_plane" and target_normals is None and M > 0:
-            k = max(2, min(NORMAL_NEIGHBOURS, M))
+            k = max(2, min(_NORMAL_NEIGHBOURS, M))
             est = estimate_normals(target.detach().expand(*batch, M, 3).to(sdtype), k, tl)
             target_normals_d = est.to(dtype)
         else:
@@ -387,16 +457,16 @@ def icp(
             target_normals_d = target.new_zeros(*batch, M, 3)
         pairs = _prepare(source, target, init, target_normals_d if method == "point_to_plane"
                          else None, sl, tl, batch)
-        grid = [build_grid(pairs.tgt.to(sdtype), pairs.tl, grid_per_cell(1))]  # reused
+        per_cell = kernel_per_cell(1) if backend == "warp" else grid_per_cell(1)
+        grid = [build_grid(pairs.tgt.to(sdtype), pairs.tl, per_cell)]  # reused
         max_d2_b = torch.full_like(pairs.scale_b, float("inf"))
         if max_distance is not None:
             max_d2_b = (max_distance / pairs.scale_b).square()
         scale_b = None if scale is None else scale / pairs.scale_b
         matrix, match, iterations, converged = _iterate(
-            pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations, tol, sdtype)
+            pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations, tol,
+            (sdtype, backend))
         w = _weights(match, loss, scale_b)
-    if method == "point_to_plane" and target_normals is None:
-        target_normals = None  # estimated ones are constants (pairs.normals)
     out, rmse, fraction = _finish(source, target, target_normals, pairs, batch, matrix, match,
                                   w, method, model)
     return ICPResult(cast_back(out, dtype).reshape(*batch, 4, 4),

@@ -1,10 +1,13 @@
 """k nearest neighbours between point clouds, batched, ragged and differentiable.
 
-The neighbours are *found* without gradients by an exact search: a uniform grid of
-sorted cells on the CPU for ``D <= 3`` (:mod:`torchgeo_cg.points._search_grid`, no
-quadratic distance matrix), or chunked brute force for small inputs, on CUDA and for
-``D > 3`` (:mod:`torchgeo_cg.points._search_brute`). The distances are then *computed*
-from the found indices with differentiable torch ops, so gradients flow to both point
+The neighbours are *found* without gradients by an exact search: with
+``backend="warp"`` (the default where NVIDIA Warp loads) a compiled kernel on a uniform
+grid (:mod:`torchgeo_cg.points._knn_kernels`, CPU and CUDA, ``D`` in {2, 3}); with
+``backend="torch"`` a uniform grid of sorted cells on the CPU for ``D <= 3``
+(:mod:`torchgeo_cg.points._search_grid`, no quadratic distance matrix), or chunked
+brute force for small inputs, on CUDA and for ``D > 3``
+(:mod:`torchgeo_cg.points._search_brute`). The distances are then *computed* from the
+found indices with differentiable torch ops, so gradients flow to both point
 sets (the neighbour assignment is piecewise constant, as in PyTorch3D's ``knn_points``).
 
 Convention:
@@ -30,16 +33,12 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
-from torchgeo_cg.core.numerics import cast_back, power_of_two_scale, working_dtype
-from torchgeo_cg.points._search_brute import brute_knn_indices
-from torchgeo_cg.points._search_grid import grid_knn_indices
+from torchgeo_cg.core.check import check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.engine import kernel_ready, resolve_backend
+from torchgeo_cg.points._search import check_lengths, find_neighbours, search_scale
 
 __all__ = ["KNNResult", "knn"]
-
-#: Below this many (query, reference) pairs the brute-force search is used on the CPU.
-BRUTE_FORCE_PAIRS = 1 << 18
-
 
 class KNNResult(NamedTuple):
     """Result of :func:`knn`.
@@ -51,33 +50,6 @@ class KNNResult(NamedTuple):
 
     dists: torch.Tensor
     idx: torch.Tensor
-
-
-def check_lengths(lengths, batch: tuple, size: int, name: str, device) -> torch.Tensor:
-    """Validate ``lengths (*,)`` (or ``None`` = all ``size``) and return them as long.
-
-    Example:
-        >>> check_lengths(None, (2,), 5, "query_lengths", "cpu")
-        tensor([5, 5])
-        >>> check_lengths(torch.tensor([6, 1]), (2,), 5, "query_lengths", "cpu")
-        Traceback (most recent call last):
-        ...
-        ValueError: query_lengths: expected values in [0, 5], got min 1 and max 6
-    """
-    if lengths is None:
-        return torch.full(batch, size, dtype=torch.long, device=device)
-    if not isinstance(lengths, torch.Tensor):
-        lengths = torch.as_tensor(lengths, device=device)
-    if lengths.is_floating_point() or lengths.is_complex() or lengths.dtype == torch.bool:
-        raise TypeError(f"{name}: expected an integer tensor, got dtype {lengths.dtype}")
-    if tuple(lengths.shape) != tuple(batch):
-        raise ShapeError(f"{name}: expected shape {tuple(batch)} (the batch dims), "
-                         f"got {tuple(lengths.shape)}")
-    lengths = lengths.to(device=device, dtype=torch.long)
-    if lengths.numel() and (int(lengths.min()) < 0 or int(lengths.max()) > size):
-        raise ValueError(f"{name}: expected values in [0, {size}], got min "
-                         f"{int(lengths.min())} and max {int(lengths.max())}")
-    return lengths
 
 
 def _prepare(query, reference, k, query_lengths, reference_lengths):
@@ -98,47 +70,14 @@ def _prepare(query, reference, k, query_lengths, reference_lengths):
     return query, reference, ql, rl, batch
 
 
-def search_scale(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, ql_b: torch.Tensor,
-                 rl_b: torch.Tensor) -> torch.Tensor:
-    """Per batch item, :func:`~torchgeo_cg.core.numerics.power_of_two_scale` of the largest
-    valid coordinate: ``(B, 1, 1)``, 1 where there is none.
-
-    Dividing by it is exact and brings the coordinates into ``[-1, 1]``, so the squared
-    distances of the search neither overflow nor underflow at any scale.
-
-    Example:
-        >>> search_scale(torch.tensor([[[3.0, 0.0]]]), torch.tensor([[[0.0, -1e-3]]]),
-        ...              torch.tensor([1]), torch.tensor([1])).flatten()
-        tensor([4.])
-    """
-    B, N, _ = query_bnd.shape
-    M = reference_bmd.shape[1]
-    q_valid = (torch.arange(N, device=ql_b.device) < ql_b[:, None])[..., None]
-    r_valid = (torch.arange(M, device=rl_b.device) < rl_b[:, None])[..., None]
-    big = torch.cat([query_bnd.abs().masked_fill(~q_valid, 0).flatten(1),
-                     reference_bmd.abs().masked_fill(~r_valid, 0).flatten(1),
-                     query_bnd.new_zeros(B, 1)], dim=1).amax(1)
-    return power_of_two_scale(big)[:, None, None]
-
-
-def find_neighbours(query_bnd, reference_bmd, k, ql_b, rl_b) -> torch.Tensor:
-    """Exact indices ``(B, N, k)`` (``-1`` where none) on finite-masked inputs."""
-    B, N, D = query_bnd.shape
-    M = reference_bmd.shape[1]
-    small = B * N * M <= BRUTE_FORCE_PAIRS
-    if query_bnd.device.type != "cpu" or D > 3 or small:
-        idx = brute_knn_indices(query_bnd, reference_bmd, k, rl_b)
-        padded = torch.arange(N, device=query_bnd.device) >= ql_b[:, None]
-        return idx.masked_fill(padded[..., None], -1)
-    return grid_knn_indices(query_bnd, reference_bmd, k, ql_b, rl_b)
-
-
 def knn(
     query: torch.Tensor,
     reference: torch.Tensor,
     k: int = 1,
     query_lengths: torch.Tensor | None = None,
     reference_lengths: torch.Tensor | None = None,
+    *,
+    backend: str = "auto",
 ) -> KNNResult:
     """The ``k`` nearest reference points of every query point, exact.
 
@@ -153,6 +92,9 @@ def knn(
         k: number of neighbours, ``>= 1`` (may exceed ``M``: the rest is padding).
         query_lengths: ``(*,)`` integer, valid query rows per batch item (default ``N``).
         reference_lengths: ``(*,)`` integer, valid reference rows (default ``M``).
+        backend: ``"auto"``, ``"torch"`` or ``"warp"`` (the compiled kernel, for ``D`` in
+            {2, 3}; see :func:`torchgeo_cg.engine.resolve_backend`). Both give identical
+            indices and distances.
 
     Returns:
         :class:`KNNResult` ``(dists (*, N, k), idx (*, N, k))``.
@@ -170,6 +112,9 @@ def knn(
     """
     query, reference, ql, rl, batch = _prepare(query, reference, k, query_lengths,
                                                reference_lengths)
+    backend = resolve_backend(backend, query.device)
+    if not kernel_ready(query, reference):  # under torch.func or tracing: torch path
+        backend = "torch"
     dtype = query.dtype  # float16/bfloat16: searched and computed in float32
     query, reference = query.to(working_dtype(dtype)), reference.to(working_dtype(dtype))
     N, D = query.shape[-2:]
@@ -185,7 +130,8 @@ def knn(
         q_clean = torch.where(q_ok_bn[..., None], q_bnd.detach(), torch.zeros_like(q_bnd))
         r_clean = torch.where(torch.isfinite(r_bmd), r_bmd.detach(), torch.zeros_like(r_bmd))
         scale_b11 = search_scale(q_clean, r_clean, ql_b, rl_b)  # exact: a power of two
-        idx_bnk = find_neighbours(q_clean / scale_b11, r_clean / scale_b11, k, ql_b, rl_b)
+        idx_bnk = find_neighbours(q_clean / scale_b11, r_clean / scale_b11, k, ql_b, rl_b,
+                                  backend)
         bad_bn = (~q_ok_bn | ~r_ok_b[:, None]) & (torch.arange(N, device=q_bnd.device)
                                                    < ql_b[:, None])
         idx_bnk = idx_bnk.masked_fill(bad_bn[..., None], -1)

@@ -28,7 +28,8 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back
-from torchgeo_cg.points.nearest_neighbors import check_lengths, knn
+from torchgeo_cg.points._search import check_lengths
+from torchgeo_cg.points.nearest_neighbors import knn
 
 __all__ = ["estimate_normals"]
 

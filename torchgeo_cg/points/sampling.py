@@ -25,7 +25,9 @@ import torch
 
 from torchgeo_cg.core.check import check_float, check_shape
 from torchgeo_cg.core.numerics import working_dtype
-from torchgeo_cg.points.nearest_neighbors import check_lengths
+from torchgeo_cg.engine import kernel_ready, resolve_backend
+from torchgeo_cg.points._fps_kernels import warp_fps
+from torchgeo_cg.points._search import check_lengths
 
 __all__ = ["SampleResult", "farthest_point_sampling"]
 
@@ -79,7 +81,8 @@ def _pick_indices(p_bnd: torch.Tensor, len_b: torch.Tensor, k: int, start: int) 
 
 
 def farthest_point_sampling(
-    points: torch.Tensor, k: int, lengths: torch.Tensor | None = None, start: int = 0
+    points: torch.Tensor, k: int, lengths: torch.Tensor | None = None, start: int = 0,
+    *, backend: str = "auto",
 ) -> SampleResult:
     """Pick ``k`` points of every cloud, each the farthest from those picked before.
 
@@ -94,6 +97,8 @@ def farthest_point_sampling(
         k: number of picks, ``>= 0`` (may exceed ``N``: the rest is padding).
         lengths: ``(*,)`` integer, valid rows per cloud (default ``N``).
         start: index of the first pick, ``< lengths`` of every non-empty cloud.
+        backend: ``"auto"``, ``"torch"`` or ``"warp"`` (a compiled loop, one thread per
+            cloud; see :func:`torchgeo_cg.engine.resolve_backend`); identical picks.
 
     Returns:
         :class:`SampleResult` ``(points (*, k, D), indices (*, k))``.
@@ -113,14 +118,18 @@ def farthest_point_sampling(
     if len_.numel() and bool(((len_ > 0) & (len_ <= start)).any()):
         raise ValueError(f"start: expected an index below every non-zero length, got {start} "
                          f"with lengths down to {int(len_[len_ > 0].min())}")
+    backend = resolve_backend(backend, points.device)
     B = math.prod(batch)
     p_bnd = points.reshape(B, N, D)
     if N == 0 or k == 0:
         return SampleResult(points.new_zeros(*batch, k, D),
                             torch.full((*batch, k), -1, dtype=torch.long, device=points.device))
     with torch.no_grad():
-        idx_bk = _pick_indices(p_bnd.detach().to(working_dtype(points.dtype)),
-                               len_.reshape(B), k, start)
+        p_work = p_bnd.detach().to(working_dtype(points.dtype)).contiguous()
+        kernel = (backend == "warp" and D in (2, 3) and kernel_ready(p_work)
+                  and bool(torch.isfinite(p_work).all()))
+        pick = warp_fps if kernel else _pick_indices  # NaN rules: the torch loop
+        idx_bk = pick(p_work, len_.reshape(B), k, start)
     picked = torch.gather(p_bnd, 1, idx_bk.clamp_min(0)[..., None].expand(B, k, D))
     picked = torch.where((idx_bk >= 0)[..., None], picked, torch.zeros_like(picked))
     return SampleResult(picked.reshape(*batch, k, D), idx_bk.reshape(*batch, k))

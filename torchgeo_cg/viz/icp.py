@@ -7,7 +7,7 @@ from pathlib import Path
 import torch
 
 from torchgeo_cg.mesh.data import rabbit_scan_pairs
-from torchgeo_cg.points import estimate_normals, icp
+from torchgeo_cg.points import ICPConvergence, estimate_normals, icp
 from torchgeo_cg.viz._style import plt, save
 from torchgeo_cg.viz.registry import figure
 
@@ -62,7 +62,7 @@ def _rmse_curve(pairs, method, max_distance, normals, iterations):
     curve = []
     for it in range(iterations + 1):  # one call per iteration count: the curve to plot
         out = icp(pairs.source, pairs.target, method=method, max_distance=max_distance,
-                  target_normals=normals, max_iterations=it)
+                  target_normals=normals, convergence=ICPConvergence(it))
         curve.append(float(out.rmse[0]))
     return curve, out
 

@@ -1,0 +1,308 @@
+"""Warp kernel of the exact k-nearest-neighbour search on a uniform grid of sorted cells.
+
+The grid is the torch search's (:func:`~torchgeo_cg.points._search_grid.build_grid`: the
+references binned by cell, sorted by cell key, a dense or sparse table of cell starts);
+one thread per query scans Chebyshev rings of cells around the query's cell, skips cells
+whose box lies farther than its current k-th distance, and keeps a sorted top-k by
+(squared distance, index). It stops once the k-th distance is below the distance to any
+unvisited cell (shrunk by the grid's rounding margin), or once the rings cover the grid.
+Squared distances are summed coordinate by coordinate in the input dtype without fused
+multiply-adds, as the torch search does, so both rank (and tie) identically.
+
+Queries that need more than ``max_ring`` rings (far from every reference) are left to the
+caller (flag ``-2``); the torch search finishes them.
+
+Convention:
+    No ``from __future__ import annotations``: Warp reads the annotations of the builder.
+"""
+
+from typing import Any
+
+import torch
+
+from torchgeo_cg.engine import launch, register_kernels, to_warp
+from torchgeo_cg.points._search_grid import (
+    MAX_RING,
+    GridIndex,
+    build_grid,
+    grid_knn_indices,
+    grid_per_cell,
+)
+
+__all__: list[str] = []
+
+#: Rings a kernel thread scans before it leaves its query to the torch search.
+KERNEL_RINGS = 24
+#: References per occupied cell of the kernel's grid, at least: coarser than the torch
+#: search's for small k (a thread pays per cell visited, the torch search per candidate).
+KERNEL_PER_CELL = 8.0
+
+
+def kernel_per_cell(k: int) -> float:
+    """Target references per occupied cell of the kernel's grid for ``k`` neighbours.
+
+    Example:
+        >>> kernel_per_cell(1), kernel_per_cell(16)
+        (8.0, 17.0)
+    """
+    return max(KERNEL_PER_CELL, grid_per_cell(k))
+
+
+def _ring_funcs(wp):
+    """Warp functions: the cell scan of one grid cell into a running top-k."""
+
+    @wp.func
+    def scan_cell(pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),
+                  start: wp.int64, count: wp.int64, qx: Any, qy: Any, qz: Any, dim: int,
+                  row: int, k: int, found: int, best: wp.array2d(dtype=Any),
+                  best_i: wp.array2d(dtype=wp.int64)):
+        """Merge the references ``start .. start + count`` into row ``row``'s top-k;
+        returns the new number found."""
+        n = found
+        for t in range(int(start), int(start + count)):
+            dx = pts[0, t] - qx
+            d2 = dx * dx
+            dy = pts[1, t] - qy
+            d2 = d2 + dy * dy
+            if dim == 3:
+                dz = pts[2, t] - qz
+                d2 = d2 + dz * dz
+            j = index[t]
+            if n == k:
+                if d2 > best[row, k - 1] or (d2 == best[row, k - 1] and j > best_i[row, k - 1]):
+                    continue
+                n = k - 1
+            s = n  # insertion from the end: sorted by (distance, index)
+            while s > 0 and (best[row, s - 1] > d2 or (best[row, s - 1] == d2
+                                                         and best_i[row, s - 1] > j)):
+                best[row, s] = best[row, s - 1]
+                best_i[row, s] = best_i[row, s - 1]
+                s = s - 1
+            best[row, s] = d2
+            best_i[row, s] = j
+            n = n + 1
+        return n
+
+    return scan_cell
+
+
+def _build(wp):
+    """The kNN kernel, with overloads for float32 and float64."""
+    scan_cell = _ring_funcs(wp)
+
+    @wp.func
+    def cell_of(q: Any, lo: Any, h: Any) -> int:
+        c = wp.floor((q - lo) / h)
+        c = wp.clamp(c, type(q)(-1.0e9), type(q)(1.0e9))
+        return int(c)
+
+    @wp.func
+    def gap(q: Any, lo: Any, h: Any, c: int, slack: Any):
+        """Distance from ``q`` to cell ``c``'s slab along one axis, less ``slack``."""
+        a = lo + type(q)(c) * h
+        g = wp.max(wp.max(a - q, q - (a + h)), type(q)(0.0))
+        return wp.max(g - slack, type(q)(0.0))
+
+    @wp.kernel
+    def knn_grid(query: wp.array2d(dtype=Any), q_batch: wp.array(dtype=wp.int64),
+                 pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),
+                 start: wp.array(dtype=wp.int64), count: wp.array(dtype=wp.int64),
+                 keys: wp.array(dtype=wp.int64), sparse: int,
+                 lo: wp.array2d(dtype=Any), h_b: wp.array(dtype=Any),
+                 slack_b: wp.array(dtype=Any), dims: wp.array2d(dtype=wp.int64),
+                 base: wp.array(dtype=wp.int64), stride: wp.array2d(dtype=wp.int64),
+                 dim: int, k: int, max_ring: int, pad: int,
+                 best: wp.array2d(dtype=Any), best_i: wp.array2d(dtype=wp.int64)):
+        row = wp.tid()
+        b = int(q_batch[row])
+        h = h_b[b]
+        slack = slack_b[b]
+        qx = query[row, 0]
+        qy = query[row, 1]
+        qz = qx - qx
+        if dim == 3:
+            qz = query[row, 2]
+        cx = cell_of(qx, lo[b, 0], h)
+        cy = cell_of(qy, lo[b, 1], h)
+        dx = int(dims[b, 0])
+        dy = int(dims[b, 1])
+        cz = int(0)  # noqa: UP018  a dynamic variable for Warp
+        dz = int(1)  # noqa: UP018  a dynamic variable for Warp
+        if dim == 3:
+            cz = cell_of(qz, lo[b, 2], h)
+            dz = int(dims[b, 2])
+        # the first ring holding a cell of the grid, and the last one needed
+        r0 = wp.max(wp.max(wp.max(-cx, cx - (dx - 1)), wp.max(-cy, cy - (dy - 1))),
+                    wp.max(wp.max(-cz, cz - (dz - 1)), 0))
+        r1 = wp.max(wp.max(wp.max(cx, dx - 1 - cx), wp.max(cy, dy - 1 - cy)),
+                    wp.max(cz, dz - 1 - cz))
+        # distance to the walls of the query's own (unclamped) cell
+        ax = lo[b, 0] + type(h)(cx) * h
+        ay = lo[b, 1] + type(h)(cy) * h
+        wall = wp.min(wp.min(qx - ax, ax + h - qx), wp.min(qy - ay, ay + h - qy))
+        if dim == 3:
+            az = lo[b, 2] + type(h)(cz) * h
+            wall = wp.min(wall, wp.min(qz - az, az + h - qz))
+        wall = wp.max(wall, type(h)(0.0))
+        found = int(0)  # noqa: UP018  a dynamic variable for Warp
+        done = int(0)  # noqa: UP018  a dynamic variable for Warp
+        r = r0
+        while r <= r1 and r - r0 <= max_ring:
+            for x in range(wp.max(cx - r, 0), wp.min(cx + r, dx - 1) + 1):
+                gx = gap(qx, lo[b, 0], h, x, slack)
+                if found == k and gx * gx > best[row, k - 1]:
+                    continue  # the whole slab is farther than the k-th found
+                for y in range(wp.max(cy - r, 0), wp.min(cy + r, dy - 1) + 1):
+                    gy = gap(qy, lo[b, 1], h, y, slack)
+                    if found == k and gx * gx + gy * gy > best[row, k - 1]:
+                        continue
+                    edge = wp.abs(x - cx) == r or wp.abs(y - cy) == r
+                    z0 = wp.max(cz - r, 0)
+                    z1 = wp.min(cz + r, dz - 1)
+                    step = int(1)  # noqa: UP018  a dynamic variable for Warp
+                    if not edge:  # inside the shell's x-y outline: its two z faces only
+                        z0 = cz - r
+                        z1 = cz + r
+                        step = 2 * r
+                    for z in range(z0, z1 + 1, step):
+                        if z < 0 or z >= dz:
+                            continue
+                        g2 = gx * gx + gy * gy
+                        if dim == 3:
+                            gz = gap(qz, lo[b, 2], h, z, slack)
+                            g2 = g2 + gz * gz
+                        if found == k and g2 > best[row, k - 1]:
+                            continue
+                        key = base[b] + wp.int64(x + pad) * stride[b, 0] + wp.int64(
+                            y + pad) * stride[b, 1] + wp.int64(z + pad) * stride[b, 2]
+                        s = wp.int64(0)
+                        c = wp.int64(0)
+                        if sparse == 0:
+                            s = start[key]
+                            c = count[key]
+                        else:
+                            lo_k = int(0)  # noqa: UP018  a dynamic variable for Warp
+                            hi_k = keys.shape[0]
+                            while lo_k < hi_k:
+                                mid = (lo_k + hi_k) // 2
+                                if keys[mid] < key:
+                                    lo_k = mid + 1
+                                else:
+                                    hi_k = mid
+                            if lo_k < keys.shape[0] and keys[lo_k] == key:
+                                s = start[lo_k]
+                                c = count[lo_k]
+                        if c > wp.int64(0):
+                            found = scan_cell(pts, index, s, c, qx, qy, qz, dim, row, k,
+                                              found, best, best_i)
+            if r >= r1:
+                done = 1
+                break
+            if found == k:
+                reach = wp.max(type(h)(r) * h + wall - slack, type(h)(0.0))
+                if best[row, k - 1] < reach * reach:
+                    done = 1
+                    break
+            r = r + 1
+        for t in range(found, k):
+            best_i[row, t] = wp.int64(-1)
+        if done == 0:
+            best_i[row, 0] = wp.int64(-2)
+
+    for scalar in (wp.float32, wp.float64):
+        wp.overload(knn_grid, {"query": wp.array2d(dtype=scalar), "pts": wp.array2d(dtype=scalar),
+                               "lo": wp.array2d(dtype=scalar), "h_b": wp.array(dtype=scalar),
+                               "slack_b": wp.array(dtype=scalar),
+                               "best": wp.array2d(dtype=scalar)})
+    return knn_grid
+
+
+_kernels = register_kernels(_build)
+
+
+def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
+                  ) -> torch.Tensor:
+    """Indices ``(Q, k)`` of the ``k`` nearest references of queries ``q_qd`` (rows of batch
+    item ``b_q``) in ``grid``; ``-1`` where there are fewer, and row ``[-2, ...]`` for a
+    query left to the torch search (more than :data:`KERNEL_RINGS` rings).
+
+    Example:
+        >>> from torchgeo_cg.points._search_grid import build_grid
+        >>> from torchgeo_cg.engine import warp_status
+        >>> r = torch.tensor([[[1.0, 0.0], [3.0, 0.0], [-1.0, 0.0]]])
+        >>> g = build_grid(r, torch.tensor([3]), 2.0)
+        >>> q = torch.tensor([[0.0, 0.0], [2.9, 0.0]])
+        >>> if warp_status()[0] == "ok":
+        ...     print(warp_grid_knn(g, q, torch.tensor([0, 0]), 2).tolist())
+        ... else:
+        ...     print([[0, 2], [1, 0]])
+        [[0, 2], [1, 0]]
+    """
+    Q, D = q_qd.shape
+    device = q_qd.device
+    best = torch.empty(Q, k, dtype=q_qd.dtype, device=device)
+    best_i = torch.empty(Q, k, dtype=torch.long, device=device)
+    if Q == 0:
+        return best_i
+    stride = torch.zeros(grid.stride_bd.shape[0], 3, dtype=torch.long, device=device)
+    stride[:, :D] = grid.stride_bd
+    dims = torch.ones_like(stride)
+    dims[:, :D] = grid.dims_bd
+    keys = grid.keys_c if grid.keys_c is not None else stride.new_zeros(1)
+    args = [to_warp(q_qd), to_warp(b_q.long()), to_warp(grid.points_dt),
+            to_warp(grid.index_t.long()), to_warp(grid.start_c.long()),
+            to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
+            to_warp(grid.lo_bd), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
+            to_warp(grid.base_b.long()), to_warp(stride), D, k, KERNEL_RINGS, MAX_RING,
+            to_warp(best), to_warp(best_i)]
+    launch(_kernels(), Q, args, device)
+    return best_i
+
+
+def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: int,
+                     query_lengths_b: torch.Tensor, reference_lengths_b: torch.Tensor,
+                     grid: GridIndex | None = None) -> torch.Tensor:
+    """Indices ``(B, N, k)`` of the ``k`` nearest references (``-1`` where none), equal to
+    :func:`~torchgeo_cg.points._search_grid.grid_knn_indices`: the kernel answers, the
+    torch search finishes the queries the kernel left (far from every reference).
+
+    Args:
+        query_bnd, reference_bmd: ``(B, N, D)``, ``(B, M, D)`` finite, ``D`` in {2, 3}.
+        k: neighbours, ``>= 1``.
+        query_lengths_b, reference_lengths_b: ``(B,)`` long valid counts.
+        grid: the references' grid built with :func:`kernel_per_cell` of ``min(k, M)``
+            (:func:`~torchgeo_cg.points._search_grid.build_grid`), reused when given.
+
+    Example:
+        >>> from torchgeo_cg.engine import warp_status
+        >>> q = torch.tensor([[[0.0, 0.0], [2.9, 0.0]]])
+        >>> r = torch.tensor([[[1.0, 0.0], [3.0, 0.0], [-1.0, 0.0]]])
+        >>> args = (q, r, 2, torch.tensor([2]), torch.tensor([3]))
+        >>> (warp_knn_indices(*args) if warp_status()[0] == "ok" else grid_knn_indices(*args))
+        tensor([[[0, 2],
+                 [1, 0]]])
+    """
+    B, N, D = query_bnd.shape
+    M = reference_bmd.shape[1]
+    out_bnk = query_bnd.new_full((B, N, k), -1, dtype=torch.long)
+    kk = min(k, M)
+    valid_bn = torch.arange(N, device=query_bnd.device) < query_lengths_b[:, None]
+    valid_bn &= (reference_lengths_b > 0)[:, None]
+    qb, qn = valid_bn.nonzero(as_tuple=True)
+    if qb.numel() == 0:
+        return out_bnk
+    if grid is None:
+        grid = build_grid(reference_bmd, reference_lengths_b, kernel_per_cell(kk))
+    rows = qb * N + qn
+    found = warp_grid_knn(grid, query_bnd.reshape(B * N, D).index_select(0, rows), qb, kk)
+    out_bnk.view(B * N, k)[rows, :kk] = found
+    left = found[:, 0] == -2
+    if bool(left.any()):  # far from every reference: the torch search's coarser grids
+        lb, ln = qb[left], qn[left]
+        counts = torch.bincount(lb, minlength=B)
+        slot = torch.arange(lb.numel(), device=lb.device) - (counts.cumsum(0) - counts)[lb]
+        q_pad = query_bnd.new_zeros(B, int(counts.max()), D)
+        q_pad[lb, slot] = query_bnd[lb, ln]
+        rest = grid_knn_indices(q_pad, reference_bmd, kk, counts, reference_lengths_b)
+        out_bnk[lb, ln, :kk] = rest[lb, slot]
+    return out_bnk
