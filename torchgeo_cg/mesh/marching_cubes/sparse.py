@@ -23,6 +23,7 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
+from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.mesh.marching_cubes._blocks import band_blocks, lipschitz_blocks
 from torchgeo_cg.mesh.marching_cubes._extract import assemble, extract_group
@@ -93,9 +94,11 @@ def sparse_marching_cubes(
     probabilities, also in the skipped blocks; ``face_weights`` are ones.
 
     ``distributed=True`` (under ``torchrun``, the default process group initialised by
-    the caller): every evaluation is cut into chunks of ``max_points_per_call`` points
-    dealt round-robin over the ranks and all-gathered, so each rank evaluates its share
-    and every rank returns the same mesh, byte-identical to the single-process one.
+    the caller): the points of every evaluation (each pruning level, each group of
+    blocks) are split into one equal share per rank, each rank evaluates its share in
+    chunks of at most ``max_points_per_call`` points, and the shares are all-gathered,
+    so every rank evaluates about ``1 / world`` of the points and returns the same mesh,
+    byte-identical to the single-process one.
 
     Memory: the field is evaluated under ``torch.no_grad()`` in chunks of at most
     ``max_points_per_call`` points, and blocks are processed in groups of about
@@ -186,15 +189,16 @@ def _parse(field, bounds, resolution, iso, lipschitz, band, block, max_points_pe
     check_positive_int(band, "band", low=0)
     check_positive_int(block, "block")
     check_positive_int(max_points_per_call, "max_points_per_call")
-    if ambiguity not in AMBIGUITY_RULES:
-        raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
+    check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
     if not isinstance(distributed, bool):
         raise TypeError(f"distributed: expected a bool, got {type(distributed).__name__}")
     if distributed and not (torch.distributed.is_available()
                             and torch.distributed.is_initialized()):
         raise ValueError("distributed: True needs an initialised default process group "
                          "(torch.distributed.init_process_group, e.g. under torchrun)")
-    iso_t = torch.as_tensor(iso, device=grid.origin.device)
+    # a Python number takes the grid's dtype (never rounded through the default dtype)
+    iso_t = torch.as_tensor(iso, device=grid.origin.device,
+                            dtype=None if isinstance(iso, torch.Tensor) else grid.origin.dtype)
     if iso_t.numel() != 1:
         raise ValueError(f"iso: expected one number, got shape {tuple(iso_t.shape)}")
     iso_t = iso_t.reshape(()).to(grid.origin.dtype)
