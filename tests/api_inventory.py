@@ -316,6 +316,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.marching_cubes": [
         "AMBIGUITY_RULES",
+        "AMBIGUOUS_CASES",
         "MarchingCubes",
         "MarchingCubesResult",
         "lipschitz_bound",
@@ -324,6 +325,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.marching_cubes.dense": [
         "AMBIGUITY_RULES",
+        "AMBIGUOUS_CASES",
         "MarchingCubes",
         "MarchingCubesResult",
         "marching_cubes",

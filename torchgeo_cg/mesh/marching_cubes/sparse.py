@@ -25,6 +25,7 @@ from tqdm.auto import tqdm
 
 from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back
+from torchgeo_cg.mesh.marching_cubes._args import DEFAULT_AMBIGUITY
 from torchgeo_cg.mesh.marching_cubes._blocks import band_blocks, lipschitz_blocks
 from torchgeo_cg.mesh.marching_cubes._extract import assemble, extract_group
 from torchgeo_cg.mesh.marching_cubes._field import (
@@ -34,16 +35,12 @@ from torchgeo_cg.mesh.marching_cubes._field import (
     check_positive_int,
     make_grid,
 )
-from torchgeo_cg.mesh.marching_cubes.dense import (
-    AMBIGUITY_RULES,
-    DEFAULT_AMBIGUITY,
-    MarchingCubesResult,
-)
+from torchgeo_cg.mesh.marching_cubes.dense import AMBIGUITY_RULES, MarchingCubesResult
 
 __all__ = ["sparse_marching_cubes", "lipschitz_bound"]
 
 #: Samples gathered per group of blocks (about): bounds the working memory.
-GROUP_SAMPLES = 1 << 21
+_GROUP_SAMPLES = 1 << 21
 
 
 def sparse_marching_cubes(
@@ -102,7 +99,7 @@ def sparse_marching_cubes(
 
     Memory: the field is evaluated under ``torch.no_grad()`` in chunks of at most
     ``max_points_per_call`` points, and blocks are processed in groups of about
-    ``GROUP_SAMPLES`` samples, so the working memory grows with the active blocks (the
+    ``2**21`` samples, so the working memory grows with the active blocks (the
     surface), not with ``resolution**3``.
 
     Convention:
@@ -162,7 +159,7 @@ def sparse_marching_cubes(
     work = torch.float32 if grid.origin.dtype in (torch.float16, torch.bfloat16) else (
         grid.origin.dtype)
     grad = torch.is_grad_enabled() and (iso_t.requires_grad or _output_needs_grad(field, grid))
-    per_group = max(1, max(GROUP_SAMPLES, max_points_per_call) // (block + 1) ** 3)
+    per_group = max(1, max(_GROUP_SAMPLES, max_points_per_call) // (block + 1) ** 3)
     parts = []
     starts = range(0, blocks.shape[0], per_group)
     for s in tqdm(starts, disable=not progress, desc="sparse_marching_cubes", unit="group"):
@@ -233,7 +230,7 @@ def _empty(grid: Grid, work) -> MarchingCubesResult:
 
 
 #: Activations whose slope is at most 1 everywhere.
-ONE_LIPSCHITZ = (nn.ReLU, nn.Softplus, nn.Tanh, nn.Sigmoid, nn.Identity, nn.Dropout,
+_ONE_LIPSCHITZ = (nn.ReLU, nn.Softplus, nn.Tanh, nn.Sigmoid, nn.Identity, nn.Dropout,
                  nn.Hardtanh, nn.ReLU6, nn.Softsign, nn.Tanhshrink, nn.Hardsigmoid)
 
 
@@ -274,7 +271,7 @@ def lipschitz_bound(module: nn.Module) -> float:
             continue
         elif isinstance(layer, nn.ELU) and 0 <= layer.alpha <= 1:
             continue
-        elif isinstance(layer, nn.Softplus) or isinstance(layer, ONE_LIPSCHITZ):
+        elif isinstance(layer, nn.Softplus) or isinstance(layer, _ONE_LIPSCHITZ):
             continue
         else:
             raise TypeError(f"module: {name} is a {type(layer).__name__}, not known to be "
