@@ -63,7 +63,7 @@ def _slab_plan(cell_id, cases_a, shape):
     return bounds, a_lo, a_next, v_at, w_per
 
 
-def extract_slabbed(vol, args, ambiguity, cell_id, cases_a):
+def extract_slabbed(vol, args, ambiguity, cell_id, cases_a, backend: str = "torch"):
     """Hard mode without a mask and without autograd, slab by slab along the stacked x:
     ``(verts (V, 3), faces (F, 3), normals (V, 3), (verts_per_mesh, faces_per_mesh))`` in
     the working dtype.
@@ -102,7 +102,7 @@ def extract_slabbed(vol, args, ambiguity, cell_id, cases_a):
             n_own = v_at[n + 1] - v_at[n]
             faces, cell_of_face, centres, verts, normals = _slab_mesh(
                 det_vol, det_iso, cell_id[a0:a2], cases_a[a0:a2], a1 - a0,
-                (bounds[n], bounds[n + 1]), ambiguity, args, to_world)
+                (bounds[n], bounds[n + 1]), ambiguity, args, to_world, backend)
             V_sub = verts.shape[0]
             n_c = 0
             if centres is not None:
@@ -156,7 +156,7 @@ def extract_slabbed(vol, args, ambiguity, cell_id, cases_a):
     return verts, faces, normals, counts
 
 
-def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_world):
+def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_world, backend):
     """One slab's faces ``(F, 3)`` (welded ids local to the slab, centres from ``V``), their
     cells, its :class:`Centres` (or None) and its welded vertices and normals ``(V, 3)``.
 
@@ -165,10 +165,10 @@ def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_worl
     """
     B, X, Y, Z = vol.shape
     own_id, own_case = cell_id[:n_own], cases[:n_own]
-    welded = weld(cell_id, cases, (X, Y, Z))
+    welded = weld(cell_id, cases, (X, Y, Z), backend)
     rows, n_tri, tri_table, centre = cell_rows(vol, iso, None, own_id, own_case, ambiguity)
     faces, cell_of_face, tri_row = triangulate(own_id, rows, n_tri, tri_table, welded.key,
-                                               (X, Y, Z), B, layers=layers)
+                                               (X, Y, Z), B, layers=layers, backend=backend)
     centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
     faces[centre_slot] = 0
     centres = None

@@ -24,6 +24,12 @@ import torch
 
 from torchgeo_cg.core.grid import edge_fraction
 from torchgeo_cg.core.numerics import power_of_two_scale
+from torchgeo_cg.mesh.marching_cubes._kernels import (
+    KERNEL_DTYPES,
+    classify_cells,
+    face_lists,
+    weld_edges,
+)
 from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
 __all__ = [
@@ -108,7 +114,7 @@ def _slab_cases(stacked, iso_layer, start, stop, X):
     return case
 
 
-def classify(vol: torch.Tensor, iso_b: torch.Tensor):
+def classify(vol: torch.Tensor, iso_b: torch.Tensor, backend: str = "torch"):
     """Classify every sample and return the mixed cells of the padded cell grid.
 
     The batch is stacked along x, ``(B*X, Y, Z)``, and the cell grid is padded by
@@ -120,6 +126,8 @@ def classify(vol: torch.Tensor, iso_b: torch.Tensor):
     Args:
         vol: ``(B, X, Y, Z)`` contiguous samples (any float dtype: compared as they are).
         iso_b: ``(B,)`` levels (detached).
+        backend: ``"torch"`` or ``"warp"`` (the kernel, for float32/float64 samples with
+            a level of their dtype; the same result).
 
     Returns:
         ``(cell_id (A,), case (A,))`` long: ``cell_id`` is the flat index in
@@ -128,6 +136,8 @@ def classify(vol: torch.Tensor, iso_b: torch.Tensor):
     """
     B, X, Y, Z = vol.shape
     layers = B * X
+    if backend == "warp" and vol.dtype in KERNEL_DTYPES and iso_b.dtype == vol.dtype:
+        return classify_cells(vol.view(layers, Y, Z), iso_b.contiguous(), X)
     slab = max(1, SLAB_CELLS // (Y * Z))  # cell layers (along the stacked x) per slab
     stacked = vol.view(layers, Y, Z)
     iso_layer = iso_b.repeat_interleave(X).view(layers, 1, 1)  # (B*X, 1, 1)
@@ -163,14 +173,17 @@ def lower_crossings(device) -> torch.Tensor:
                         bit0 != ((case_ids >> 1) & 1)], dim=1)
 
 
-def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
+def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes, backend: str = "torch") -> Welded:
     """Vertices of the crossing lower edges (corner 0 against corners 4, 2, 1) of the cells.
 
     Args:
         cell_id, cases: ``(A,)`` from :func:`classify`.
         sizes: ``(X, Y, Z)``.
+        backend: ``"torch"`` or ``"warp"`` (the kernel; the same result).
     """
     X, Y, Z = sizes
+    if backend == "warp":
+        return Welded(*weld_edges(cell_id, cases, sizes))
     vert_cell, d_v = take(lower_crossings(cases.device), cases).nonzero().unbind(1)
     # sorted by (cell, d)
     lower = take(cell_id, vert_cell)
@@ -180,7 +193,7 @@ def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
 
 
 def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
-                layers: tuple[int, int] | None = None):
+                layers: tuple[int, int] | None = None, backend: str = "torch"):
     """Faces of the active cells: table rows -> local edges -> welded vertex ids.
 
     Local edge ``e`` of cell ``c`` is the lower edge (direction ``edge_dir[e]``) of the
@@ -196,6 +209,8 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
         layers: ``(first, stop)`` stacked cell layers holding every cell of ``cell_id``
             (default: all ``B * X``); ``vert_key`` then holds the vertices of those
             layers and of layer ``stop``, and the ids are indices into it.
+        backend: ``"torch"`` or ``"warp"`` (the kernel: each face's vertex ids found by
+            binary search in ``vert_key``; the same result).
 
     Returns:
         ``(faces (F, 3) long, cell_of_face (F,), tri_row (F,))``: ``tri_row`` indexes
@@ -211,6 +226,8 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
     key_delta = torch.cat([key_delta, key_delta.new_zeros(1)])  # the centre: fixed later
     tri_delta = torch.where(tri_table >= 0, key_delta[tri_table.clamp_min(0)], -1)
     tri_delta = tri_delta.view(-1, 3)  # (R * T, 3)
+    if backend == "warp":
+        return face_lists(cell_id, rows, n_tri, tri_delta, tri_table.shape[1], vert_key)
     cell_of_face = torch.repeat_interleave(n_tri)  # (F,) sorted
     first_face = n_tri.cumsum(0).sub_(n_tri)  # (A,)
     slot = torch.arange(cell_of_face.shape[0], device=device) - take(first_face, cell_of_face)

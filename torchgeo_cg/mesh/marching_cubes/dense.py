@@ -81,6 +81,7 @@ from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.coerce import check_module_dtype
 from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.core.numerics import cast_back
+from torchgeo_cg.engine import BACKENDS, resolve_backend
 from torchgeo_cg.mesh.marching_cubes._args import DEFAULT_AMBIGUITY, parse_arguments, world_map
 from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
 from torchgeo_cg.mesh.marching_cubes._slabs import extract_slabbed, wants_slabs
@@ -175,6 +176,7 @@ def marching_cubes(
     temperature: float | torch.Tensor | None = None,
     mask: torch.Tensor | None = None,
     ambiguity: str = DEFAULT_AMBIGUITY,
+    backend: str = "auto",
 ) -> MarchingCubesResult:
     """Extract the ``iso`` level set of one or a batch of volumes as welded triangle meshes.
 
@@ -208,6 +210,11 @@ def marching_cubes(
             vertices no face uses are dropped.
         ambiguity: the rule for ambiguous faces and cells, one of
             :data:`AMBIGUITY_RULES` (see the module docstring).
+        backend: ``"auto"`` | ``"torch"`` | ``"warp"``, resolved by
+            :func:`torchgeo_cg.engine.resolve_backend`: with ``"warp"`` the cube cases,
+            the welded vertices and the face lists of float32/float64 volumes come from
+            compiled kernels (integers only; positions, normals and weights stay torch).
+            The result is identical on both.
 
     Returns:
         :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3) long, normals
@@ -221,8 +228,9 @@ def marching_cubes(
         ShapeError: ``volume`` is not 3D/4D, has a spatial size < 2, or an argument
             has a wrong shape (or length).
         ValueError: ``spacing`` is not finite and positive, ``temperature`` is not
-            positive, ``ambiguity`` is unknown, ``iso`` is NaN, or a sample of ``volume``
-            is NaN (neither inside nor outside; also under a ``mask``).
+            positive, ``ambiguity`` or ``backend`` is unknown, ``iso`` is NaN, or a sample
+            of ``volume`` is NaN (neither inside nor outside; also under a ``mask``).
+        ImportError: ``backend="warp"`` and Warp cannot be loaded.
 
     Example:
         >>> x = torch.linspace(-1.0, 1.0, 5)
@@ -246,22 +254,24 @@ def marching_cubes(
     args = parse_arguments(volume, iso, origin, spacing, temperature, mask)
     check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
     vol = args.vol
+    backend = resolve_backend(backend, vol.device)
     B, X, Y, Z = vol.shape
     if B == 0:
         return _empty_result(vol)
     with torch.no_grad():
-        cell_id, cases_a = classify(vol.detach(), args.iso.detach())
+        cell_id, cases_a = classify(vol.detach(), args.iso.detach(), backend)
     if wants_slabs(cell_id.shape[0], args, _needs_grad(args)):
-        verts, faces, normals, counts = extract_slabbed(vol, args, ambiguity, cell_id, cases_a)
+        verts, faces, normals, counts = extract_slabbed(vol, args, ambiguity, cell_id, cases_a,
+                                                        backend)
         out = vol.dtype
         return MarchingCubesResult(cast_back(verts, out), faces, cast_back(normals, out),
                                    cast_back(verts.new_ones(faces.shape[0]), out), *counts)
     with torch.no_grad():
-        welded = weld(cell_id, cases_a, (X, Y, Z))
+        welded = weld(cell_id, cases_a, (X, Y, Z), backend)
         rows, n_tri, tri_table, centre = cell_rows(vol.detach(), args.iso.detach(), args.mask,
                                                    cell_id, cases_a, ambiguity)
         faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
-                                                   (X, Y, Z), B)
+                                                   (X, Y, Z), B, backend=backend)
         centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
         faces[centre_slot] = 0  # filled by find_centres
         b_a = idiv(cell_id, X * Y * Z) if B > 1 else None  # (A,) volume of each active cell
@@ -342,7 +352,8 @@ class MarchingCubes(nn.Module):
         index``, inside ``f < iso``, faces and normals outward.
 
     Args:
-        iso, origin, spacing, temperature, mask, ambiguity: as in :func:`marching_cubes`.
+        iso, origin, spacing, temperature, mask, ambiguity, backend: as in
+            :func:`marching_cubes`.
 
     Shapes:
         ``forward(volume (X, Y, Z) or (B, X, Y, Z) or Volume) -> MarchingCubesResult``.
@@ -362,10 +373,12 @@ class MarchingCubes(nn.Module):
         temperature: float | torch.Tensor | None = None,
         mask: torch.Tensor | None = None,
         ambiguity: str = DEFAULT_AMBIGUITY,
+        backend: str = "auto",
     ) -> None:
         super().__init__()
         check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
-        self.ambiguity = ambiguity
+        check_choice(backend, BACKENDS, "backend")
+        self.ambiguity, self.backend = ambiguity, backend
         for name, value in (("iso", iso), ("origin", origin), ("spacing", spacing),
                             ("temperature", temperature), ("mask", mask)):
             if isinstance(value, torch.Tensor):
@@ -377,4 +390,4 @@ class MarchingCubes(nn.Module):
         check_module_dtype(self, volume.values if isinstance(volume, Volume) else volume,
                            "volume")
         return marching_cubes(volume, self.iso, self.origin, self.spacing, self.temperature,
-                              self.mask, self.ambiguity)
+                              self.mask, self.ambiguity, self.backend)

@@ -25,6 +25,7 @@ from tqdm.auto import tqdm
 
 from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back
+from torchgeo_cg.engine import resolve_backend
 from torchgeo_cg.mesh.marching_cubes._args import DEFAULT_AMBIGUITY
 from torchgeo_cg.mesh.marching_cubes._blocks import band_blocks, lipschitz_blocks
 from torchgeo_cg.mesh.marching_cubes._extract import assemble, extract_group
@@ -56,6 +57,7 @@ def sparse_marching_cubes(
     ambiguity: str = DEFAULT_AMBIGUITY,
     distributed: bool = False,
     progress: bool = False,
+    backend: str = "auto",
 ) -> MarchingCubesResult:
     """The ``iso`` level set of ``field`` on a ``resolution`` grid, sampling near the surface only.
 
@@ -122,6 +124,9 @@ def sparse_marching_cubes(
         ambiguity: one of :data:`AMBIGUITY_RULES`, as :func:`marching_cubes`.
         distributed: shard the evaluations over the ranks of the default process group.
         progress: tqdm bars over the levels and the groups of blocks.
+        backend: ``"auto"`` | ``"torch"`` | ``"warp"``, as :func:`marching_cubes`:
+            the blocks' cube cases, welded vertices and face lists from kernels; the
+            mesh is identical.
 
     Returns:
         :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3), normals (V, 3),
@@ -134,7 +139,7 @@ def sparse_marching_cubes(
         ShapeError: ``field`` returns a wrong shape, ``bounds`` a wrong shape.
         ValueError: ``field`` returns NaN or values on another device; ``bounds`` is not
             finite or empty; ``resolution`` < 2; ``lipschitz``, ``band``, ``block``,
-            ``max_points_per_call`` or ``ambiguity`` out of range; ``iso`` NaN;
+            ``max_points_per_call``, ``ambiguity`` or ``backend`` out of range; ``iso`` NaN;
             ``distributed`` without an initialised process group.
 
     Example:
@@ -152,6 +157,7 @@ def sparse_marching_cubes(
     """
     grid, iso_t, L, evaluate = _parse(field, bounds, resolution, iso, lipschitz, band, block,
                                       max_points_per_call, ambiguity, distributed)
+    backend = resolve_backend(backend, grid.origin.device)
     if L is None:
         blocks = band_blocks(evaluate, grid, float(iso_t), block, band)
     else:
@@ -164,7 +170,8 @@ def sparse_marching_cubes(
     starts = range(0, blocks.shape[0], per_group)
     for s in tqdm(starts, disable=not progress, desc="sparse_marching_cubes", unit="group"):
         parts.append(extract_group(evaluate, grid, blocks[s:s + per_group], block, iso_t,
-                                   ambiguity, work, place=not grad))  # loop over groups
+                                   ambiguity, work, place=not grad,
+                                   backend=backend))  # loop over groups
     if not parts or all(p.keys.numel() == 0 for p in parts):
         return _empty(grid, work)
     lookup = _grad_lookup(evaluate, grid) if grad else None
