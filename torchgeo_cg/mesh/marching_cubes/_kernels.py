@@ -15,7 +15,8 @@ from typing import Any
 
 import torch
 
-from torchgeo_cg.engine import launch, register_kernels, to_warp
+from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
+from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
 __all__ = ["KERNEL_DTYPES", "classify_cells", "weld_edges", "face_lists"]
 
@@ -24,146 +25,183 @@ KERNEL_DTYPES = (torch.float32, torch.float64)
 
 
 def _build(wp):
+    @wp.kernel
+    def pack_rows(vol: wp.array(dtype=Any), iso: wp.array(dtype=Any), X: int, Y: int, Z: int,
+                  W: int, bits: wp.array(dtype=wp.uint64)):
+        # inside bits of one row (l, j) of samples along z, 64 to a word (each sample
+        # read once)
+        r = wp.tid()
+        level = iso[(r // Y) // X]
+        for w in range(W):
+            word = wp.uint64(0)
+            for t in range(wp.min(64, Z - w * 64)):
+                if vol[r * Z + w * 64 + t] < level:
+                    word = word | (wp.uint64(1) << wp.uint64(t))
+            bits[r * W + w] = word
+
     @wp.func
-    def column_bits(vol: wp.array(dtype=Any), iso: Any, r00: int, r01: int, r10: int,
-                    r11: int, k: int):
-        # inside bits of the four samples (dx, dy) at z = k, at bit 4 dx + 2 dy
-        bits = wp.int32(0)
-        if vol[r00 + k] < iso:
-            bits = bits | 1
-        if vol[r01 + k] < iso:
-            bits = bits | 4
-        if vol[r10 + k] < iso:
-            bits = bits | 16
-        if vol[r11 + k] < iso:
-            bits = bits | 64
-        return bits
+    def shifted(bits: wp.array(dtype=wp.uint64), row: int, w: int, W: int, Z: int):
+        # the inside bits of samples k + 1 at bit k (the last sample replicated)
+        word = bits[row * W + w] >> wp.uint64(1)
+        if w + 1 < W:
+            word = word | (bits[row * W + w + 1] << wp.uint64(63))
+        else:
+            last = wp.uint64((Z - 1) - w * 64)
+            word = word | (((bits[row * W + w] >> last) & wp.uint64(1)) << last)
+        return word
 
     @wp.kernel
-    def classify_rows(vol: wp.array(dtype=Any), iso: wp.array(dtype=Any), X: int, Y: int,
-                      Z: int, write: int, first: wp.array(dtype=wp.int64),
+    def classify_rows(bits: wp.array(dtype=wp.uint64), X: int, Y: int, Z: int, W: int,
+                      write: int, first: wp.array(dtype=wp.int64),
                       count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
                       cases: wp.array(dtype=wp.int64)):
-        # one row (l, j) of cells along z of the stacked (B*X, Y, Z) samples: count its
-        # mixed cells, or write them
+        # one row (l, j) of cells along z: its mixed cells (not all eight corners of one
+        # class), 64 at a time from the packed bits; count them, or write them in order
         r = wp.tid()
         layer = r // Y
         j0 = r - layer * Y
-        b = layer // X
         l1 = layer + 1
-        if layer - b * X == X - 1:  # padded cell: its dx = 1 corners replicate dx = 0
+        if layer - (layer // X) * X == X - 1:  # padded cell: dx = 1 corners replicate dx = 0
             l1 = layer
         j1 = wp.min(j0 + 1, Y - 1)
-        r00 = (layer * Y + j0) * Z
-        r01 = (layer * Y + j1) * Z
-        r10 = (l1 * Y + j0) * Z
-        r11 = (l1 * Y + j1) * Z
-        level = iso[b]
-        lo = column_bits(vol, level, r00, r01, r10, r11, 0)
+        r00 = layer * Y + j0
+        r01 = layer * Y + j1
+        r10 = l1 * Y + j0
+        r11 = l1 * Y + j1
         n = wp.int64(0)
         base = wp.int64(0)
         if write != 0:
             base = first[r]
-        row_start = wp.int64(r00)
-        for k in range(Z):
-            hi = column_bits(vol, level, r00, r01, r10, r11, wp.min(k + 1, Z - 1))
-            case = lo | (hi << 1)
-            if case != 0 and case != 255:
-                if write != 0:
-                    cell_id[base + n] = row_start + wp.int64(k)
-                    cases[base + n] = wp.int64(case)
-                n += wp.int64(1)
-            lo = hi
+        for w in range(W):
+            c0 = bits[r00 * W + w]
+            c2 = bits[r01 * W + w]
+            c4 = bits[r10 * W + w]
+            c6 = bits[r11 * W + w]
+            c1 = shifted(bits, r00, w, W, Z)
+            c3 = shifted(bits, r01, w, W, Z)
+            c5 = shifted(bits, r10, w, W, Z)
+            c7 = shifted(bits, r11, w, W, Z)
+            any_in = c0 | c1 | c2 | c3 | c4 | c5 | c6 | c7
+            all_in = c0 & c1 & c2 & c3 & c4 & c5 & c6 & c7
+            mixed = any_in & (all_in ^ wp.uint64(0xFFFFFFFFFFFFFFFF))
+            if Z - w * 64 < 64:
+                mixed = mixed & ((wp.uint64(1) << wp.uint64(Z - w * 64)) - wp.uint64(1))
+            if mixed != wp.uint64(0):
+                for t in range(64):
+                    u = wp.uint64(t)
+                    if ((mixed >> u) & wp.uint64(1)) != wp.uint64(0):
+                        if write != 0:
+                            one = wp.uint64(1)
+                            case = (((c0 >> u) & one) | (((c1 >> u) & one) << wp.uint64(1))
+                                    | (((c2 >> u) & one) << wp.uint64(2))
+                                    | (((c3 >> u) & one) << wp.uint64(3))
+                                    | (((c4 >> u) & one) << wp.uint64(4))
+                                    | (((c5 >> u) & one) << wp.uint64(5))
+                                    | (((c6 >> u) & one) << wp.uint64(6))
+                                    | (((c7 >> u) & one) << wp.uint64(7)))
+                            cell_id[base + n] = wp.int64(r) * wp.int64(Z) + wp.int64(w * 64 + t)
+                            cases[base + n] = wp.int64(case)
+                        n += wp.int64(1)
         if write == 0:
             count[r] = n
 
     @wp.func
-    def lower_count(case: wp.int64):
-        bit0 = case & wp.int64(1)
-        n = wp.int32(0)
-        if bit0 != ((case >> wp.int64(4)) & wp.int64(1)):
-            n += 1
-        if bit0 != ((case >> wp.int64(2)) & wp.int64(1)):
-            n += 1
-        if bit0 != ((case >> wp.int64(1)) & wp.int64(1)):
-            n += 1
-        return n
+    def crosses(case: wp.int64, corner: wp.int64):
+        # 1 when the lower edge from corner 0 to ``corner`` (4, 2, 1: x, y, z) crosses
+        return (case & wp.int64(1)) ^ ((case >> corner) & wp.int64(1))
 
     @wp.kernel
-    def count_edges(cases: wp.array(dtype=wp.int64), count: wp.array(dtype=wp.int64)):
-        a = wp.tid()
-        count[a] = wp.int64(lower_count(cases[a]))
-
-    @wp.func
-    def write_edge(c: wp.int64, axis: wp.int64, a: wp.int64, v: wp.int64, X: wp.int64,
-                   Y: wp.int64, Z: wp.int64, lower: wp.array(dtype=wp.int64),
-                   d: wp.array(dtype=wp.int64), key: wp.array(dtype=wp.int64),
-                   cell: wp.array(dtype=wp.int64), ijk: wp.array2d(dtype=wp.int64)):
-        lower[v] = c
-        d[v] = axis
-        key[v] = c * wp.int64(3) + axis
-        cell[v] = a
-        ijk[v, 0] = (c // (Y * Z)) % X
-        ijk[v, 1] = (c // Z) % Y
-        ijk[v, 2] = c % Z
+    def count_edges(cases: wp.array(dtype=wp.int64), G: int, count: wp.array(dtype=wp.int64)):
+        # G active cells per thread (a launch copies the arguments once per thread)
+        t = wp.tid()
+        for a in range(t * G, wp.min(t * G + G, cases.shape[0])):
+            case = cases[a]
+            count[a] = (crosses(case, wp.int64(4)) + crosses(case, wp.int64(2))
+                        + crosses(case, wp.int64(1)))
 
     @wp.kernel
     def weld_cells(cell_id: wp.array(dtype=wp.int64), cases: wp.array(dtype=wp.int64),
-                   first: wp.array(dtype=wp.int64), X: wp.int64, Y: wp.int64, Z: wp.int64,
-                   lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
+                   first: wp.array(dtype=wp.int64), G: int, X: wp.int64, Y: wp.int64,
+                   Z: wp.int64, lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
                    key: wp.array(dtype=wp.int64), cell: wp.array(dtype=wp.int64),
                    ijk: wp.array2d(dtype=wp.int64)):
-        # the crossing lower edges (x, y, z: corner 0 against 4, 2, 1) of one active cell
-        a = wp.tid()
-        case = cases[a]
-        c = cell_id[a]
-        v = first[a]
-        aa = wp.int64(a)
-        bit0 = case & wp.int64(1)
-        if bit0 != ((case >> wp.int64(4)) & wp.int64(1)):
-            write_edge(c, wp.int64(0), aa, v, X, Y, Z, lower, d, key, cell, ijk)
-            v = v + wp.int64(1)
-        if bit0 != ((case >> wp.int64(2)) & wp.int64(1)):
-            write_edge(c, wp.int64(1), aa, v, X, Y, Z, lower, d, key, cell, ijk)
-            v = v + wp.int64(1)
-        if bit0 != ((case >> wp.int64(1)) & wp.int64(1)):
-            write_edge(c, wp.int64(2), aa, v, X, Y, Z, lower, d, key, cell, ijk)
-
-    @wp.func
-    def lower_bound(keys: wp.array(dtype=wp.int64), value: wp.int64):
-        lo = wp.int32(0)
-        hi = keys.shape[0]
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if keys[mid] < value:
-                lo = mid + 1
-            else:
-                hi = mid
-        return wp.int64(lo)
+        # the crossing lower edges (x, y, z: corner 0 against 4, 2, 1) of G active cells,
+        # in (cell, axis) order
+        t = wp.tid()
+        for a in range(t * G, wp.min(t * G + G, cases.shape[0])):
+            case = cases[a]
+            c = cell_id[a]
+            row = c // Z
+            i = (row // Y) % X
+            j = row % Y
+            k = c - row * Z
+            nx = crosses(case, wp.int64(4))
+            ny = crosses(case, wp.int64(2))
+            nz = crosses(case, wp.int64(1))
+            for axis in range(3):
+                on = nx
+                at = first[a]
+                if axis == 1:
+                    on = ny
+                    at = first[a] + nx
+                if axis == 2:
+                    on = nz
+                    at = first[a] + nx + ny
+                if on != wp.int64(0):
+                    lower[at] = c
+                    d[at] = wp.int64(axis)
+                    key[at] = c * wp.int64(3) + wp.int64(axis)
+                    cell[at] = wp.int64(a)
+                    ijk[at, 0] = i
+                    ijk[at, 1] = j
+                    ijk[at, 2] = k
 
     @wp.kernel
     def faces_of_cells(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
                        n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
-                       tri_delta: wp.array2d(dtype=wp.int64), T: wp.int64,
-                       vert_key: wp.array(dtype=wp.int64), faces: wp.array2d(dtype=wp.int64),
-                       cell_of_face: wp.array(dtype=wp.int64),
+                       G: int, tri_table: wp.array2d(dtype=wp.int64), T: wp.int64,
+                       edge_dir: wp.array(dtype=wp.int64), edge_off: wp.array2d(dtype=wp.int64),
+                       Y: wp.int64, Z: wp.int64, row_lo: wp.int64,
+                       row_vert: wp.array(dtype=wp.int64), vert_key: wp.array(dtype=wp.int64),
+                       faces: wp.array2d(dtype=wp.int64), cell_of_face: wp.array(dtype=wp.int64),
                        tri_row: wp.array(dtype=wp.int64)):
-        # the triangles of one active cell, local edges mapped to welded vertex ids
-        a = wp.tid()
-        c3 = cell_id[a] * wp.int64(3)
-        for s in range(int(n_tri[a])):
-            f = first[a] + wp.int64(s)
-            row = rows[a] * T + wp.int64(s)
-            faces[f, 0] = lower_bound(vert_key, c3 + tri_delta[int(row), 0])
-            faces[f, 1] = lower_bound(vert_key, c3 + tri_delta[int(row), 1])
-            faces[f, 2] = lower_bound(vert_key, c3 + tri_delta[int(row), 2])
-            cell_of_face[f] = wp.int64(a)
-            tri_row[f] = row
+        # the triangles of G active cells, local edges mapped to welded vertex ids: local
+        # edge e is the lower edge edge_dir[e] of the cell at offset edge_off[e], found in
+        # the vertices of that cell's row (row_vert: first vertex of each row of cells)
+        t = wp.tid()
+        for a in range(t * G, wp.min(t * G + G, cell_id.shape[0])):
+            c = cell_id[a]
+            row_c = c // Z
+            for s in range(int(n_tri[a])):
+                f = first[a] + wp.int64(s)
+                row = rows[a] * T + wp.int64(s)
+                for m in range(3):
+                    e = tri_table[int(row), m]
+                    found = wp.int64(0)  # a centre (e = 12): filled by the caller
+                    if e < wp.int64(12):
+                        dx = edge_off[int(e), 0]
+                        dy = edge_off[int(e), 1]
+                        want = (c + (dx * Y + dy) * Z + edge_off[int(e), 2]) * wp.int64(3) + (
+                            edge_dir[int(e)])
+                        r = int(row_c + dx * Y + dy - row_lo)
+                        lo = row_vert[r]
+                        hi = row_vert[r + 1]
+                        while lo < hi:
+                            mid = (lo + hi) // wp.int64(2)
+                            if vert_key[int(mid)] < want:
+                                lo = mid + wp.int64(1)
+                            else:
+                                hi = mid
+                        found = lo
+                    faces[f, m] = found
+                cell_of_face[f] = wp.int64(a)
+                tri_row[f] = row
 
     for T in (wp.float32, wp.float64):
-        wp.overload(classify_rows, {"vol": wp.array(dtype=T), "iso": wp.array(dtype=T)})
-    return SimpleNamespace(classify_rows=classify_rows, count_edges=count_edges,
-                           weld_cells=weld_cells, faces_of_cells=faces_of_cells)
+        wp.overload(pack_rows, {"vol": wp.array(dtype=T), "iso": wp.array(dtype=T)})
+    return SimpleNamespace(pack_rows=pack_rows, classify_rows=classify_rows,
+                           count_edges=count_edges, weld_cells=weld_cells,
+                           faces_of_cells=faces_of_cells)
 
 
 _kernels = register_kernels(_build)
@@ -182,19 +220,30 @@ def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
     k = _kernels()
     layers, Y, Z = stacked.shape
     device = stacked.device
-    rows = layers * Y
+    rows, W = layers * Y, (Z + 63) // 64
+    bits = torch.empty(rows * W, dtype=torch.int64, device=device)
+    bits_w = to_warp(bits, dtype=load_warp().uint64)
+    launch(k.pack_rows, rows, [to_warp(stacked.reshape(-1)), to_warp(iso_b), X, Y, Z, W,
+                               bits_w], device)
     count = torch.empty(rows, dtype=torch.long, device=device)
     empty = torch.empty(0, dtype=torch.long, device=device)
-    vol_w, iso_w = to_warp(stacked.reshape(-1)), to_warp(iso_b)
-    launch(k.classify_rows, rows, [vol_w, iso_w, X, Y, Z, 0, to_warp(empty), to_warp(count),
+    launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 0, to_warp(empty), to_warp(count),
                                    to_warp(empty), to_warp(empty)], device)
     first, total = _exclusive(count)
     cell_id = torch.empty(total, dtype=torch.long, device=device)
     cases = torch.empty(total, dtype=torch.long, device=device)
     if total:
-        launch(k.classify_rows, rows, [vol_w, iso_w, X, Y, Z, 1, to_warp(first), to_warp(count),
+        launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 1, to_warp(first), to_warp(count),
                                        to_warp(cell_id), to_warp(cases)], device)
     return cell_id, cases
+
+
+#: Active cells per thread of the per-cell kernels.
+_CELLS_PER_THREAD = 64
+
+
+def _threads(n: int) -> int:
+    return (n + _CELLS_PER_THREAD - 1) // _CELLS_PER_THREAD
 
 
 def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
@@ -202,30 +251,39 @@ def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
     cells, sorted by ``(cell, d)``, as ``_steps.weld``."""
     k = _kernels()
     X, Y, Z = sizes
-    device = cell_id.device
+    device, G = cell_id.device, _CELLS_PER_THREAD
     count = torch.empty_like(cases)
-    launch(k.count_edges, cases.shape[0], [to_warp(cases), to_warp(count)], device)
+    launch(k.count_edges, _threads(cases.shape[0]), [to_warp(cases), G, to_warp(count)],
+           device)
     first, total = _exclusive(count)
     out = [torch.empty(total, dtype=torch.long, device=device) for _ in range(4)]
     ijk = torch.empty(total, 3, dtype=torch.long, device=device)
-    launch(k.weld_cells, cell_id.shape[0],
-           [to_warp(cell_id), to_warp(cases), to_warp(first), X, Y, Z,
+    launch(k.weld_cells, _threads(cell_id.shape[0]),
+           [to_warp(cell_id), to_warp(cases), to_warp(first), G, X, Y, Z,
             *(to_warp(o) for o in out), to_warp(ijk)], device)
     return (*out, ijk)
 
 
-def face_lists(cell_id, rows, n_tri, tri_delta, T: int, vert_key):
+def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     """``(faces (F, 3), cell_of_face (F,), tri_row (F,))`` long, as ``_steps.triangulate``
-    (the entries of centre vertices are left undefined: the caller fills them)."""
+    (the entries of centre vertices are 0: the caller fills them). ``layers``: the
+    stacked cell layers ``(first, stop)`` of the cells; ``vert_key`` holds the vertices
+    of those layers and of layer ``stop``."""
     k = _kernels()
-    device = cell_id.device
+    X, Y, Z = sizes
+    device, G = cell_id.device, _CELLS_PER_THREAD
     rows, n_tri = rows.long(), n_tri.long()
     first, total = _exclusive(n_tri)
+    edge_dir, edge_off = (t.long().contiguous() for t in corner_tables(device)[:2])
+    row_lo = layers[0] * Y
+    row_starts = torch.arange(row_lo, (layers[1] + 1) * Y + 1, device=device) * (3 * Z)
+    row_vert = torch.searchsorted(vert_key, row_starts)
     faces = torch.empty(total, 3, dtype=torch.long, device=device)
     cell_of_face = torch.empty(total, dtype=torch.long, device=device)
     tri_row = torch.empty(total, dtype=torch.long, device=device)
-    launch(k.faces_of_cells, cell_id.shape[0],
-           [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first),
-            to_warp(tri_delta), T, to_warp(vert_key), to_warp(faces), to_warp(cell_of_face),
-            to_warp(tri_row)], device)
+    launch(k.faces_of_cells, _threads(cell_id.shape[0]),
+           [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first), G,
+            to_warp(tri_table.reshape(-1, 3).long()), tri_table.shape[1], to_warp(edge_dir),
+            to_warp(edge_off), Y, Z, row_lo, to_warp(row_vert), to_warp(vert_key),
+            to_warp(faces), to_warp(cell_of_face), to_warp(tri_row)], device)
     return faces, cell_of_face, tri_row

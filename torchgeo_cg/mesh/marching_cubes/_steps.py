@@ -218,6 +218,9 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
         :func:`add_centres` to fill.
     """
     X, Y, Z = sizes
+    if backend == "warp":
+        return face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes,
+                          (0, batch * X) if layers is None else layers)
     YZ = Y * Z
     device = cell_id.device
     edge_dir, edge_off = corner_tables(device)[:2]
@@ -226,8 +229,6 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
     key_delta = torch.cat([key_delta, key_delta.new_zeros(1)])  # the centre: fixed later
     tri_delta = torch.where(tri_table >= 0, key_delta[tri_table.clamp_min(0)], -1)
     tri_delta = tri_delta.view(-1, 3)  # (R * T, 3)
-    if backend == "warp":
-        return face_lists(cell_id, rows, n_tri, tri_delta, tri_table.shape[1], vert_key)
     cell_of_face = torch.repeat_interleave(n_tri)  # (F,) sorted
     first_face = n_tri.cumsum(0).sub_(n_tri)  # (A,)
     slot = torch.arange(cell_of_face.shape[0], device=device) - take(first_face, cell_of_face)
