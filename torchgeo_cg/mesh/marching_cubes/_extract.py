@@ -22,6 +22,7 @@ import torch
 
 from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
 from torchgeo_cg.mesh.marching_cubes._field import FieldEvaluator, Grid
+from torchgeo_cg.mesh.marching_cubes._kernels import kernel_backend
 from torchgeo_cg.mesh.marching_cubes._steps import (
     Centres,
     Welded,
@@ -121,6 +122,7 @@ def extract_group(evaluate: FieldEvaluator, grid: Grid, blocks: torch.Tensor, bl
     last = torch.tensor(grid.sizes, device=blocks.device) - 1
     inside_grid = (ijk <= last).all(-1).view(G, S, S, S)  # cells' far corners in the grid
     iso_b = iso.detach().to(vols.dtype).expand(G)
+    backend = kernel_backend(backend, vols)
     cell_id, cases = classify(vols, iso_b, backend)
     welded = weld(cell_id, cases, (S, S, S), backend)
     rows, n_tri, tri_table, centre = cell_rows(vols, iso_b, inside_grid, cell_id, cases,

@@ -18,10 +18,22 @@ import torch
 from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
 from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
-__all__ = ["KERNEL_DTYPES", "classify_cells", "weld_edges", "face_lists"]
+__all__ = ["KERNEL_DTYPES", "kernel_backend", "classify_cells", "weld_edges", "face_lists"]
 
 #: Sample dtypes the kernels read.
 KERNEL_DTYPES = (torch.float32, torch.float64)
+
+
+def kernel_backend(backend: str, samples: torch.Tensor) -> str:
+    """``backend`` (resolved: ``"torch"`` or ``"warp"``), or ``"torch"`` where a kernel
+    cannot read ``samples``' memory (a wrapper of a ``torch.func`` transform has none)."""
+    if backend != "warp":
+        return backend
+    try:
+        samples.data_ptr()
+    except RuntimeError:
+        return "torch"
+    return backend
 
 
 def _build(wp):

@@ -84,6 +84,7 @@ from torchgeo_cg.core.numerics import cast_back
 from torchgeo_cg.engine import BACKENDS, resolve_backend
 from torchgeo_cg.mesh.marching_cubes._args import DEFAULT_AMBIGUITY, parse_arguments, world_map
 from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
+from torchgeo_cg.mesh.marching_cubes._kernels import kernel_backend
 from torchgeo_cg.mesh.marching_cubes._slabs import extract_slabbed, wants_slabs
 from torchgeo_cg.mesh.marching_cubes._steps import (
     Welded,
@@ -254,7 +255,7 @@ def marching_cubes(
     args = parse_arguments(volume, iso, origin, spacing, temperature, mask)
     check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
     vol = args.vol
-    backend = resolve_backend(backend, vol.device)
+    backend = kernel_backend(resolve_backend(backend, vol.device), vol)
     B, X, Y, Z = vol.shape
     if B == 0:
         return _empty_result(vol)
