@@ -190,3 +190,18 @@ def test_bad_backend_names_the_argument():
         MarchingCubes(backend="fast")
     with pytest.raises(ValueError, match="backend"):
         sparse_marching_cubes(lambda p: p.norm(dim=1) - 0.5, (-1.0, 1.0), 8, backend="fast")
+
+
+def test_guide_section_runs():
+    """The ```python blocks of docs/guide/marching_cubes_kernels.md run in order, in one
+    namespace."""
+    import re
+    from pathlib import Path
+
+    page = Path(__file__).resolve().parents[2] / "docs" / "guide" / "marching_cubes_kernels.md"
+    blocks = re.findall(r"```python\n(.*?)```", page.read_text(encoding="utf-8"), re.S)
+    assert len(blocks) == 2
+    namespace: dict = {}
+    for block in blocks:
+        exec(compile(block, str(page), "exec"), namespace)
+    assert namespace["fast"].faces.shape[0] > 0
