@@ -7,7 +7,8 @@ are computed from them by the same torch code. Every step is count, prefix sum (
 write: one thread per row of cells (classification) or per active cell, each writing
 its own contiguous range, so the order is the torch order and no atomic decides it.
 
-The kernels read ``float32`` and ``float64`` samples; other dtypes stay on the torch path.
+The kernels read ``float32`` and ``float64`` samples of volumes under ``2**31`` samples
+(Warp indexes arrays with 32-bit integers); other volumes stay on the torch path.
 """
 
 from types import SimpleNamespace
@@ -18,10 +19,13 @@ import torch
 from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
 from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
-__all__ = ["KERNEL_DTYPES", "kernel_backend", "classify_cells", "weld_edges", "face_lists"]
+__all__ = ["KERNEL_DTYPES", "KERNEL_MAX_SAMPLES", "kernel_backend", "classify_cells", "weld_edges",
+           "face_lists"]
 
 #: Sample dtypes the kernels read.
 KERNEL_DTYPES = (torch.float32, torch.float64)
+#: Samples (and cells) a kernel indexes at most.
+KERNEL_MAX_SAMPLES = 2**31 - 1
 
 
 def kernel_backend(backend: str, samples: torch.Tensor) -> str:
@@ -250,12 +254,14 @@ def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
     return cell_id, cases
 
 
-#: Active cells per thread of the per-cell kernels.
-_CELLS_PER_THREAD = 64
+def _per_thread(device: torch.device) -> int:
+    """Active cells per thread of the per-cell kernels: 64 on the CPU (a launch copies the
+    arguments once per thread), 1 on CUDA (one thread per cell keeps the device busy)."""
+    return 1 if device.type == "cuda" else 64
 
 
-def _threads(n: int) -> int:
-    return (n + _CELLS_PER_THREAD - 1) // _CELLS_PER_THREAD
+def _threads(n: int, per: int) -> int:
+    return (n + per - 1) // per
 
 
 def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
@@ -263,14 +269,15 @@ def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
     cells, sorted by ``(cell, d)``, as ``_steps.weld``."""
     k = _kernels()
     X, Y, Z = sizes
-    device, G = cell_id.device, _CELLS_PER_THREAD
+    device = cell_id.device
+    G = _per_thread(device)
     count = torch.empty_like(cases)
-    launch(k.count_edges, _threads(cases.shape[0]), [to_warp(cases), G, to_warp(count)],
+    launch(k.count_edges, _threads(cases.shape[0], G), [to_warp(cases), G, to_warp(count)],
            device)
     first, total = _exclusive(count)
     out = [torch.empty(total, dtype=torch.long, device=device) for _ in range(4)]
     ijk = torch.empty(total, 3, dtype=torch.long, device=device)
-    launch(k.weld_cells, _threads(cell_id.shape[0]),
+    launch(k.weld_cells, _threads(cell_id.shape[0], G),
            [to_warp(cell_id), to_warp(cases), to_warp(first), G, X, Y, Z,
             *(to_warp(o) for o in out), to_warp(ijk)], device)
     return (*out, ijk)
@@ -283,7 +290,8 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     of those layers and of layer ``stop``."""
     k = _kernels()
     X, Y, Z = sizes
-    device, G = cell_id.device, _CELLS_PER_THREAD
+    device = cell_id.device
+    G = _per_thread(device)
     rows, n_tri = rows.long(), n_tri.long()
     first, total = _exclusive(n_tri)
     edge_dir, edge_off = (t.long().contiguous() for t in corner_tables(device)[:2])
@@ -293,7 +301,7 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     faces = torch.empty(total, 3, dtype=torch.long, device=device)
     cell_of_face = torch.empty(total, dtype=torch.long, device=device)
     tri_row = torch.empty(total, dtype=torch.long, device=device)
-    launch(k.faces_of_cells, _threads(cell_id.shape[0]),
+    launch(k.faces_of_cells, _threads(cell_id.shape[0], G),
            [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first), G,
             to_warp(tri_table.reshape(-1, 3).long()), tri_table.shape[1], to_warp(edge_dir),
             to_warp(edge_off), Y, Z, row_lo, to_warp(row_vert), to_warp(vert_key),

@@ -26,6 +26,7 @@ from torchgeo_cg.core.grid import edge_fraction
 from torchgeo_cg.core.numerics import power_of_two_scale
 from torchgeo_cg.mesh.marching_cubes._kernels import (
     KERNEL_DTYPES,
+    KERNEL_MAX_SAMPLES,
     classify_cells,
     face_lists,
     weld_edges,
@@ -136,7 +137,8 @@ def classify(vol: torch.Tensor, iso_b: torch.Tensor, backend: str = "torch"):
     """
     B, X, Y, Z = vol.shape
     layers = B * X
-    if backend == "warp" and vol.dtype in KERNEL_DTYPES and iso_b.dtype == vol.dtype:
+    if (backend == "warp" and vol.dtype in KERNEL_DTYPES and iso_b.dtype == vol.dtype
+            and vol.numel() <= KERNEL_MAX_SAMPLES):
         return classify_cells(vol.view(layers, Y, Z), iso_b.contiguous(), X)
     slab = max(1, SLAB_CELLS // (Y * Z))  # cell layers (along the stacked x) per slab
     stacked = vol.view(layers, Y, Z)
