@@ -127,30 +127,22 @@ def _build(wp):
         return (case & wp.int64(1)) ^ ((case >> corner) & wp.int64(1))
 
     @wp.kernel
-    def count_edges(cases: wp.array(dtype=wp.int64), G: int, count: wp.array(dtype=wp.int64)):
-        # G active cells per thread (a launch copies the arguments once per thread)
-        t = wp.tid()
-        for a in range(t * G, wp.min(t * G + G, cases.shape[0])):
-            case = cases[a]
-            count[a] = (crosses(case, wp.int64(4)) + crosses(case, wp.int64(2))
-                        + crosses(case, wp.int64(1)))
-
-    @wp.kernel
-    def weld_cells(cell_id: wp.array(dtype=wp.int64), cases: wp.array(dtype=wp.int64),
-                   first: wp.array(dtype=wp.int64), G: int, X: wp.int64, Y: wp.int64,
-                   Z: wp.int64, lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
-                   key: wp.array(dtype=wp.int64), cell: wp.array(dtype=wp.int64),
-                   ijk: wp.array2d(dtype=wp.int64)):
-        # the crossing lower edges (x, y, z: corner 0 against 4, 2, 1) of G active cells,
-        # in (cell, axis) order
-        t = wp.tid()
-        for a in range(t * G, wp.min(t * G + G, cases.shape[0])):
+    def weld_rows(cell_id: wp.array(dtype=wp.int64), cases: wp.array(dtype=wp.int64),
+                  first: wp.array(dtype=wp.int64), row_cell: wp.array(dtype=wp.int64),
+                  row_lo: wp.int64, X: wp.int64, Y: wp.int64, Z: wp.int64,
+                  lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
+                  key: wp.array(dtype=wp.int64), cell: wp.array(dtype=wp.int64),
+                  ijk: wp.array2d(dtype=wp.int64)):
+        # the crossing lower edges (x, y, z: corner 0 against 4, 2, 1) of the active cells
+        # of one row (l, j) of cells, in (cell, axis) order (the row's i, j computed once)
+        rr = wp.tid()
+        r = row_lo + wp.int64(rr)
+        i = (r // Y) % X
+        j = r % Y
+        for a in range(int(row_cell[rr]), int(row_cell[rr + 1])):
             case = cases[a]
             c = cell_id[a]
-            row = c // Z
-            i = (row // Y) % X
-            j = row % Y
-            k = c - row * Z
+            k = c - r * Z
             nx = crosses(case, wp.int64(4))
             ny = crosses(case, wp.int64(2))
             nz = crosses(case, wp.int64(1))
@@ -172,22 +164,46 @@ def _build(wp):
                     ijk[at, 1] = j
                     ijk[at, 2] = k
 
+    @wp.func
+    def advance(vert_key: wp.array(dtype=wp.int64), p: wp.int64, end: wp.int64,
+                want: wp.int64):
+        # the first vertex at or after p (and before end) whose key is not below want
+        q = p
+        while q < end and vert_key[int(q)] < want:
+            q = q + wp.int64(1)
+        return q
+
     @wp.kernel
-    def faces_of_cells(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
-                       n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
-                       G: int, tri_table: wp.array2d(dtype=wp.int64), T: wp.int64,
-                       edge_dir: wp.array(dtype=wp.int64), edge_off: wp.array2d(dtype=wp.int64),
-                       Y: wp.int64, Z: wp.int64, row_lo: wp.int64,
-                       row_vert: wp.array(dtype=wp.int64), vert_key: wp.array(dtype=wp.int64),
-                       faces: wp.array2d(dtype=wp.int64), cell_of_face: wp.array(dtype=wp.int64),
-                       tri_row: wp.array(dtype=wp.int64)):
-        # the triangles of G active cells, local edges mapped to welded vertex ids: local
-        # edge e is the lower edge edge_dir[e] of the cell at offset edge_off[e], found in
-        # the vertices of that cell's row (row_vert: first vertex of each row of cells)
-        t = wp.tid()
-        for a in range(t * G, wp.min(t * G + G, cell_id.shape[0])):
+    def faces_of_rows(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
+                      n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
+                      row_cell: wp.array(dtype=wp.int64), tri_table: wp.array2d(dtype=wp.int64),
+                      T: wp.int64, edge_dir: wp.array(dtype=wp.int64),
+                      edge_off: wp.array2d(dtype=wp.int64), Y: wp.int64, Z: wp.int64,
+                      row_lo: wp.int64, row_vert: wp.array(dtype=wp.int64),
+                      vert_key: wp.array(dtype=wp.int64), faces: wp.array2d(dtype=wp.int64),
+                      cell_of_face: wp.array(dtype=wp.int64),
+                      tri_row: wp.array(dtype=wp.int64)):
+        # the triangles of the active cells of one row (l, j) of cells, in order: local
+        # edge e is the lower edge edge_dir[e] of the cell at offset edge_off[e], a vertex
+        # of one of the rows (l + dx, j + dy); one cursor per such row moves forward with
+        # the cells (keys grow along the row), so each vertex is found in a few steps
+        rr = wp.tid()
+        r = row_lo + wp.int64(rr)
+        p00 = row_vert[rr]
+        p01 = row_vert[rr + 1]
+        p10 = row_vert[rr + int(Y)]
+        p11 = row_vert[rr + int(Y) + 1]
+        e00 = row_vert[rr + 1]
+        e01 = row_vert[rr + 2]
+        e10 = row_vert[rr + int(Y) + 1]
+        e11 = row_vert[rr + int(Y) + 2]
+        for a in range(int(row_cell[rr]), int(row_cell[rr + 1])):
             c = cell_id[a]
-            row_c = c // Z
+            k = c - r * Z
+            p00 = advance(vert_key, p00, e00, (r * Z + k) * wp.int64(3))
+            p01 = advance(vert_key, p01, e01, ((r + wp.int64(1)) * Z + k) * wp.int64(3))
+            p10 = advance(vert_key, p10, e10, ((r + Y) * Z + k) * wp.int64(3))
+            p11 = advance(vert_key, p11, e11, ((r + Y + wp.int64(1)) * Z + k) * wp.int64(3))
             for s in range(int(n_tri[a])):
                 f = first[a] + wp.int64(s)
                 row = rows[a] * T + wp.int64(s)
@@ -199,16 +215,18 @@ def _build(wp):
                         dy = edge_off[int(e), 1]
                         want = (c + (dx * Y + dy) * Z + edge_off[int(e), 2]) * wp.int64(3) + (
                             edge_dir[int(e)])
-                        r = int(row_c + dx * Y + dy - row_lo)
-                        lo = row_vert[r]
-                        hi = row_vert[r + 1]
-                        while lo < hi:
-                            mid = (lo + hi) // wp.int64(2)
-                            if vert_key[int(mid)] < want:
-                                lo = mid + wp.int64(1)
-                            else:
-                                hi = mid
-                        found = lo
+                        start = p00
+                        end = e00
+                        if dx == wp.int64(0) and dy == wp.int64(1):
+                            start = p01
+                            end = e01
+                        if dx == wp.int64(1) and dy == wp.int64(0):
+                            start = p10
+                            end = e10
+                        if dx == wp.int64(1) and dy == wp.int64(1):
+                            start = p11
+                            end = e11
+                        found = advance(vert_key, start, end, want)
                     faces[f, m] = found
                 cell_of_face[f] = wp.int64(a)
                 tri_row[f] = row
@@ -216,8 +234,8 @@ def _build(wp):
     for T in (wp.float32, wp.float64):
         wp.overload(pack_rows, {"vol": wp.array(dtype=T), "iso": wp.array(dtype=T)})
     return SimpleNamespace(pack_rows=pack_rows, classify_rows=classify_rows,
-                           count_edges=count_edges, weld_cells=weld_cells,
-                           faces_of_cells=faces_of_cells)
+                           weld_rows=weld_rows,
+                           faces_of_rows=faces_of_rows)
 
 
 _kernels = register_kernels(_build)
@@ -254,14 +272,10 @@ def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
     return cell_id, cases
 
 
-def _per_thread(device: torch.device) -> int:
-    """Active cells per thread of the per-cell kernels: 64 on the CPU (a launch copies the
-    arguments once per thread), 1 on CUDA (one thread per cell keeps the device busy)."""
-    return 1 if device.type == "cuda" else 64
-
-
-def _threads(n: int, per: int) -> int:
-    return (n + per - 1) // per
+def _row_ranges(cell_id: torch.Tensor, Z: int, row_lo: int, n_rows: int) -> torch.Tensor:
+    """``(n_rows + 1,)``: the first active cell of each row of cells from ``row_lo``."""
+    starts = torch.arange(row_lo, row_lo + n_rows + 1, device=cell_id.device) * Z
+    return torch.searchsorted(cell_id, starts)
 
 
 def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
@@ -270,16 +284,20 @@ def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
     k = _kernels()
     X, Y, Z = sizes
     device = cell_id.device
-    G = _per_thread(device)
-    count = torch.empty_like(cases)
-    launch(k.count_edges, _threads(cases.shape[0], G), [to_warp(cases), G, to_warp(count)],
-           device)
+    every = torch.arange(256, device=device)
+    flips = every ^ ((every & 1) * 0b10110)  # bits 4, 2, 1 set where they differ from bit 0
+    per_case = ((flips >> 4) & 1) + ((flips >> 2) & 1) + ((flips >> 1) & 1)  # (256,)
+    count = torch.index_select(per_case, 0, cases)  # crossing lower edges per cell
     first, total = _exclusive(count)
     out = [torch.empty(total, dtype=torch.long, device=device) for _ in range(4)]
     ijk = torch.empty(total, 3, dtype=torch.long, device=device)
-    launch(k.weld_cells, _threads(cell_id.shape[0], G),
-           [to_warp(cell_id), to_warp(cases), to_warp(first), G, X, Y, Z,
-            *(to_warp(o) for o in out), to_warp(ijk)], device)
+    if cell_id.shape[0]:
+        row_lo = int(cell_id[0]) // Z
+        n_rows = int(cell_id[-1]) // Z + 1 - row_lo
+        launch(k.weld_rows, n_rows,
+               [to_warp(cell_id), to_warp(cases), to_warp(first),
+                to_warp(_row_ranges(cell_id, Z, row_lo, n_rows)), row_lo, X, Y, Z,
+                *(to_warp(o) for o in out), to_warp(ijk)], device)
     return (*out, ijk)
 
 
@@ -291,19 +309,21 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     k = _kernels()
     X, Y, Z = sizes
     device = cell_id.device
-    G = _per_thread(device)
     rows, n_tri = rows.long(), n_tri.long()
     first, total = _exclusive(n_tri)
-    edge_dir, edge_off = (t.long().contiguous() for t in corner_tables(device)[:2])
-    row_lo = layers[0] * Y
-    row_starts = torch.arange(row_lo, (layers[1] + 1) * Y + 1, device=device) * (3 * Z)
-    row_vert = torch.searchsorted(vert_key, row_starts)
+    edge_dir, edge_off = corner_tables(device)[:2]
+    row_lo, n_rows = layers[0] * Y, (layers[1] - layers[0]) * Y
+    # first vertex of each row of the layers and of two more rows of layer ``stop``
+    # (its vertices end at its last row's start plus its own)
+    row_keys = torch.arange(row_lo, row_lo + n_rows + Y + 2, device=device) * (3 * Z)
+    row_vert = torch.searchsorted(vert_key, row_keys)
+    row_cell = _row_ranges(cell_id, Z, row_lo, n_rows)
     faces = torch.empty(total, 3, dtype=torch.long, device=device)
     cell_of_face = torch.empty(total, dtype=torch.long, device=device)
     tri_row = torch.empty(total, dtype=torch.long, device=device)
-    launch(k.faces_of_cells, _threads(cell_id.shape[0], G),
-           [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first), G,
-            to_warp(tri_table.reshape(-1, 3).long()), tri_table.shape[1], to_warp(edge_dir),
+    launch(k.faces_of_rows, n_rows,
+           [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first), to_warp(row_cell),
+            to_warp(tri_table.reshape(-1, 3)), tri_table.shape[1], to_warp(edge_dir),
             to_warp(edge_off), Y, Z, row_lo, to_warp(row_vert), to_warp(vert_key),
             to_warp(faces), to_warp(cell_of_face), to_warp(tri_row)], device)
     return faces, cell_of_face, tri_row
