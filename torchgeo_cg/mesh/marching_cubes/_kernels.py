@@ -7,24 +7,23 @@ are computed from them by the same torch code. Every step is count, prefix sum (
 write: one thread per row of cells (classification) or per active cell, each writing
 its own contiguous range, so the order is the torch order and no atomic decides it.
 
-The kernels read ``float32`` and ``float64`` samples of volumes under ``2**31`` samples
-(Warp indexes arrays with 32-bit integers); other volumes stay on the torch path.
+The samples are compared with ``iso`` by torch (the same ``torch.lt`` as the torch path,
+any float dtype) and packed 64 to a word; the kernels read those bits. Volumes of
+``2**31`` samples or more stay on the torch path (Warp indexes arrays with 32-bit
+integers).
 """
 
 from types import SimpleNamespace
-from typing import Any
 
 import torch
 
 from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
 from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
-__all__ = ["KERNEL_DTYPES", "KERNEL_MAX_SAMPLES", "kernel_backend", "classify_cells", "weld_edges",
+__all__ = ["KERNEL_MAX_SAMPLES", "kernel_backend", "classify_cells", "weld_edges",
            "face_lists"]
 
-#: Sample dtypes the kernels read.
-KERNEL_DTYPES = (torch.float32, torch.float64)
-#: Samples (and cells) a kernel indexes at most.
+#: Samples of a volume the kernels take at most.
 KERNEL_MAX_SAMPLES = 2**31 - 1
 
 
@@ -41,20 +40,6 @@ def kernel_backend(backend: str, samples: torch.Tensor) -> str:
 
 
 def _build(wp):
-    @wp.kernel
-    def pack_rows(vol: wp.array(dtype=Any), iso: wp.array(dtype=Any), X: int, Y: int, Z: int,
-                  W: int, bits: wp.array(dtype=wp.uint64)):
-        # inside bits of one row (l, j) of samples along z, 64 to a word (each sample
-        # read once)
-        r = wp.tid()
-        level = iso[(r // Y) // X]
-        for w in range(W):
-            word = wp.uint64(0)
-            for t in range(wp.min(64, Z - w * 64)):
-                if vol[r * Z + w * 64 + t] < level:
-                    word = word | (wp.uint64(1) << wp.uint64(t))
-            bits[r * W + w] = word
-
     @wp.func
     def shifted(bits: wp.array(dtype=wp.uint64), row: int, w: int, W: int, Z: int):
         # the inside bits of samples k + 1 at bit k (the last sample replicated)
@@ -231,9 +216,7 @@ def _build(wp):
                 cell_of_face[f] = wp.int64(a)
                 tri_row[f] = row
 
-    for T in (wp.float32, wp.float64):
-        wp.overload(pack_rows, {"vol": wp.array(dtype=T), "iso": wp.array(dtype=T)})
-    return SimpleNamespace(pack_rows=pack_rows, classify_rows=classify_rows,
+    return SimpleNamespace(classify_rows=classify_rows,
                            weld_rows=weld_rows,
                            faces_of_rows=faces_of_rows)
 
@@ -248,17 +231,40 @@ def _exclusive(count: torch.Tensor) -> tuple[torch.Tensor, int]:
     return inclusive - count, total
 
 
+#: Samples per slab of the inside test (its buffers stay small).
+_SLAB_SAMPLES = 1 << 19
+#: Multiplying eight 0/1 bytes (little-endian int64) by this puts byte ``i`` at bit
+#: ``56 + i`` of the product: eight inside flags packed into one byte.
+_PACK8 = 0x0102040810204080
+
+
+def _packed_inside(stacked: torch.Tensor, iso_b: torch.Tensor, X: int, W: int) -> torch.Tensor:
+    """``(B*X*Y * W,)`` int64 words: bit ``t`` of word ``w`` of row ``(l, j)`` is set when
+    sample ``(l, j, 64 w + t)`` is inside (``f < iso``), slab by slab (torch compares
+    and packs 64 flags to a word in a few vectorised operations)."""
+    layers, Y, Z = stacked.shape
+    iso_layer = iso_b.repeat_interleave(X).view(layers, 1, 1)
+    bits = torch.empty(layers * Y, W, dtype=torch.int64, device=stacked.device)
+    slab = max(1, _SLAB_SAMPLES // (Y * W * 64))
+    for l0 in range(0, layers, slab):  # loop over slabs of layers, not over samples
+        l1 = min(layers, l0 + slab)
+        inside = torch.zeros(l1 - l0, Y, W * 64, dtype=torch.bool, device=stacked.device)
+        torch.lt(stacked[l0:l1], iso_layer[l0:l1], out=inside[..., :Z])
+        flags = inside.view(torch.uint8).view(-1, 8).view(torch.int64)  # 8 flags a value
+        packed = (flags * _PACK8).bitwise_right_shift_(56).bitwise_and_(0xFF)
+        bits[l0 * Y:l1 * Y] = packed.to(torch.uint8).view(-1, W * 8).view(torch.int64)
+    return bits.view(-1)
+
+
 def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
     """``(cell_id (A,), case (A,))`` long of the mixed cells of the padded cell grid of
-    ``stacked (B*X, Y, Z)`` (``iso_b (B,)`` of its dtype), as ``_steps.classify``."""
+    ``stacked (B*X, Y, Z)`` (levels ``iso_b (B,)``), as ``_steps.classify``."""
     k = _kernels()
     layers, Y, Z = stacked.shape
     device = stacked.device
     rows, W = layers * Y, (Z + 63) // 64
-    bits = torch.empty(rows * W, dtype=torch.int64, device=device)
+    bits = _packed_inside(stacked, iso_b, X, W)
     bits_w = to_warp(bits, dtype=load_warp().uint64)
-    launch(k.pack_rows, rows, [to_warp(stacked.reshape(-1)), to_warp(iso_b), X, Y, Z, W,
-                               bits_w], device)
     count = torch.empty(rows, dtype=torch.long, device=device)
     empty = torch.empty(0, dtype=torch.long, device=device)
     launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 0, to_warp(empty), to_warp(count),

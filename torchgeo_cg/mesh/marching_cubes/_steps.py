@@ -25,7 +25,6 @@ import torch
 from torchgeo_cg.core.grid import edge_fraction
 from torchgeo_cg.core.numerics import power_of_two_scale
 from torchgeo_cg.mesh.marching_cubes._kernels import (
-    KERNEL_DTYPES,
     KERNEL_MAX_SAMPLES,
     classify_cells,
     face_lists,
@@ -127,8 +126,8 @@ def classify(vol: torch.Tensor, iso_b: torch.Tensor, backend: str = "torch"):
     Args:
         vol: ``(B, X, Y, Z)`` contiguous samples (any float dtype: compared as they are).
         iso_b: ``(B,)`` levels (detached).
-        backend: ``"torch"`` or ``"warp"`` (the kernel, for float32/float64 samples with
-            a level of their dtype; the same result).
+        backend: ``"torch"`` or ``"warp"`` (the kernel on the packed inside bits; the
+            same result).
 
     Returns:
         ``(cell_id (A,), case (A,))`` long: ``cell_id`` is the flat index in
@@ -137,8 +136,7 @@ def classify(vol: torch.Tensor, iso_b: torch.Tensor, backend: str = "torch"):
     """
     B, X, Y, Z = vol.shape
     layers = B * X
-    if (backend == "warp" and vol.dtype in KERNEL_DTYPES and iso_b.dtype == vol.dtype
-            and vol.numel() <= KERNEL_MAX_SAMPLES):
+    if backend == "warp" and vol.numel() <= KERNEL_MAX_SAMPLES:
         return classify_cells(vol.view(layers, Y, Z), iso_b.contiguous(), X)
     slab = max(1, SLAB_CELLS // (Y * Z))  # cell layers (along the stacked x) per slab
     stacked = vol.view(layers, Y, Z)

@@ -213,9 +213,9 @@ def marching_cubes(
             :data:`AMBIGUITY_RULES` (see the module docstring).
         backend: ``"auto"`` | ``"torch"`` | ``"warp"``, resolved by
             :func:`torchgeo_cg.engine.resolve_backend`: with ``"warp"`` the cube cases,
-            the welded vertices and the face lists of float32/float64 volumes come from
-            compiled kernels (integers only; positions, normals and weights stay torch).
-            The result is identical on both.
+            the welded vertices and the face lists come from compiled kernels (integers
+            only; positions, normals and weights stay torch). The result is identical
+            on both.
 
     Returns:
         :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3) long, normals
