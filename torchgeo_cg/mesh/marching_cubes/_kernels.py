@@ -278,10 +278,12 @@ def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
     return cell_id, cases
 
 
-def _row_ranges(cell_id: torch.Tensor, Z: int, row_lo: int, n_rows: int) -> torch.Tensor:
-    """``(n_rows + 1,)``: the first active cell of each row of cells from ``row_lo``."""
-    starts = torch.arange(row_lo, row_lo + n_rows + 1, device=cell_id.device) * Z
-    return torch.searchsorted(cell_id, starts)
+def _row_ranges(ids: torch.Tensor, per_row: int, row_lo: int, n_rows: int) -> torch.Tensor:
+    """``(n_rows + 1,)``: entry ``i`` counts the sorted ``ids`` of rows before ``row_lo + i``
+    (``per_row`` ids a row), i.e. where row ``row_lo + i`` starts in ``ids``."""
+    row = ids // per_row if per_row & (per_row - 1) else ids >> (per_row.bit_length() - 1)
+    bucket = (row - (row_lo - 1)).clamp_(0, n_rows + 1)  # 0: rows before row_lo
+    return torch.bincount(bucket, minlength=n_rows + 2).cumsum(0)[:n_rows + 1]
 
 
 def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
@@ -321,8 +323,7 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     row_lo, n_rows = layers[0] * Y, (layers[1] - layers[0]) * Y
     # first vertex of each row of the layers and of two more rows of layer ``stop``
     # (its vertices end at its last row's start plus its own)
-    row_keys = torch.arange(row_lo, row_lo + n_rows + Y + 2, device=device) * (3 * Z)
-    row_vert = torch.searchsorted(vert_key, row_keys)
+    row_vert = _row_ranges(vert_key, 3 * Z, row_lo, n_rows + Y + 1)
     row_cell = _row_ranges(cell_id, Z, row_lo, n_rows)
     faces = torch.empty(total, 3, dtype=torch.long, device=device)
     cell_of_face = torch.empty(total, dtype=torch.long, device=device)
