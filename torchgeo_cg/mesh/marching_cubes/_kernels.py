@@ -21,7 +21,7 @@ from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
 from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
 __all__ = ["KERNEL_MAX_SAMPLES", "kernel_backend", "classify_cells", "weld_edges",
-           "face_lists"]
+           "face_lists", "vertex_stencils"]
 
 #: Samples of a volume the kernels take at most.
 KERNEL_MAX_SAMPLES = 2**31 - 1
@@ -216,9 +216,39 @@ def _build(wp):
                 cell_of_face[f] = wp.int64(a)
                 tri_row[f] = row
 
+    @wp.kernel
+    def stencils(lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
+                 ijk: wp.array2d(dtype=wp.int64), G: int, X: wp.int64, Y: wp.int64,
+                 Z: wp.int64, index: wp.array2d(dtype=wp.int64),
+                 axes: wp.array2d(dtype=wp.int64), steps: wp.array2d(dtype=wp.int64)):
+        # the ten samples each vertex reads: its edge's ends, and for the two axes across
+        # the edge the differences at both ends (central, one-sided on the border)
+        t = wp.tid()
+        for v in range(t * G, wp.min(t * G + G, lower.shape[0])):
+            lo = lower[v]
+            dv = d[v]
+            up_end = lo + wp.where(dv == wp.int64(0), Y * Z, wp.where(dv == wp.int64(1), Z,
+                                                                        wp.int64(1)))
+            index[0, v] = lo
+            index[1, v] = up_end
+            for s in range(2):
+                a = (dv + wp.int64(1 + s)) % wp.int64(3)
+                c = ijk[v, int(a)]
+                last = wp.where(a == wp.int64(0), X, wp.where(a == wp.int64(1), Y, Z))
+                stride = wp.where(a == wp.int64(0), Y * Z, wp.where(a == wp.int64(1), Z,
+                                                                     wp.int64(1)))
+                up = wp.where(c < last - wp.int64(1), wp.int64(1), wp.int64(0))
+                down = wp.where(c > wp.int64(0), wp.int64(1), wp.int64(0))
+                index[2 + 4 * s, v] = lo + up * stride
+                index[3 + 4 * s, v] = lo - down * stride
+                index[4 + 4 * s, v] = up_end + up * stride
+                index[5 + 4 * s, v] = up_end - down * stride
+                axes[s, v] = a
+                steps[s, v] = up + down
+
     return SimpleNamespace(classify_rows=classify_rows,
                            weld_rows=weld_rows,
-                           faces_of_rows=faces_of_rows)
+                           faces_of_rows=faces_of_rows, stencils=stencils)
 
 
 _kernels = register_kernels(_build)
@@ -334,3 +364,20 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
             to_warp(edge_off), Y, Z, row_lo, to_warp(row_vert), to_warp(vert_key),
             to_warp(faces), to_warp(cell_of_face), to_warp(tri_row)], device)
     return faces, cell_of_face, tri_row
+
+
+def vertex_stencils(lower, d, corner_ijk, sizes):
+    """``(index (10, V), axes [2 x (V,)], steps [2 x (V,)])`` long, as
+    ``_steps.sample_stencil``."""
+    k = _kernels()
+    X, Y, Z = sizes
+    device = lower.device
+    V = lower.shape[0]
+    index = torch.empty(10, V, dtype=torch.long, device=device)
+    axes = torch.empty(2, V, dtype=torch.long, device=device)
+    steps = torch.empty(2, V, dtype=torch.long, device=device)
+    G = 1 if device.type == "cuda" else 64
+    launch(k.stencils, (V + G - 1) // G,
+           [to_warp(lower), to_warp(d), to_warp(corner_ijk), G, X, Y, Z, to_warp(index),
+            to_warp(axes), to_warp(steps)], device)
+    return index, list(axes.unbind(0)), list(steps.unbind(0))

@@ -176,7 +176,7 @@ def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_worl
         centres = find_centres(own_id, rows, *centre, welded.key, cell_of_face, centre_slot,
                                faces, (X, Y, Z))
     b_sub = idiv(take(cell_id, welded.cell), X * Y * Z) if B > 1 else None
-    verts, normals = interpolate(vol, welded, b_sub, args, to_world)
+    verts, normals = interpolate(vol, welded, b_sub, args, to_world, backend)
     return faces, cell_of_face, centres, verts, normals
 
 

@@ -28,6 +28,7 @@ from torchgeo_cg.mesh.marching_cubes._kernels import (
     KERNEL_MAX_SAMPLES,
     classify_cells,
     face_lists,
+    vertex_stencils,
     weld_edges,
 )
 from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
@@ -412,7 +413,7 @@ def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
     return samples / scale, iso_v / scale
 
 
-def interpolate(vol, welded: Welded, b_v, args, to_world):
+def interpolate(vol, welded: Welded, b_v, args, to_world, backend: str = "torch"):
     """Vertex positions and unit normals, in ``args.work`` precision.
 
     Args:
@@ -421,12 +422,18 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
         b_v: ``(V,)`` volume of each vertex, or None for one volume.
         args: the parsed arguments (``iso``, ``spacing``, ``work``).
         to_world: ``(index_pos (V, 3), b_v) -> (V, 3)`` world positions.
+        backend: ``"torch"`` or ``"warp"`` (the samples' indices from a kernel; the
+            same integers).
 
     Returns:
         ``(verts (V, 3), normals (V, 3))``.
     """
     sizes = vol.shape[1:]
-    stencil, axes, steps = sample_stencil(welded, sizes)
+    if backend == "warp":
+        stencil, axes, steps = vertex_stencils(welded.lower, welded.d, welded.corner_ijk,
+                                               sizes)
+    else:
+        stencil, axes, steps = sample_stencil(welded, sizes)
     flat = vol.reshape(-1)
     samples = take(flat, stencil.view(-1)).view(stencil.shape).to(args.work)  # (10, V)
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)

@@ -283,7 +283,7 @@ def marching_cubes(
         if centre is not None:
             centres = find_centres(cell_id, rows, *centre, welded.key, cell_of_face,
                                    centre_slot, faces, (X, Y, Z))
-    verts, normals = interpolate(vol, welded, b_v, args, world_map(args))
+    verts, normals = interpolate(vol, welded, b_v, args, world_map(args), backend)
     if centres is not None:
         verts, normals = place_centres(verts, normals, centres)
         if B > 1:  # keep the vertices grouped by volume
