@@ -162,16 +162,16 @@ def _build(wp):
     def faces_of_rows(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
                       n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
                       row_cell: wp.array(dtype=wp.int64), tri_table: wp.array2d(dtype=wp.int64),
-                      T: wp.int64, edge_dir: wp.array(dtype=wp.int64),
-                      edge_off: wp.array2d(dtype=wp.int64), Y: wp.int64, Z: wp.int64,
-                      row_lo: wp.int64, row_vert: wp.array(dtype=wp.int64),
+                      T: wp.int64, edge_code: wp.array2d(dtype=wp.int64), Y: wp.int64,
+                      Z: wp.int64, row_lo: wp.int64, row_vert: wp.array(dtype=wp.int64),
                       vert_key: wp.array(dtype=wp.int64), faces: wp.array2d(dtype=wp.int64),
                       cell_of_face: wp.array(dtype=wp.int64),
                       tri_row: wp.array(dtype=wp.int64)):
         # the triangles of the active cells of one row (l, j) of cells, in order: local
-        # edge e is the lower edge edge_dir[e] of the cell at offset edge_off[e], a vertex
-        # of one of the rows (l + dx, j + dy); one cursor per such row moves forward with
-        # the cells (keys grow along the row), so each vertex is found in a few steps
+        # edge e is a vertex of row (l + dx, j + dy) (edge_code[e, 0] = 2 dx + dy) with the
+        # key 3 (that row's first sample + k) + edge_code[e, 1]; one cursor per such row
+        # moves forward with the cells (keys grow along a row), so each vertex is found in
+        # a few steps
         rr = wp.tid()
         r = row_lo + wp.int64(rr)
         p00 = row_vert[rr]
@@ -185,33 +185,30 @@ def _build(wp):
         for a in range(int(row_cell[rr]), int(row_cell[rr + 1])):
             c = cell_id[a]
             k = c - r * Z
-            p00 = advance(vert_key, p00, e00, (r * Z + k) * wp.int64(3))
-            p01 = advance(vert_key, p01, e01, ((r + wp.int64(1)) * Z + k) * wp.int64(3))
-            p10 = advance(vert_key, p10, e10, ((r + Y) * Z + k) * wp.int64(3))
-            p11 = advance(vert_key, p11, e11, ((r + Y + wp.int64(1)) * Z + k) * wp.int64(3))
+            b00 = (r * Z + k) * wp.int64(3)
+            b01 = b00 + wp.int64(3) * Z
+            b10 = b00 + wp.int64(3) * Y * Z
+            b11 = b10 + wp.int64(3) * Z
+            p00 = advance(vert_key, p00, e00, b00)
+            p01 = advance(vert_key, p01, e01, b01)
+            p10 = advance(vert_key, p10, e10, b10)
+            p11 = advance(vert_key, p11, e11, b11)
             for s in range(int(n_tri[a])):
                 f = first[a] + wp.int64(s)
                 row = rows[a] * T + wp.int64(s)
                 for m in range(3):
-                    e = tri_table[int(row), m]
-                    found = wp.int64(0)  # a centre (e = 12): filled by the caller
-                    if e < wp.int64(12):
-                        dx = edge_off[int(e), 0]
-                        dy = edge_off[int(e), 1]
-                        want = (c + (dx * Y + dy) * Z + edge_off[int(e), 2]) * wp.int64(3) + (
-                            edge_dir[int(e)])
-                        start = p00
-                        end = e00
-                        if dx == wp.int64(0) and dy == wp.int64(1):
-                            start = p01
-                            end = e01
-                        if dx == wp.int64(1) and dy == wp.int64(0):
-                            start = p10
-                            end = e10
-                        if dx == wp.int64(1) and dy == wp.int64(1):
-                            start = p11
-                            end = e11
-                        found = advance(vert_key, start, end, want)
+                    e = int(tri_table[int(row), m])
+                    q = edge_code[e, 0]
+                    off = edge_code[e, 1]
+                    found = wp.int64(0)  # a centre (e = 12, q = 4): filled by the caller
+                    if q == wp.int64(0):
+                        found = advance(vert_key, p00, e00, b00 + off)
+                    elif q == wp.int64(1):
+                        found = advance(vert_key, p01, e01, b01 + off)
+                    elif q == wp.int64(2):
+                        found = advance(vert_key, p10, e10, b10 + off)
+                    elif q == wp.int64(3):
+                        found = advance(vert_key, p11, e11, b11 + off)
                     faces[f, m] = found
                 cell_of_face[f] = wp.int64(a)
                 tri_row[f] = row
@@ -350,6 +347,11 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     rows, n_tri = rows.long(), n_tri.long()
     first, total = _exclusive(n_tri)
     edge_dir, edge_off = corner_tables(device)[:2]
+    # local edge e: the row (2 dx + dy) holding its vertex and its key within that row's
+    # cell k (3 dz + d); the centre (e = 12) gets row 4 (none)
+    edge_code = torch.stack([edge_off[:, 0] * 2 + edge_off[:, 1], edge_off[:, 2] * 3 + edge_dir],
+                            dim=1)
+    edge_code = torch.cat([edge_code, edge_code.new_tensor([[4, 0]])])  # (13, 2)
     row_lo, n_rows = layers[0] * Y, (layers[1] - layers[0]) * Y
     # first vertex of each row of the layers and of two more rows of layer ``stop``
     # (its vertices end at its last row's start plus its own)
@@ -360,8 +362,8 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     tri_row = torch.empty(total, dtype=torch.long, device=device)
     launch(k.faces_of_rows, n_rows,
            [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first), to_warp(row_cell),
-            to_warp(tri_table.reshape(-1, 3)), tri_table.shape[1], to_warp(edge_dir),
-            to_warp(edge_off), Y, Z, row_lo, to_warp(row_vert), to_warp(vert_key),
+            to_warp(tri_table.reshape(-1, 3)), tri_table.shape[1], to_warp(edge_code), Y, Z,
+            row_lo, to_warp(row_vert), to_warp(vert_key),
             to_warp(faces), to_warp(cell_of_face), to_warp(tri_row)], device)
     return faces, cell_of_face, tri_row
 
