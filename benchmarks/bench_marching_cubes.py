@@ -8,6 +8,9 @@ Targets (ratio ours / peer, torch at 1 thread against single-threaded peers), al
   against our ``ambiguity="separate"`` (the cost of the decider);
 - forward+backward at 128^3: <= 2.0x our forward;
 - a batch of 8 volumes at 64^3 in one call: <= 0.5x looping scikit-image;
+- the kernels (``backend="warp"``: cube cases, welding and face lists compiled) on the
+  256^3 torus: <= 0.4x scikit-image, and on the batch of 8 x 64^3: <= 0.5x its loop;
+  the torch steps (``backend="torch"``) reported beside them;
 - peak memory at 256^3 and 512^3 (extra memory above the input, in a fresh process with
   ``MALLOC_MMAP_THRESHOLD_`` fixed, so glibc's adaptive threshold does not change the
   peak between identical runs): <= 1.5x scikit-image's.
@@ -120,6 +123,15 @@ def cases(quick: bool) -> list[Case]:
             target=0.6,
             extra=extra,
         ))
+        for backend, target in (("warp", 0.4 if n >= 256 else None), ("torch", None)):
+            out.append(Case(
+                name=f"marching_cubes torus {n}^3 f32 fwd asymptotic backend={backend}",
+                ours=lambda v=vol, b=backend: marching_cubes(v, ambiguity="asymptotic",
+                                                             backend=b),
+                peer=lambda v=vol_np: sk_marching_cubes(v, 0.0),
+                peer_name=sk_name,
+                target=target,
+            ))
         if mcubes is not None:
             out.append(Case(
                 name=f"marching_cubes torus {n}^3 f32 fwd asymptotic (vs PyMCubes)",
@@ -171,4 +183,12 @@ def cases(quick: bool) -> list[Case]:
         peer_name=f"{sk_name} loop",
         target=0.5,
     ))
+    for backend, target in (("warp", 0.5), ("torch", None)):
+        out.append(Case(
+            name=f"marching_cubes batch {batch}x{n}^3 f32 one call asymptotic backend={backend}",
+            ours=lambda b=backend: marching_cubes(vols, ambiguity="asymptotic", backend=b),
+            peer=lambda: [sk_marching_cubes(v, 0.0) for v in vols_np],
+            peer_name=f"{sk_name} loop",
+            target=target,
+        ))
     return out

@@ -358,6 +358,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.marching_cubes": [
         "AMBIGUITY_RULES",
+        "AMBIGUOUS_CASES",
         "MarchingCubes",
         "MarchingCubesResult",
         "lipschitz_bound",
@@ -366,6 +367,7 @@ INVENTORY: dict[str, list[str]] = {
     ],
     "torchgeo_cg.mesh.marching_cubes.dense": [
         "AMBIGUITY_RULES",
+        "AMBIGUOUS_CASES",
         "MarchingCubes",
         "MarchingCubesResult",
         "marching_cubes",

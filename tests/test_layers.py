@@ -41,10 +41,7 @@ FUNCTION_LEVEL_OK: dict[tuple[str, str], str] = {
         "matplotlib (extra 'plot') only for the figure, not for the fit",
 }
 #: Private imports across modules that stay, with why: (file, imported name) -> reason.
-PRIVATE_OK: dict[tuple[str, str], str] = {
-    ("viz/marching_cubes.py", "torchgeo_cg.mesh.marching_cubes._tables"):
-        "the figure colours the ambiguous cases of the table",
-}
+PRIVATE_OK: dict[tuple[str, str], str] = {}
 #: The command line imports each subcommand's work only when it runs, so that
 #: ``torchgeo-cg --help`` does not import torch and every area.
 FUNCTION_LEVEL_OK_UNDER = ("cli/",)

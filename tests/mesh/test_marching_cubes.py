@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -1103,6 +1104,7 @@ def test_half_positions_saturate_instead_of_inf():
 
 # ------------------------------------------------------------ slabs of a large volume
 _dense = importlib.import_module("torchgeo_cg.mesh.marching_cubes.dense")
+_slabs = importlib.import_module("torchgeo_cg.mesh.marching_cubes._slabs")
 
 
 def _slab_fields():
@@ -1130,12 +1132,12 @@ def test_slabbed_equals_one_go_bit_for_bit(name, ambiguity, monkeypatch):
         B = vol.shape[0]
         frame = {"origin": torch.linspace(-1, 1, 3 * B, dtype=vol.dtype).view(B, 3),
                  "spacing": torch.linspace(0.5, 2, 3 * B, dtype=vol.dtype).view(B, 3)}
-    monkeypatch.setattr(_dense, "SLAB_ACTIVE", 1 << 40)
+    monkeypatch.setattr(_slabs, "SLAB_ACTIVE", 1 << 40)
     whole = marching_cubes(vol, ambiguity=ambiguity, **frame)
-    monkeypatch.setattr(_dense, "SLAB_ACTIVE", 256)
+    monkeypatch.setattr(_slabs, "SLAB_ACTIVE", 256)
     seen = []
-    real = _dense.triangulate
-    monkeypatch.setattr(_dense, "triangulate",
+    real = _slabs.triangulate
+    monkeypatch.setattr(_slabs, "triangulate",
                         lambda *a, **k: seen.append(k["layers"]) or real(*a, **k))
     slabbed = marching_cubes(vol, ambiguity=ambiguity, **frame)
     assert len(seen) > 3  # it did run in slabs
@@ -1167,9 +1169,9 @@ def test_slabbed_equals_one_go_with_near_overflow_samples(monkeypatch):
     for huge in (1e308, 2.0**1022):
         field = torch.where(X < 0, sphere * huge, mixed)
         assert field.abs().max() > torch.finfo(torch.float64).max / 4
-        monkeypatch.setattr(_dense, "SLAB_ACTIVE", 1 << 40)
+        monkeypatch.setattr(_slabs, "SLAB_ACTIVE", 1 << 40)
         whole = marching_cubes(field)
-        monkeypatch.setattr(_dense, "SLAB_ACTIVE", 64)
+        monkeypatch.setattr(_slabs, "SLAB_ACTIVE", 64)
         slabbed = marching_cubes(field)
         for got, want in zip(slabbed, whole):
             assert torch.equal(got, want)
@@ -1187,10 +1189,10 @@ def test_slabs_keep_the_autograd_path(monkeypatch):
     one-go path); without, in slabs; the values agree exactly."""
     X, Y, Z, h, lo = grid(30)
     vol = torus(X, Y, Z)
-    monkeypatch.setattr(_dense, "SLAB_ACTIVE", 128)
+    monkeypatch.setattr(_slabs, "SLAB_ACTIVE", 128)
     calls = []
-    real = _dense._slabbed
-    monkeypatch.setattr(_dense, "_slabbed", lambda *a: calls.append(1) or real(*a))
+    real = _dense.extract_slabbed
+    monkeypatch.setattr(_dense, "extract_slabbed", lambda *a: calls.append(1) or real(*a))
     plain = marching_cubes(vol)
     assert calls == [1]
     v = vol.clone().requires_grad_(True)
@@ -1198,11 +1200,60 @@ def test_slabs_keep_the_autograd_path(monkeypatch):
     assert calls == [1]  # not slabbed
     assert torch.equal(tracked.verts, plain.verts) and torch.equal(tracked.faces, plain.faces)
     tracked.verts.sum().backward()
-    monkeypatch.setattr(_dense, "SLAB_ACTIVE", 1 << 40)
+    monkeypatch.setattr(_slabs, "SLAB_ACTIVE", 1 << 40)
     v2 = vol.clone().requires_grad_(True)
     marching_cubes(v2).verts.sum().backward()
     assert torch.equal(v.grad, v2.grad)
     with torch.no_grad():
-        monkeypatch.setattr(_dense, "SLAB_ACTIVE", 128)
+        monkeypatch.setattr(_slabs, "SLAB_ACTIVE", 128)
         assert torch.equal(marching_cubes(v).verts, plain.verts)
     assert calls == [1, 1]
+
+
+# ------------------------------------------------------------ public names
+def test_ambiguous_cases_is_edge_connectivity_by_brute_force():
+    """The public flag of a case: its inside or its outside corners are not connected
+    along the cube's edges (union-find over the 12 edges, in the test)."""
+    from torchgeo_cg.mesh.marching_cubes import AMBIGUOUS_CASES
+
+    corners = [((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8)]
+    edges = [(a, b) for a in range(8) for b in range(a + 1, 8)
+             if sum(abs(p - q) for p, q in zip(corners[a], corners[b])) == 1]
+
+    def connected(members):
+        parent = {c: c for c in members}
+
+        def root(c):
+            while parent[c] != c:
+                c = parent[c]
+            return c
+        for a, b in edges:
+            if a in parent and b in parent:
+                parent[root(a)] = root(b)
+        return len({root(c) for c in members}) <= 1
+
+    want = tuple(not (connected([c for c in range(8) if (case >> c) & 1])
+                      and connected([c for c in range(8) if not (case >> c) & 1]))
+                 for case in range(256))
+    assert len(edges) == 12 and AMBIGUOUS_CASES == want and sum(want) == 128
+
+
+@pytest.mark.parametrize("module", ["torchgeo_cg.mesh.marching_cubes.dense",
+                                    "torchgeo_cg.mesh.marching_cubes.sparse",
+                                    "torchgeo_cg.mesh.marching_cubes"])
+def test_public_modules_define_only_public_or_private_names(module):
+    """Every name a public module defines (function, class, assignment) is in its
+    ``__all__`` or ``_``-prefixed."""
+    import ast
+
+    mod = importlib.import_module(module)
+    tree = ast.parse(Path(mod.__file__).read_text(encoding="utf-8"))
+    defined = []
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            defined.append(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            defined += [t.id for t in targets if isinstance(t, ast.Name)]
+    third = [n for n in defined if not n.startswith("_") and n not in mod.__all__]
+    assert third == []

@@ -9,8 +9,7 @@ import torch
 
 from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.mesh.data import mri_phantom
-from torchgeo_cg.mesh.marching_cubes import marching_cubes
-from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS
+from torchgeo_cg.mesh.marching_cubes import AMBIGUOUS_CASES, marching_cubes
 from torchgeo_cg.sdf.grid import sample_grid
 from torchgeo_cg.sdf.primitives import torus
 from torchgeo_cg.viz._style import plt, save
@@ -141,7 +140,7 @@ def _ambiguity(path: Path) -> None:
                           .norm(dim=1).sum() / 2)
     except ImportError:  # pragma: no cover - scikit-image is an optional peer
         pass
-    ambiguous = torch.tensor(AMBIGUOUS)
+    ambiguous = torch.tensor(AMBIGUOUS_CASES)
     fig = plt.figure(figsize=(12, 5.5))
     for col, rule in enumerate(("separate", "asymptotic")):
         mesh = marching_cubes(volume, iso, ambiguity=rule)

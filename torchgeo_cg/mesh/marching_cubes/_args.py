@@ -14,9 +14,13 @@ import torch
 
 from torchgeo_cg.core.check import ShapeError, check_float
 from torchgeo_cg.core.coerce import as_tensor_like
-from torchgeo_cg.core.grid import Volume
+from torchgeo_cg.core.grid import Volume, index_to_world
+from torchgeo_cg.mesh.marching_cubes._steps import take
 
-__all__ = ["MarchingArgs", "parse_arguments"]
+__all__ = ["MarchingArgs", "parse_arguments", "world_map", "DEFAULT_AMBIGUITY"]
+
+#: The default ``ambiguity`` rule of the marching-cubes functions.
+DEFAULT_AMBIGUITY = "asymptotic"
 
 _HALF = (torch.float16, torch.bfloat16)
 
@@ -143,3 +147,14 @@ def _is_shared(value) -> bool:
     """Whether an origin/spacing value is one ``(3,)`` frame for the whole batch."""
     shape = value.shape if isinstance(value, (torch.Tensor, np.ndarray)) else np.shape(value)
     return len(shape) == 1
+
+
+def world_map(args):
+    """Index -> world ``f(index_pos, b_v)``: the grid module's :func:`index_to_world` for
+    one shared frame, per-volume frames gathered by ``b_v`` otherwise."""
+    if args.shared_frame:
+        origin, spacing = args.origin[0], args.spacing[0]
+        return lambda index_pos, b_v: index_to_world(index_pos, origin, spacing)
+    return lambda index_pos, b_v: (
+        (args.origin[:1] if b_v is None else take(args.origin, b_v))
+        + (args.spacing[:1] if b_v is None else take(args.spacing, b_v)) * index_pos)

@@ -22,6 +22,7 @@ import torch
 
 from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
 from torchgeo_cg.mesh.marching_cubes._field import FieldEvaluator, Grid
+from torchgeo_cg.mesh.marching_cubes._kernels import kernel_backend
 from torchgeo_cg.mesh.marching_cubes._steps import (
     Centres,
     Welded,
@@ -105,10 +106,12 @@ def _global_flat(local: torch.Tensor, base: torch.Tensor, S: int, grid: Grid) ->
 
 
 def extract_group(evaluate: FieldEvaluator, grid: Grid, blocks: torch.Tensor, block: int,
-                  iso: torch.Tensor, ambiguity: str, work, place: bool) -> GroupMesh:
+                  iso: torch.Tensor, ambiguity: str, work, place: bool,
+                  backend: str = "torch") -> GroupMesh:
     """Marching cubes on the blocks ``(G, 3)``; see the module docstring.
 
-    ``place``: compute the positions and normals here (no autograd).
+    ``place``: compute the positions and normals here (no autograd); ``backend``:
+    ``"torch"`` or ``"warp"`` (classification, welding and faces as kernels).
     """
     S, G = block + 1, blocks.shape[0]
     ijk, flat = _block_samples(blocks, grid, block)
@@ -119,12 +122,13 @@ def extract_group(evaluate: FieldEvaluator, grid: Grid, blocks: torch.Tensor, bl
     last = torch.tensor(grid.sizes, device=blocks.device) - 1
     inside_grid = (ijk <= last).all(-1).view(G, S, S, S)  # cells' far corners in the grid
     iso_b = iso.detach().to(vols.dtype).expand(G)
-    cell_id, cases = classify(vols, iso_b)
-    welded = weld(cell_id, cases, (S, S, S))
+    backend = kernel_backend(backend, vols)
+    cell_id, cases = classify(vols, iso_b, backend)
+    welded = weld(cell_id, cases, (S, S, S), backend)
     rows, n_tri, tri_table, centre = cell_rows(vols, iso_b, inside_grid, cell_id, cases,
                                                ambiguity)
     faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
-                                               (S, S, S), G)
+                                               (S, S, S), G, backend=backend)
     centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
     faces[centre_slot] = 0
     centres = None

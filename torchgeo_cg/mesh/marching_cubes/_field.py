@@ -4,9 +4,11 @@ The grid follows THE grid convention (``volume[i, j, k]`` at ``origin + spacing 
 k)``, the last sample on the upper bound): the sample coordinates are the entries of
 one ``linspace`` per axis, exactly as ``sample_grid`` makes them, so a sample evaluated
 here is bit for bit the sample of the dense grid. The field is evaluated in chunks of
-at most ``max_points_per_call`` points; under ``distributed=True`` the chunks are dealt
-round-robin over the ranks and gathered, so every rank holds every value and the
-values equal the single-process ones byte for byte.
+at most ``max_points_per_call`` points; under ``distributed=True`` each evaluation's
+points are split into one equal share per rank, each share evaluated in chunks, and the
+shares gathered, so every rank holds every value and the values equal the
+single-process ones byte for byte (for a field that gives the same value for a point
+in any chunk).
 """
 
 from __future__ import annotations
@@ -111,7 +113,8 @@ class FieldEvaluator:
     Args:
         field: callable ``(N, 3) -> (N,)`` or ``(N, 1)``.
         chunk: points per call.
-        distributed: deal the chunks over the ranks of the default process group.
+        distributed: split the points into equal shares over the ranks of the default
+            process group.
     """
 
     def __init__(self, field: Callable, chunk: int, distributed: bool) -> None:
@@ -155,16 +158,17 @@ class FieldEvaluator:
             return self._sharded(make, n, grid)
 
     def _sharded(self, make, n: int, grid: Grid) -> torch.Tensor:
-        """Chunk ``c`` on rank ``c % world``; every rank gets every value."""
-        n_chunks = math.ceil(n / self.chunk)
-        per = math.ceil(n_chunks / self.world)
-        mine = grid.origin.new_zeros(per, self.chunk)
-        for p, c in enumerate(range(self.rank, n_chunks, self.world)):  # loop over chunks
-            vals = self._call(make(slice(c * self.chunk, min(n, (c + 1) * self.chunk))))
-            mine[p, :vals.shape[0]] = vals
+        """Rank ``r`` evaluates the ``r``-th of ``world`` equal shares of the ``n`` points
+        (in chunks); every rank gets every value."""
+        share = math.ceil(n / self.world)
+        lo, hi = min(n, self.rank * share), min(n, (self.rank + 1) * share)
+        mine = grid.origin.new_zeros(share)
+        for s in range(lo, hi, self.chunk):  # loop over chunks
+            e = min(hi, s + self.chunk)
+            mine[s - lo:e - lo] = self._call(make(slice(s, e)))
         gathered = [torch.empty_like(mine) for _ in range(self.world)]
         dist.all_gather(gathered, mine)
-        return torch.stack(gathered, 1).reshape(-1)[:n]  # chunk c = p * world + w
+        return torch.cat(gathered)[:n]  # share r holds points r * share ...
 
     def with_grad(self, grid: Grid, ijk: torch.Tensor) -> torch.Tensor:
         """``(N,)`` values at ``ijk`` with autograd (on this rank, in chunks)."""

@@ -24,6 +24,13 @@ import torch
 
 from torchgeo_cg.core.grid import edge_fraction
 from torchgeo_cg.core.numerics import power_of_two_scale
+from torchgeo_cg.mesh.marching_cubes._kernels import (
+    KERNEL_MAX_SAMPLES,
+    classify_cells,
+    face_lists,
+    vertex_stencils,
+    weld_edges,
+)
 from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
 
 __all__ = [
@@ -108,7 +115,7 @@ def _slab_cases(stacked, iso_layer, start, stop, X):
     return case
 
 
-def classify(vol: torch.Tensor, iso_b: torch.Tensor):
+def classify(vol: torch.Tensor, iso_b: torch.Tensor, backend: str = "torch"):
     """Classify every sample and return the mixed cells of the padded cell grid.
 
     The batch is stacked along x, ``(B*X, Y, Z)``, and the cell grid is padded by
@@ -120,6 +127,8 @@ def classify(vol: torch.Tensor, iso_b: torch.Tensor):
     Args:
         vol: ``(B, X, Y, Z)`` contiguous samples (any float dtype: compared as they are).
         iso_b: ``(B,)`` levels (detached).
+        backend: ``"torch"`` or ``"warp"`` (the kernel on the packed inside bits; the
+            same result).
 
     Returns:
         ``(cell_id (A,), case (A,))`` long: ``cell_id`` is the flat index in
@@ -128,6 +137,8 @@ def classify(vol: torch.Tensor, iso_b: torch.Tensor):
     """
     B, X, Y, Z = vol.shape
     layers = B * X
+    if backend == "warp" and vol.numel() <= KERNEL_MAX_SAMPLES:
+        return classify_cells(vol.view(layers, Y, Z), iso_b.contiguous(), X)
     slab = max(1, SLAB_CELLS // (Y * Z))  # cell layers (along the stacked x) per slab
     stacked = vol.view(layers, Y, Z)
     iso_layer = iso_b.repeat_interleave(X).view(layers, 1, 1)  # (B*X, 1, 1)
@@ -163,14 +174,17 @@ def lower_crossings(device) -> torch.Tensor:
                         bit0 != ((case_ids >> 1) & 1)], dim=1)
 
 
-def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
+def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes, backend: str = "torch") -> Welded:
     """Vertices of the crossing lower edges (corner 0 against corners 4, 2, 1) of the cells.
 
     Args:
         cell_id, cases: ``(A,)`` from :func:`classify`.
         sizes: ``(X, Y, Z)``.
+        backend: ``"torch"`` or ``"warp"`` (the kernel; the same result).
     """
     X, Y, Z = sizes
+    if backend == "warp":
+        return Welded(*weld_edges(cell_id, cases, sizes))
     vert_cell, d_v = take(lower_crossings(cases.device), cases).nonzero().unbind(1)
     # sorted by (cell, d)
     lower = take(cell_id, vert_cell)
@@ -180,7 +194,7 @@ def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes) -> Welded:
 
 
 def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
-                layers: tuple[int, int] | None = None):
+                layers: tuple[int, int] | None = None, backend: str = "torch"):
     """Faces of the active cells: table rows -> local edges -> welded vertex ids.
 
     Local edge ``e`` of cell ``c`` is the lower edge (direction ``edge_dir[e]``) of the
@@ -196,6 +210,8 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
         layers: ``(first, stop)`` stacked cell layers holding every cell of ``cell_id``
             (default: all ``B * X``); ``vert_key`` then holds the vertices of those
             layers and of layer ``stop``, and the ids are indices into it.
+        backend: ``"torch"`` or ``"warp"`` (the kernel: each face's vertex ids found by
+            binary search in ``vert_key``; the same result).
 
     Returns:
         ``(faces (F, 3) long, cell_of_face (F,), tri_row (F,))``: ``tri_row`` indexes
@@ -203,6 +219,9 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
         :func:`add_centres` to fill.
     """
     X, Y, Z = sizes
+    if backend == "warp":
+        return face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes,
+                          (0, batch * X) if layers is None else layers)
     YZ = Y * Z
     device = cell_id.device
     edge_dir, edge_off = corner_tables(device)[:2]
@@ -394,7 +413,7 @@ def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
     return samples / scale, iso_v / scale
 
 
-def interpolate(vol, welded: Welded, b_v, args, to_world):
+def interpolate(vol, welded: Welded, b_v, args, to_world, backend: str = "torch"):
     """Vertex positions and unit normals, in ``args.work`` precision.
 
     Args:
@@ -403,12 +422,18 @@ def interpolate(vol, welded: Welded, b_v, args, to_world):
         b_v: ``(V,)`` volume of each vertex, or None for one volume.
         args: the parsed arguments (``iso``, ``spacing``, ``work``).
         to_world: ``(index_pos (V, 3), b_v) -> (V, 3)`` world positions.
+        backend: ``"torch"`` or ``"warp"`` (the samples' indices from a kernel; the
+            same integers).
 
     Returns:
         ``(verts (V, 3), normals (V, 3))``.
     """
     sizes = vol.shape[1:]
-    stencil, axes, steps = sample_stencil(welded, sizes)
+    if backend == "warp":
+        stencil, axes, steps = vertex_stencils(welded.lower, welded.d, welded.corner_ijk,
+                                               sizes)
+    else:
+        stencil, axes, steps = sample_stencil(welded, sizes)
     flat = vol.reshape(-1)
     samples = take(flat, stencil.view(-1)).view(stencil.shape).to(args.work)  # (10, V)
     iso_v = args.iso.expand(samples.shape[1]) if b_v is None else take(args.iso, b_v)

@@ -3,8 +3,8 @@
 A thin public function over private steps (as scikit-image separates its wrapper
 from its implementation): argument parsing (:mod:`._args`), then
 classify, weld, triangulate, interpolate and soft weights
-(:mod:`._steps`), with the tables generated in code
-(:mod:`._tables`). No Python loop over cells; the batch is stacked
+(``_steps``; ``_slabs`` schedules large volumes slab by slab), with the tables
+generated in code (``_tables``). No Python loop over cells; the batch is stacked
 along x, so one call costs one pass over all the volumes.
 
 Positions are interpolated along the crossing edges with
@@ -62,11 +62,11 @@ Convention:
       coincide, so it is not guaranteed there (faces and topology are unchanged).
     - Batches are returned packed: ``faces`` index the packed ``verts``;
       :meth:`MarchingCubesResult.split` gives one mesh per volume.
-    - Memory: a volume with more than ``2 * SLAB_ACTIVE`` active cells, in hard mode
+    - Memory: a volume with more than ``2 * 2**15`` active cells, in hard mode
       without a ``mask`` and with no gradient recorded, is extracted slab by slab along
       the stacked x (the result is identical bit for bit), so the working buffers follow
-      a slab of about ``SLAB_ACTIVE`` active cells, not the volume; under autograd (or
-      with ``temperature`` or ``mask``) it runs in one go.
+      a slab of about ``2**15`` active cells, not the volume; under autograd (or
+      with ``temperature`` or ``mask``) it runs in one go (``_slabs``).
 """
 
 from __future__ import annotations
@@ -80,34 +80,38 @@ from torch import nn
 from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.coerce import check_module_dtype
-from torchgeo_cg.core.grid import Volume, index_to_world
+from torchgeo_cg.core.grid import Volume
 from torchgeo_cg.core.numerics import cast_back
-from torchgeo_cg.mesh.marching_cubes._args import parse_arguments
+from torchgeo_cg.engine import BACKENDS, resolve_backend
+from torchgeo_cg.mesh.marching_cubes._args import DEFAULT_AMBIGUITY, parse_arguments, world_map
 from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
+from torchgeo_cg.mesh.marching_cubes._kernels import kernel_backend
+from torchgeo_cg.mesh.marching_cubes._slabs import extract_slabbed, wants_slabs
 from torchgeo_cg.mesh.marching_cubes._steps import (
     Welded,
     classify,
     find_centres,
     idiv,
     interpolate,
-    lower_crossings,
     place_centres,
     soft_weights,
     take,
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh.marching_cubes._tables import CENTRE
+from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS, CENTRE
 
-__all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES"]
+__all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES",
+           "AMBIGUOUS_CASES"]
 
 #: The accepted values of ``ambiguity``.
 AMBIGUITY_RULES = ("asymptotic", "separate")
-#: The default ``ambiguity`` rule.
-DEFAULT_AMBIGUITY = "asymptotic"
-#: Active cells per slab (about) of a volume extracted slab by slab (see
-#: :func:`_slabbed`); a volume with fewer is extracted in one go.
-SLAB_ACTIVE = 1 << 15
+#: ``AMBIGUOUS_CASES[case]`` (256 bools): whether the topology of cube case ``case`` is a
+#: choice, i.e. its inside or its outside corners are not connected along cube edges
+#: (128 cases); there the ``ambiguity`` rule decides, and tools may differ. Bit ``c`` of
+#: ``case`` is set when corner ``c = 4 dx + 2 dy + dz`` of the cell (offset ``(dx, dy,
+#: dz)`` from its lower corner) is inside (``f < iso``).
+AMBIGUOUS_CASES: tuple[bool, ...] = AMBIGUOUS
 
 
 class MarchingCubesResult(NamedTuple):
@@ -174,6 +178,7 @@ def marching_cubes(
     temperature: float | torch.Tensor | None = None,
     mask: torch.Tensor | None = None,
     ambiguity: str = DEFAULT_AMBIGUITY,
+    backend: str = "auto",
 ) -> MarchingCubesResult:
     """Extract the ``iso`` level set of one or a batch of volumes as welded triangle meshes.
 
@@ -207,6 +212,11 @@ def marching_cubes(
             vertices no face uses are dropped.
         ambiguity: the rule for ambiguous faces and cells, one of
             :data:`AMBIGUITY_RULES` (see the module docstring).
+        backend: ``"auto"`` | ``"torch"`` | ``"warp"``, resolved by
+            :func:`torchgeo_cg.engine.resolve_backend`: with ``"warp"`` the cube cases,
+            the welded vertices and the face lists come from compiled kernels (integers
+            only; positions, normals and weights stay torch). The result is identical
+            on both.
 
     Returns:
         :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3) long, normals
@@ -220,8 +230,9 @@ def marching_cubes(
         ShapeError: ``volume`` is not 3D/4D, has a spatial size < 2, or an argument
             has a wrong shape (or length).
         ValueError: ``spacing`` is not finite and positive, ``temperature`` is not
-            positive, ``ambiguity`` is unknown, ``iso`` is NaN, or a sample of ``volume``
-            is NaN (neither inside nor outside; also under a ``mask``).
+            positive, ``ambiguity`` or ``backend`` is unknown, ``iso`` is NaN, or a sample
+            of ``volume`` is NaN (neither inside nor outside; also under a ``mask``).
+        ImportError: ``backend="warp"`` and Warp cannot be loaded.
 
     Example:
         >>> x = torch.linspace(-1.0, 1.0, 5)
@@ -245,20 +256,24 @@ def marching_cubes(
     args = parse_arguments(volume, iso, origin, spacing, temperature, mask)
     check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
     vol = args.vol
+    backend = kernel_backend(resolve_backend(backend, vol.device), vol)
     B, X, Y, Z = vol.shape
     if B == 0:
         return _empty_result(vol)
     with torch.no_grad():
-        cell_id, cases_a = classify(vol.detach(), args.iso.detach())
-    if (cell_id.shape[0] > 2 * SLAB_ACTIVE and args.tau is None and args.mask is None
-            and not _needs_grad(args)):
-        return _slabbed(vol, args, ambiguity, cell_id, cases_a)
+        cell_id, cases_a = classify(vol.detach(), args.iso.detach(), backend)
+    if wants_slabs(cell_id.shape[0], args, _needs_grad(args)):
+        verts, faces, normals, counts = extract_slabbed(vol, args, ambiguity, cell_id, cases_a,
+                                                        backend)
+        out = vol.dtype
+        return MarchingCubesResult(cast_back(verts, out), faces, cast_back(normals, out),
+                                   cast_back(verts.new_ones(faces.shape[0]), out), *counts)
     with torch.no_grad():
-        welded = weld(cell_id, cases_a, (X, Y, Z))
+        welded = weld(cell_id, cases_a, (X, Y, Z), backend)
         rows, n_tri, tri_table, centre = cell_rows(vol.detach(), args.iso.detach(), args.mask,
                                                    cell_id, cases_a, ambiguity)
         faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
-                                                   (X, Y, Z), B)
+                                                   (X, Y, Z), B, backend=backend)
         centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
         faces[centre_slot] = 0  # filled by find_centres
         b_a = idiv(cell_id, X * Y * Z) if B > 1 else None  # (A,) volume of each active cell
@@ -269,7 +284,7 @@ def marching_cubes(
         if centre is not None:
             centres = find_centres(cell_id, rows, *centre, welded.key, cell_of_face,
                                    centre_slot, faces, (X, Y, Z))
-    verts, normals = interpolate(vol, welded, b_v, args, _world_map(args))
+    verts, normals = interpolate(vol, welded, b_v, args, world_map(args), backend)
     if centres is not None:
         verts, normals = place_centres(verts, normals, centres)
         if B > 1:  # keep the vertices grouped by volume
@@ -294,172 +309,6 @@ def marching_cubes(
 def _needs_grad(args) -> bool:
     """Whether autograd records the call (a differentiable input under grad mode)."""
     return records_graph(args.vol, args.iso, args.origin, args.spacing)
-
-
-def _slab_plan(cell_id, cases_a, shape):
-    """Where the slabs of about :data:`SLAB_ACTIVE` active cells start and end.
-
-    Returns ``(bounds, a_lo, a_next, v_at, w_per)``: the slabs' first cell layers (and the
-    end), the first active cell of each slab and of the layer after each slab, the welded
-    vertices before each slab, and the welded vertices per volume ``(B,)``.
-    """
-    B, X, Y, Z = shape
-    YZ, device = Y * Z, cell_id.device
-    nv = take(lower_crossings(device).sum(1), cases_a)  # (A,) vertices each cell owns
-    v_start = torch.cat([nv.new_zeros(1), nv.cumsum(0)])  # (A + 1,)
-    layer = idiv(cell_id, YZ)
-    cuts = torch.unique(take(layer, torch.arange(SLAB_ACTIVE, cell_id.shape[0], SLAB_ACTIVE,
-                                                 device=device)))
-    bounds = [0, *(c for c in cuts.tolist() if c > 0), B * X]
-    edges = torch.tensor(bounds + [min(b + 1, B * X) for b in bounds[1:]], device=device)
-    cell_at = torch.searchsorted(cell_id, edges * YZ).tolist()
-    n_slabs = len(bounds) - 1
-    a_lo, a_next = cell_at[:n_slabs + 1], cell_at[n_slabs + 1:]
-    v_at = take(v_start, torch.tensor(a_lo, device=device)).tolist()
-    w_per = torch.zeros(B, dtype=torch.long, device=device)
-    if B > 1:
-        w_per.index_add_(0, idiv(cell_id, Y * Z * X), nv)
-    return bounds, a_lo, a_next, v_at, w_per
-
-
-def _slabbed(vol, args, ambiguity, cell_id, cases_a) -> MarchingCubesResult:
-    """Hard mode without a mask and without autograd, slab by slab along the stacked x.
-
-    The steps run on the active cells of a few cell layers at a time (about
-    :data:`SLAB_ACTIVE` cells), so their buffers follow the slab, not the volume. A slab
-    welds the vertices of its layers and of the next one (its faces and centres use
-    those), places them from the same stencils, and keeps its own layers'; vertex and
-    centre ids are offset by the counts before the slab, known from the cases. The
-    result is the one-go result, bit for bit: every vertex and centre is computed by the
-    same operations on the same samples, faces come in cell order, and the final
-    order is the one-go order (welded vertices by key, then the centres by cell, per
-    volume).
-    """
-    B, X, Y, Z = vol.shape
-    XYZ = X * Y * Z
-    device = vol.device
-    det_vol, det_iso = vol.detach(), args.iso.detach()
-    to_world = _world_map(args)
-    with torch.no_grad():
-        bounds, a_lo, a_next, v_at, w_per = _slab_plan(cell_id, cases_a, vol.shape)
-        n_slabs = len(bounds) - 1
-        W = v_at[-1]  # welded vertices in all
-        if B > 1:
-            w_incl = w_per.cumsum(0)  # welded vertices in volumes <= b
-            c_per = torch.zeros(B, dtype=torch.long, device=device)
-    verts_w, normals_w, verts_c, normals_c, b_c, face_parts, b_f_parts = ([] for _ in range(7))
-    n_centres = 0
-    id_dtype = torch.int32
-    for n in range(n_slabs):  # loop over slabs of cell layers, not over cells
-        a0, a1, a2 = a_lo[n], a_lo[n + 1], a_next[n]
-        if a0 == a1:
-            continue
-        with torch.no_grad():
-            own_id = cell_id[a0:a1]
-            n_own = v_at[n + 1] - v_at[n]
-            faces, cell_of_face, centres, verts, normals = _slab_mesh(
-                det_vol, det_iso, cell_id[a0:a2], cases_a[a0:a2], a1 - a0,
-                (bounds[n], bounds[n + 1]), ambiguity, args, to_world)
-            V_sub = verts.shape[0]
-            n_c = 0
-            if centres is not None:
-                both_v, both_n = place_centres(verts, normals, centres)
-                verts_c.append(both_v[V_sub:])
-                normals_c.append(both_n[V_sub:])
-                n_c = both_v.shape[0] - V_sub
-                if B > 1:
-                    b_c.append(centres.b)
-                    c_per += torch.bincount(centres.b, minlength=B)
-                del both_v, both_n
-            verts_w.append(verts[:n_own])
-            normals_w.append(normals[:n_own])
-            del verts, normals
-            # ids: welded sub index i -> v_at[n] + i; centre V_sub + k -> W + n_centres + k
-            is_c = faces >= V_sub
-            faces += v_at[n]
-            faces[is_c] += W + n_centres - V_sub - v_at[n]
-            if B > 1:  # volume b's centres follow its welded vertices
-                b_f = idiv(take(own_id, cell_of_face), XYZ)  # (F_s,)
-                c_excl = c_per.cumsum(0) - c_per  # centres in volumes < b (all seen)
-                shift = torch.where(is_c, (take(w_incl, b_f) - W)[:, None],
-                                    take(c_excl, b_f)[:, None])
-                faces += shift
-                b_f_parts.append(b_f)
-            n_centres += n_c
-            face_parts.append(faces.to(id_dtype) if W + n_centres < 2**31 else faces)
-            del faces, is_c, cell_of_face
-    del cell_id, cases_a
-    with torch.no_grad():
-        faces = torch.cat(face_parts).long() if face_parts else torch.zeros(
-            0, 3, dtype=torch.long, device=device)
-        del face_parts
-    if B == 1 or not verts_c:
-        verts, normals = _cat(verts_w + verts_c, args), _cat(normals_w + normals_c, args)
-    else:  # volume b: its welded vertices, then its centres
-        with torch.no_grad():
-            c_excl = c_per.cumsum(0) - c_per
-            new_w = torch.arange(W, device=device) + torch.repeat_interleave(c_excl, w_per)
-            new_c = torch.arange(n_centres, device=device) + torch.repeat_interleave(
-                w_incl, c_per)
-        verts = _interleaved(verts_w, verts_c, new_w, new_c)
-        normals = _interleaved(normals_w, normals_c, new_w, new_c)
-    with torch.no_grad():
-        if B == 1:
-            counts = (torch.tensor([verts.shape[0]], device=device),
-                      torch.tensor([faces.shape[0]], device=device))
-        else:
-            b_f = torch.cat(b_f_parts) if b_f_parts else torch.zeros(0, dtype=torch.long,
-                                                                     device=device)
-            counts = (w_per + c_per, torch.bincount(b_f, minlength=B))
-    face_weights = verts.new_ones(faces.shape[0])
-    out = vol.dtype
-    return MarchingCubesResult(cast_back(verts, out), faces, cast_back(normals, out),
-                               cast_back(face_weights, out), *counts)
-
-
-def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_world):
-    """One slab's faces ``(F, 3)`` (welded ids local to the slab, centres from ``V``), their
-    cells, its :class:`Centres` (or None) and its welded vertices and normals ``(V, 3)``.
-
-    ``cell_id``/``cases`` are the slab's active cells followed by those of the next layer
-    (whose vertices its faces use); the first ``n_own`` are the slab's own.
-    """
-    B, X, Y, Z = vol.shape
-    own_id, own_case = cell_id[:n_own], cases[:n_own]
-    welded = weld(cell_id, cases, (X, Y, Z))
-    rows, n_tri, tri_table, centre = cell_rows(vol, iso, None, own_id, own_case, ambiguity)
-    faces, cell_of_face, tri_row = triangulate(own_id, rows, n_tri, tri_table, welded.key,
-                                               (X, Y, Z), B, layers=layers)
-    centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
-    faces[centre_slot] = 0
-    centres = None
-    if centre is not None:
-        centres = find_centres(own_id, rows, *centre, welded.key, cell_of_face, centre_slot,
-                               faces, (X, Y, Z))
-    b_sub = idiv(take(cell_id, welded.cell), X * Y * Z) if B > 1 else None
-    verts, normals = interpolate(vol, welded, b_sub, args, to_world)
-    return faces, cell_of_face, centres, verts, normals
-
-
-def _cat(parts: list, args) -> torch.Tensor:
-    """``torch.cat`` of ``(n, 3)`` parts, emptying the list (an empty list: ``(0, 3)``)."""
-    if not parts:
-        return torch.zeros(0, 3, dtype=args.work, device=args.vol.device)
-    out = torch.cat(parts)
-    parts.clear()
-    return out
-
-
-def _interleaved(welded: list, centres: list, new_w, new_c) -> torch.Tensor:
-    """The welded and centre rows placed at their packed ids ``new_w`` / ``new_c``."""
-    w = torch.cat(welded)
-    welded.clear()
-    out = w.new_empty(new_w.shape[0] + new_c.shape[0], 3)
-    out.index_copy_(0, new_w, w)
-    del w
-    out.index_copy_(0, new_c, torch.cat(centres))
-    centres.clear()
-    return out
 
 
 def _empty_result(vol: torch.Tensor) -> MarchingCubesResult:
@@ -491,16 +340,6 @@ def _counts(b_v, b_f, verts, faces, batch):
     return torch.bincount(b_v, minlength=batch), torch.bincount(b_f, minlength=batch)
 
 
-def _world_map(args):
-    """Index -> world: the grid module's :func:`index_to_world` for one shared frame."""
-    if args.shared_frame:
-        origin, spacing = args.origin[0], args.spacing[0]
-        return lambda index_pos, b_v: index_to_world(index_pos, origin, spacing)
-    return lambda index_pos, b_v: (
-        (args.origin[:1] if b_v is None else take(args.origin, b_v))
-        + (args.spacing[:1] if b_v is None else take(args.spacing, b_v)) * index_pos)
-
-
 class MarchingCubes(nn.Module):
     """Module form of :func:`marching_cubes`, with the same defaults.
 
@@ -513,7 +352,8 @@ class MarchingCubes(nn.Module):
         index``, inside ``f < iso``, faces and normals outward.
 
     Args:
-        iso, origin, spacing, temperature, mask, ambiguity: as in :func:`marching_cubes`.
+        iso, origin, spacing, temperature, mask, ambiguity, backend: as in
+            :func:`marching_cubes`.
 
     Shapes:
         ``forward(volume (X, Y, Z) or (B, X, Y, Z) or Volume) -> MarchingCubesResult``.
@@ -533,10 +373,12 @@ class MarchingCubes(nn.Module):
         temperature: float | torch.Tensor | None = None,
         mask: torch.Tensor | None = None,
         ambiguity: str = DEFAULT_AMBIGUITY,
+        backend: str = "auto",
     ) -> None:
         super().__init__()
         check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
-        self.ambiguity = ambiguity
+        check_choice(backend, BACKENDS, "backend")
+        self.ambiguity, self.backend = ambiguity, backend
         for name, value in (("iso", iso), ("origin", origin), ("spacing", spacing),
                             ("temperature", temperature), ("mask", mask)):
             if isinstance(value, torch.Tensor):
@@ -548,4 +390,4 @@ class MarchingCubes(nn.Module):
         check_module_dtype(self, volume.values if isinstance(volume, Volume) else volume,
                            "volume")
         return marching_cubes(volume, self.iso, self.origin, self.spacing, self.temperature,
-                              self.mask, self.ambiguity)
+                              self.mask, self.ambiguity, self.backend)

@@ -24,7 +24,10 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from torchgeo_cg.core.autograd import records_graph
+from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back
+from torchgeo_cg.engine import resolve_backend
+from torchgeo_cg.mesh.marching_cubes._args import DEFAULT_AMBIGUITY
 from torchgeo_cg.mesh.marching_cubes._blocks import band_blocks, lipschitz_blocks
 from torchgeo_cg.mesh.marching_cubes._extract import assemble, extract_group
 from torchgeo_cg.mesh.marching_cubes._field import (
@@ -34,16 +37,12 @@ from torchgeo_cg.mesh.marching_cubes._field import (
     check_positive_int,
     make_grid,
 )
-from torchgeo_cg.mesh.marching_cubes.dense import (
-    AMBIGUITY_RULES,
-    DEFAULT_AMBIGUITY,
-    MarchingCubesResult,
-)
+from torchgeo_cg.mesh.marching_cubes.dense import AMBIGUITY_RULES, MarchingCubesResult
 
 __all__ = ["sparse_marching_cubes", "lipschitz_bound"]
 
 #: Samples gathered per group of blocks (about): bounds the working memory.
-GROUP_SAMPLES = 1 << 21
+_GROUP_SAMPLES = 1 << 21
 
 
 def sparse_marching_cubes(
@@ -59,6 +58,7 @@ def sparse_marching_cubes(
     ambiguity: str = DEFAULT_AMBIGUITY,
     distributed: bool = False,
     progress: bool = False,
+    backend: str = "auto",
 ) -> MarchingCubesResult:
     """The ``iso`` level set of ``field`` on a ``resolution`` grid, sampling near the surface only.
 
@@ -94,13 +94,15 @@ def sparse_marching_cubes(
     probabilities, also in the skipped blocks; ``face_weights`` are ones.
 
     ``distributed=True`` (under ``torchrun``, the default process group initialised by
-    the caller): every evaluation is cut into chunks of ``max_points_per_call`` points
-    dealt round-robin over the ranks and all-gathered, so each rank evaluates its share
-    and every rank returns the same mesh, byte-identical to the single-process one.
+    the caller): the points of every evaluation (each pruning level, each group of
+    blocks) are split into one equal share per rank, each rank evaluates its share in
+    chunks of at most ``max_points_per_call`` points, and the shares are all-gathered,
+    so every rank evaluates about ``1 / world`` of the points and returns the same mesh,
+    byte-identical to the single-process one.
 
     Memory: the field is evaluated under ``torch.no_grad()`` in chunks of at most
     ``max_points_per_call`` points, and blocks are processed in groups of about
-    ``GROUP_SAMPLES`` samples, so the working memory grows with the active blocks (the
+    ``2**21`` samples, so the working memory grows with the active blocks (the
     surface), not with ``resolution**3``.
 
     Convention:
@@ -123,6 +125,9 @@ def sparse_marching_cubes(
         ambiguity: one of :data:`AMBIGUITY_RULES`, as :func:`marching_cubes`.
         distributed: shard the evaluations over the ranks of the default process group.
         progress: tqdm bars over the levels and the groups of blocks.
+        backend: ``"auto"`` | ``"torch"`` | ``"warp"``, as :func:`marching_cubes`:
+            the blocks' cube cases, welded vertices and face lists from kernels; the
+            mesh is identical.
 
     Returns:
         :class:`MarchingCubesResult` ``(verts (V, 3), faces (F, 3), normals (V, 3),
@@ -135,7 +140,7 @@ def sparse_marching_cubes(
         ShapeError: ``field`` returns a wrong shape, ``bounds`` a wrong shape.
         ValueError: ``field`` returns NaN or values on another device; ``bounds`` is not
             finite or empty; ``resolution`` < 2; ``lipschitz``, ``band``, ``block``,
-            ``max_points_per_call`` or ``ambiguity`` out of range; ``iso`` NaN;
+            ``max_points_per_call``, ``ambiguity`` or ``backend`` out of range; ``iso`` NaN;
             ``distributed`` without an initialised process group.
 
     Example:
@@ -153,6 +158,7 @@ def sparse_marching_cubes(
     """
     grid, iso_t, L, evaluate = _parse(field, bounds, resolution, iso, lipschitz, band, block,
                                       max_points_per_call, ambiguity, distributed)
+    backend = resolve_backend(backend, grid.origin.device)
     if L is None:
         blocks = band_blocks(evaluate, grid, float(iso_t), block, band)
     else:
@@ -160,12 +166,13 @@ def sparse_marching_cubes(
     work = torch.float32 if grid.origin.dtype in (torch.float16, torch.bfloat16) else (
         grid.origin.dtype)
     grad = records_graph(iso_t, *_field_tensors(field, grid))
-    per_group = max(1, max(GROUP_SAMPLES, max_points_per_call) // (block + 1) ** 3)
+    per_group = max(1, max(_GROUP_SAMPLES, max_points_per_call) // (block + 1) ** 3)
     parts = []
     starts = range(0, blocks.shape[0], per_group)
     for s in tqdm(starts, disable=not progress, desc="sparse_marching_cubes", unit="group"):
         parts.append(extract_group(evaluate, grid, blocks[s:s + per_group], block, iso_t,
-                                   ambiguity, work, place=not grad))  # loop over groups
+                                   ambiguity, work, place=not grad,
+                                   backend=backend))  # loop over groups
     if not parts or all(p.keys.numel() == 0 for p in parts):
         return _empty(grid, work)
     lookup = _grad_lookup(evaluate, grid) if grad else None
@@ -187,15 +194,16 @@ def _parse(field, bounds, resolution, iso, lipschitz, band, block, max_points_pe
     check_positive_int(band, "band", low=0)
     check_positive_int(block, "block")
     check_positive_int(max_points_per_call, "max_points_per_call")
-    if ambiguity not in AMBIGUITY_RULES:
-        raise ValueError(f"ambiguity: expected one of {AMBIGUITY_RULES}, got {ambiguity!r}")
+    check_choice(ambiguity, AMBIGUITY_RULES, "ambiguity")
     if not isinstance(distributed, bool):
         raise TypeError(f"distributed: expected a bool, got {type(distributed).__name__}")
     if distributed and not (torch.distributed.is_available()
                             and torch.distributed.is_initialized()):
         raise ValueError("distributed: True needs an initialised default process group "
                          "(torch.distributed.init_process_group, e.g. under torchrun)")
-    iso_t = torch.as_tensor(iso, device=grid.origin.device)
+    # a Python number takes the grid's dtype (never rounded through the default dtype)
+    iso_t = torch.as_tensor(iso, device=grid.origin.device,
+                            dtype=None if isinstance(iso, torch.Tensor) else grid.origin.dtype)
     if iso_t.numel() != 1:
         raise ValueError(f"iso: expected one number, got shape {tuple(iso_t.shape)}")
     iso_t = iso_t.reshape(()).to(grid.origin.dtype)
@@ -230,7 +238,7 @@ def _empty(grid: Grid, work) -> MarchingCubesResult:
 
 
 #: Activations whose slope is at most 1 everywhere.
-ONE_LIPSCHITZ = (nn.ReLU, nn.Softplus, nn.Tanh, nn.Sigmoid, nn.Identity, nn.Dropout,
+_ONE_LIPSCHITZ = (nn.ReLU, nn.Softplus, nn.Tanh, nn.Sigmoid, nn.Identity, nn.Dropout,
                  nn.Hardtanh, nn.ReLU6, nn.Softsign, nn.Tanhshrink, nn.Hardsigmoid)
 
 
@@ -271,7 +279,7 @@ def lipschitz_bound(module: nn.Module) -> float:
             continue
         elif isinstance(layer, nn.ELU) and 0 <= layer.alpha <= 1:
             continue
-        elif isinstance(layer, nn.Softplus) or isinstance(layer, ONE_LIPSCHITZ):
+        elif isinstance(layer, nn.Softplus) or isinstance(layer, _ONE_LIPSCHITZ):
             continue
         else:
             raise TypeError(f"module: {name} is a {type(layer).__name__}, not known to be "

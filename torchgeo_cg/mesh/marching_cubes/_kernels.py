@@ -1,0 +1,385 @@
+"""The Warp kernels of marching cubes: cube cases, welded vertices and face lists.
+
+Kernels decide, torch differentiates: these return integers only (active cells and
+their cases, the crossing lower edges, the faces' vertex ids), each exactly what the
+torch steps of ``_steps`` return, so positions, normals, gradients and the soft weights
+are computed from them by the same torch code. Every step is count, prefix sum (torch),
+write: one thread per row of cells (classification) or per active cell, each writing
+its own contiguous range, so the order is the torch order and no atomic decides it.
+
+The samples are compared with ``iso`` by torch (the same ``torch.lt`` as the torch path,
+any float dtype) and packed 64 to a word; the kernels read those bits. Volumes of
+``2**31`` samples or more stay on the torch path (Warp indexes arrays with 32-bit
+integers).
+"""
+
+from types import SimpleNamespace
+
+import torch
+
+from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
+from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
+
+__all__ = ["KERNEL_MAX_SAMPLES", "kernel_backend", "classify_cells", "weld_edges",
+           "face_lists", "vertex_stencils"]
+
+#: Samples of a volume the kernels take at most.
+KERNEL_MAX_SAMPLES = 2**31 - 1
+
+
+def kernel_backend(backend: str, samples: torch.Tensor) -> str:
+    """``backend`` (resolved: ``"torch"`` or ``"warp"``), or ``"torch"`` where a kernel
+    cannot read ``samples``' memory (a wrapper of a ``torch.func`` transform has none)."""
+    if backend != "warp":
+        return backend
+    try:
+        samples.data_ptr()
+    except RuntimeError:
+        return "torch"
+    return backend
+
+
+def _build(wp):
+    @wp.func
+    def shifted(bits: wp.array(dtype=wp.uint64), row: int, w: int, W: int, Z: int):
+        # the inside bits of samples k + 1 at bit k (the last sample replicated)
+        word = bits[row * W + w] >> wp.uint64(1)
+        if w + 1 < W:
+            word = word | (bits[row * W + w + 1] << wp.uint64(63))
+        else:
+            last = wp.uint64((Z - 1) - w * 64)
+            word = word | (((bits[row * W + w] >> last) & wp.uint64(1)) << last)
+        return word
+
+    @wp.kernel
+    def classify_rows(bits: wp.array(dtype=wp.uint64), X: int, Y: int, Z: int, W: int,
+                      write: int, first: wp.array(dtype=wp.int64),
+                      count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
+                      cases: wp.array(dtype=wp.int64)):
+        # one row (l, j) of cells along z: its mixed cells (not all eight corners of one
+        # class), 64 at a time from the packed bits; count them, or write them in order
+        r = wp.tid()
+        layer = r // Y
+        j0 = r - layer * Y
+        l1 = layer + 1
+        if layer - (layer // X) * X == X - 1:  # padded cell: dx = 1 corners replicate dx = 0
+            l1 = layer
+        j1 = wp.min(j0 + 1, Y - 1)
+        r00 = layer * Y + j0
+        r01 = layer * Y + j1
+        r10 = l1 * Y + j0
+        r11 = l1 * Y + j1
+        n = wp.int64(0)
+        base = wp.int64(0)
+        if write != 0:
+            base = first[r]
+        for w in range(W):
+            c0 = bits[r00 * W + w]
+            c2 = bits[r01 * W + w]
+            c4 = bits[r10 * W + w]
+            c6 = bits[r11 * W + w]
+            c1 = shifted(bits, r00, w, W, Z)
+            c3 = shifted(bits, r01, w, W, Z)
+            c5 = shifted(bits, r10, w, W, Z)
+            c7 = shifted(bits, r11, w, W, Z)
+            any_in = c0 | c1 | c2 | c3 | c4 | c5 | c6 | c7
+            all_in = c0 & c1 & c2 & c3 & c4 & c5 & c6 & c7
+            mixed = any_in & (all_in ^ wp.uint64(0xFFFFFFFFFFFFFFFF))
+            if Z - w * 64 < 64:
+                mixed = mixed & ((wp.uint64(1) << wp.uint64(Z - w * 64)) - wp.uint64(1))
+            if mixed != wp.uint64(0):
+                for t in range(64):
+                    u = wp.uint64(t)
+                    if ((mixed >> u) & wp.uint64(1)) != wp.uint64(0):
+                        if write != 0:
+                            one = wp.uint64(1)
+                            case = (((c0 >> u) & one) | (((c1 >> u) & one) << wp.uint64(1))
+                                    | (((c2 >> u) & one) << wp.uint64(2))
+                                    | (((c3 >> u) & one) << wp.uint64(3))
+                                    | (((c4 >> u) & one) << wp.uint64(4))
+                                    | (((c5 >> u) & one) << wp.uint64(5))
+                                    | (((c6 >> u) & one) << wp.uint64(6))
+                                    | (((c7 >> u) & one) << wp.uint64(7)))
+                            cell_id[base + n] = wp.int64(r) * wp.int64(Z) + wp.int64(w * 64 + t)
+                            cases[base + n] = wp.int64(case)
+                        n += wp.int64(1)
+        if write == 0:
+            count[r] = n
+
+    @wp.func
+    def crosses(case: wp.int64, corner: wp.int64):
+        # 1 when the lower edge from corner 0 to ``corner`` (4, 2, 1: x, y, z) crosses
+        return (case & wp.int64(1)) ^ ((case >> corner) & wp.int64(1))
+
+    @wp.kernel
+    def weld_rows(cell_id: wp.array(dtype=wp.int64), cases: wp.array(dtype=wp.int64),
+                  first: wp.array(dtype=wp.int64), row_cell: wp.array(dtype=wp.int64),
+                  row_lo: wp.int64, X: wp.int64, Y: wp.int64, Z: wp.int64,
+                  lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
+                  key: wp.array(dtype=wp.int64), cell: wp.array(dtype=wp.int64),
+                  ijk: wp.array2d(dtype=wp.int64)):
+        # the crossing lower edges (x, y, z: corner 0 against 4, 2, 1) of the active cells
+        # of one row (l, j) of cells, in (cell, axis) order (the row's i, j computed once)
+        rr = wp.tid()
+        r = row_lo + wp.int64(rr)
+        i = (r // Y) % X
+        j = r % Y
+        for a in range(int(row_cell[rr]), int(row_cell[rr + 1])):
+            case = cases[a]
+            c = cell_id[a]
+            k = c - r * Z
+            nx = crosses(case, wp.int64(4))
+            ny = crosses(case, wp.int64(2))
+            nz = crosses(case, wp.int64(1))
+            for axis in range(3):
+                on = nx
+                at = first[a]
+                if axis == 1:
+                    on = ny
+                    at = first[a] + nx
+                if axis == 2:
+                    on = nz
+                    at = first[a] + nx + ny
+                if on != wp.int64(0):
+                    lower[at] = c
+                    d[at] = wp.int64(axis)
+                    key[at] = c * wp.int64(3) + wp.int64(axis)
+                    cell[at] = wp.int64(a)
+                    ijk[at, 0] = i
+                    ijk[at, 1] = j
+                    ijk[at, 2] = k
+
+    @wp.func
+    def advance(vert_key: wp.array(dtype=wp.int64), p: wp.int64, end: wp.int64,
+                want: wp.int64):
+        # the first vertex at or after p (and before end) whose key is not below want
+        q = p
+        while q < end and vert_key[int(q)] < want:
+            q = q + wp.int64(1)
+        return q
+
+    @wp.kernel
+    def faces_of_rows(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
+                      n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
+                      row_cell: wp.array(dtype=wp.int64), tri_table: wp.array2d(dtype=wp.int64),
+                      T: wp.int64, edge_code: wp.array2d(dtype=wp.int64), Y: wp.int64,
+                      Z: wp.int64, row_lo: wp.int64, row_vert: wp.array(dtype=wp.int64),
+                      vert_key: wp.array(dtype=wp.int64), faces: wp.array2d(dtype=wp.int64),
+                      cell_of_face: wp.array(dtype=wp.int64),
+                      tri_row: wp.array(dtype=wp.int64)):
+        # the triangles of the active cells of one row (l, j) of cells, in order: local
+        # edge e is a vertex of row (l + dx, j + dy) (edge_code[e, 0] = 2 dx + dy) with the
+        # key 3 (that row's first sample + k) + edge_code[e, 1]; one cursor per such row
+        # moves forward with the cells (keys grow along a row), so each vertex is found in
+        # a few steps
+        rr = wp.tid()
+        r = row_lo + wp.int64(rr)
+        p00 = row_vert[rr]
+        p01 = row_vert[rr + 1]
+        p10 = row_vert[rr + int(Y)]
+        p11 = row_vert[rr + int(Y) + 1]
+        e00 = row_vert[rr + 1]
+        e01 = row_vert[rr + 2]
+        e10 = row_vert[rr + int(Y) + 1]
+        e11 = row_vert[rr + int(Y) + 2]
+        for a in range(int(row_cell[rr]), int(row_cell[rr + 1])):
+            c = cell_id[a]
+            k = c - r * Z
+            b00 = (r * Z + k) * wp.int64(3)
+            b01 = b00 + wp.int64(3) * Z
+            b10 = b00 + wp.int64(3) * Y * Z
+            b11 = b10 + wp.int64(3) * Z
+            p00 = advance(vert_key, p00, e00, b00)
+            p01 = advance(vert_key, p01, e01, b01)
+            p10 = advance(vert_key, p10, e10, b10)
+            p11 = advance(vert_key, p11, e11, b11)
+            for s in range(int(n_tri[a])):
+                f = first[a] + wp.int64(s)
+                row = rows[a] * T + wp.int64(s)
+                for m in range(3):
+                    e = int(tri_table[int(row), m])
+                    q = edge_code[e, 0]
+                    off = edge_code[e, 1]
+                    found = wp.int64(0)  # a centre (e = 12, q = 4): filled by the caller
+                    if q == wp.int64(0):
+                        found = advance(vert_key, p00, e00, b00 + off)
+                    elif q == wp.int64(1):
+                        found = advance(vert_key, p01, e01, b01 + off)
+                    elif q == wp.int64(2):
+                        found = advance(vert_key, p10, e10, b10 + off)
+                    elif q == wp.int64(3):
+                        found = advance(vert_key, p11, e11, b11 + off)
+                    faces[f, m] = found
+                cell_of_face[f] = wp.int64(a)
+                tri_row[f] = row
+
+    @wp.kernel
+    def stencils(lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
+                 ijk: wp.array2d(dtype=wp.int64), G: int, X: wp.int64, Y: wp.int64,
+                 Z: wp.int64, index: wp.array2d(dtype=wp.int64),
+                 axes: wp.array2d(dtype=wp.int64), steps: wp.array2d(dtype=wp.int64)):
+        # the ten samples each vertex reads: its edge's ends, and for the two axes across
+        # the edge the differences at both ends (central, one-sided on the border)
+        t = wp.tid()
+        for v in range(t * G, wp.min(t * G + G, lower.shape[0])):
+            lo = lower[v]
+            dv = d[v]
+            up_end = lo + wp.where(dv == wp.int64(0), Y * Z, wp.where(dv == wp.int64(1), Z,
+                                                                        wp.int64(1)))
+            index[0, v] = lo
+            index[1, v] = up_end
+            for s in range(2):
+                a = (dv + wp.int64(1 + s)) % wp.int64(3)
+                c = ijk[v, int(a)]
+                last = wp.where(a == wp.int64(0), X, wp.where(a == wp.int64(1), Y, Z))
+                stride = wp.where(a == wp.int64(0), Y * Z, wp.where(a == wp.int64(1), Z,
+                                                                     wp.int64(1)))
+                up = wp.where(c < last - wp.int64(1), wp.int64(1), wp.int64(0))
+                down = wp.where(c > wp.int64(0), wp.int64(1), wp.int64(0))
+                index[2 + 4 * s, v] = lo + up * stride
+                index[3 + 4 * s, v] = lo - down * stride
+                index[4 + 4 * s, v] = up_end + up * stride
+                index[5 + 4 * s, v] = up_end - down * stride
+                axes[s, v] = a
+                steps[s, v] = up + down
+
+    return SimpleNamespace(classify_rows=classify_rows,
+                           weld_rows=weld_rows,
+                           faces_of_rows=faces_of_rows, stencils=stencils)
+
+
+_kernels = register_kernels(_build)
+
+
+def _exclusive(count: torch.Tensor) -> tuple[torch.Tensor, int]:
+    """``(first (N,), total)``: the exclusive prefix sum of ``count`` and its sum."""
+    inclusive = count.cumsum(0)
+    total = int(inclusive[-1]) if count.shape[0] else 0
+    return inclusive - count, total
+
+
+#: Samples per slab of the inside test (its buffers stay small).
+_SLAB_SAMPLES = 1 << 19
+#: Multiplying eight 0/1 bytes (little-endian int64) by this puts byte ``i`` at bit
+#: ``56 + i`` of the product: eight inside flags packed into one byte.
+_PACK8 = 0x0102040810204080
+
+
+def _packed_inside(stacked: torch.Tensor, iso_b: torch.Tensor, X: int, W: int) -> torch.Tensor:
+    """``(B*X*Y * W,)`` int64 words: bit ``t`` of word ``w`` of row ``(l, j)`` is set when
+    sample ``(l, j, 64 w + t)`` is inside (``f < iso``), slab by slab (torch compares
+    and packs 64 flags to a word in a few vectorised operations)."""
+    layers, Y, Z = stacked.shape
+    iso_layer = iso_b.repeat_interleave(X).view(layers, 1, 1)
+    bits = torch.empty(layers * Y, W, dtype=torch.int64, device=stacked.device)
+    slab = max(1, _SLAB_SAMPLES // (Y * W * 64))
+    for l0 in range(0, layers, slab):  # loop over slabs of layers, not over samples
+        l1 = min(layers, l0 + slab)
+        inside = torch.zeros(l1 - l0, Y, W * 64, dtype=torch.bool, device=stacked.device)
+        torch.lt(stacked[l0:l1], iso_layer[l0:l1], out=inside[..., :Z])
+        flags = inside.view(torch.uint8).view(-1, 8).view(torch.int64)  # 8 flags a value
+        packed = (flags * _PACK8).bitwise_right_shift_(56).bitwise_and_(0xFF)
+        bits[l0 * Y:l1 * Y] = packed.to(torch.uint8).view(-1, W * 8).view(torch.int64)
+    return bits.view(-1)
+
+
+def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
+    """``(cell_id (A,), case (A,))`` long of the mixed cells of the padded cell grid of
+    ``stacked (B*X, Y, Z)`` (levels ``iso_b (B,)``), as ``_steps.classify``."""
+    k = _kernels()
+    layers, Y, Z = stacked.shape
+    device = stacked.device
+    rows, W = layers * Y, (Z + 63) // 64
+    bits = _packed_inside(stacked, iso_b, X, W)
+    bits_w = to_warp(bits, dtype=load_warp().uint64)
+    count = torch.empty(rows, dtype=torch.long, device=device)
+    empty = torch.empty(0, dtype=torch.long, device=device)
+    launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 0, to_warp(empty), to_warp(count),
+                                   to_warp(empty), to_warp(empty)], device)
+    first, total = _exclusive(count)
+    cell_id = torch.empty(total, dtype=torch.long, device=device)
+    cases = torch.empty(total, dtype=torch.long, device=device)
+    if total:
+        launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 1, to_warp(first), to_warp(count),
+                                       to_warp(cell_id), to_warp(cases)], device)
+    return cell_id, cases
+
+
+def _row_ranges(ids: torch.Tensor, per_row: int, row_lo: int, n_rows: int) -> torch.Tensor:
+    """``(n_rows + 1,)``: entry ``i`` counts the sorted ``ids`` of rows before ``row_lo + i``
+    (``per_row`` ids a row), i.e. where row ``row_lo + i`` starts in ``ids``."""
+    row = ids // per_row if per_row & (per_row - 1) else ids >> (per_row.bit_length() - 1)
+    bucket = (row - (row_lo - 1)).clamp_(0, n_rows + 1)  # 0: rows before row_lo
+    return torch.bincount(bucket, minlength=n_rows + 2).cumsum(0)[:n_rows + 1]
+
+
+def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
+    """``(lower, d, key, cell, corner_ijk)`` of the crossing lower edges of the active
+    cells, sorted by ``(cell, d)``, as ``_steps.weld``."""
+    k = _kernels()
+    X, Y, Z = sizes
+    device = cell_id.device
+    every = torch.arange(256, device=device)
+    flips = every ^ ((every & 1) * 0b10110)  # bits 4, 2, 1 set where they differ from bit 0
+    per_case = ((flips >> 4) & 1) + ((flips >> 2) & 1) + ((flips >> 1) & 1)  # (256,)
+    count = torch.index_select(per_case, 0, cases)  # crossing lower edges per cell
+    first, total = _exclusive(count)
+    out = [torch.empty(total, dtype=torch.long, device=device) for _ in range(4)]
+    ijk = torch.empty(total, 3, dtype=torch.long, device=device)
+    if cell_id.shape[0]:
+        row_lo = int(cell_id[0]) // Z
+        n_rows = int(cell_id[-1]) // Z + 1 - row_lo
+        launch(k.weld_rows, n_rows,
+               [to_warp(cell_id), to_warp(cases), to_warp(first),
+                to_warp(_row_ranges(cell_id, Z, row_lo, n_rows)), row_lo, X, Y, Z,
+                *(to_warp(o) for o in out), to_warp(ijk)], device)
+    return (*out, ijk)
+
+
+def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
+    """``(faces (F, 3), cell_of_face (F,), tri_row (F,))`` long, as ``_steps.triangulate``
+    (the entries of centre vertices are 0: the caller fills them). ``layers``: the
+    stacked cell layers ``(first, stop)`` of the cells; ``vert_key`` holds the vertices
+    of those layers and of layer ``stop``."""
+    k = _kernels()
+    X, Y, Z = sizes
+    device = cell_id.device
+    rows, n_tri = rows.long(), n_tri.long()
+    first, total = _exclusive(n_tri)
+    edge_dir, edge_off = corner_tables(device)[:2]
+    # local edge e: the row (2 dx + dy) holding its vertex and its key within that row's
+    # cell k (3 dz + d); the centre (e = 12) gets row 4 (none)
+    edge_code = torch.stack([edge_off[:, 0] * 2 + edge_off[:, 1], edge_off[:, 2] * 3 + edge_dir],
+                            dim=1)
+    edge_code = torch.cat([edge_code, edge_code.new_tensor([[4, 0]])])  # (13, 2)
+    row_lo, n_rows = layers[0] * Y, (layers[1] - layers[0]) * Y
+    # first vertex of each row of the layers and of two more rows of layer ``stop``
+    # (its vertices end at its last row's start plus its own)
+    row_vert = _row_ranges(vert_key, 3 * Z, row_lo, n_rows + Y + 1)
+    row_cell = _row_ranges(cell_id, Z, row_lo, n_rows)
+    faces = torch.empty(total, 3, dtype=torch.long, device=device)
+    cell_of_face = torch.empty(total, dtype=torch.long, device=device)
+    tri_row = torch.empty(total, dtype=torch.long, device=device)
+    launch(k.faces_of_rows, n_rows,
+           [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first), to_warp(row_cell),
+            to_warp(tri_table.reshape(-1, 3)), tri_table.shape[1], to_warp(edge_code), Y, Z,
+            row_lo, to_warp(row_vert), to_warp(vert_key),
+            to_warp(faces), to_warp(cell_of_face), to_warp(tri_row)], device)
+    return faces, cell_of_face, tri_row
+
+
+def vertex_stencils(lower, d, corner_ijk, sizes):
+    """``(index (10, V), axes [2 x (V,)], steps [2 x (V,)])`` long, as
+    ``_steps.sample_stencil``."""
+    k = _kernels()
+    X, Y, Z = sizes
+    device = lower.device
+    V = lower.shape[0]
+    index = torch.empty(10, V, dtype=torch.long, device=device)
+    axes = torch.empty(2, V, dtype=torch.long, device=device)
+    steps = torch.empty(2, V, dtype=torch.long, device=device)
+    G = 1 if device.type == "cuda" else 64
+    launch(k.stencils, (V + G - 1) // G,
+           [to_warp(lower), to_warp(d), to_warp(corner_ijk), G, X, Y, Z, to_warp(index),
+            to_warp(axes), to_warp(steps)], device)
+    return index, list(axes.unbind(0)), list(steps.unbind(0))
