@@ -6,6 +6,12 @@ integer coordinates at pixel centres; extrinsics world-to-camera ``(*, 4, 4)``
 ``[[R, t], [0, 1]]`` acting on column vectors.
 """
 
+from torchgeo_cg.cameras.conventions import (
+    PyTorch3DCameras,
+    convert_pose,
+    from_pytorch3d,
+    to_pytorch3d,
+)
 from torchgeo_cg.cameras.distortion import (
     UndistortResult,
     distort_points,
@@ -13,6 +19,7 @@ from torchgeo_cg.cameras.distortion import (
     fisheye_undistort_points,
     undistort_points,
 )
+from torchgeo_cg.cameras.models import FisheyeCamera, OpenCVCamera, PinholeCamera
 from torchgeo_cg.cameras.projection import (
     RayBundle,
     UnprojectResult,
@@ -22,6 +29,13 @@ from torchgeo_cg.cameras.projection import (
 )
 
 __all__ = [
+    "FisheyeCamera",
+    "OpenCVCamera",
+    "PinholeCamera",
+    "PyTorch3DCameras",
+    "convert_pose",
+    "from_pytorch3d",
+    "to_pytorch3d",
     "RayBundle",
     "UnprojectResult",
     "pixel_rays",

@@ -24,18 +24,31 @@ import math
 
 import torch
 
-from torchgeo_cg.curves import split_bezier
+from torchgeo_cg.curves import bernstein_basis, elevate_bezier, split_bezier
 
 #: Halvings per descent: below float64's resolution of ``[0, 1]``.
 _LEVELS = 56
 
 
 def _bernstein(coeffs: torch.Tensor, span: float | None) -> torch.Tensor:
-    """Bernstein coefficients ``(B, n + 1)`` of ``p`` on ``[0, span]`` (``None``: ``[0, inf)``)."""
+    """Bernstein coefficients ``(B, n + 1)`` of ``p`` on ``[0, span]`` (``None``: ``[0, inf)``).
+
+    On the half-line each polynomial is written in its own degree ``d`` (trailing zero
+    coefficients dropped), so its value at infinity has the sign of its leading
+    coefficient, then elevated to ``n`` (:func:`torchgeo_cg.curves.elevate_bezier`).
+    """
     n = coeffs.shape[-1] - 1
-    binom = coeffs.new_tensor([math.comb(n, k) for k in range(n + 1)])
     if span is None:
-        return coeffs / binom
+        nonzero = coeffs != 0
+        index = torch.arange(n + 1, device=coeffs.device)
+        degree = torch.where(nonzero, index, 0).amax(-1)
+        out = torch.zeros_like(coeffs)
+        for d in range(n + 1):
+            binom = coeffs.new_tensor([math.comb(d, k) for k in range(d + 1)])
+            own = (coeffs[:, : d + 1] / binom)[..., None]
+            own = elevate_bezier(own, n - d)[..., 0] if d < n else own[..., 0]
+            out = torch.where((degree == d)[:, None], own, out)
+        return out
     scaled = coeffs * coeffs.new_tensor([span ** k for k in range(n + 1)])
     convert = coeffs.new_tensor([[math.comb(j, k) / math.comb(n, k) if k <= j else 0.0
                                   for j in range(n + 1)] for k in range(n + 1)])
@@ -46,22 +59,59 @@ def _positive(control: torch.Tensor) -> torch.Tensor:
     return (control > 0).all(-2).squeeze(-1)
 
 
-def _descend(control: torch.Tensor):
-    """Leftmost non-positive point of each Bezier function on its ``[0, 1]``.
+def _variations(control: torch.Tensor) -> torch.Tensor:
+    """Sign changes of the coefficients (zeros counted as negative): an upper bound on the
+    roots inside, exact when it is 0 or 1."""
+    sign = control.squeeze(-1) > 0
+    return (sign[..., 1:] != sign[..., :-1]).sum(-1)
 
-    Returns ``(t, hit)``: the left end of the last interval kept, and whether that
-    interval still has a non-positive coefficient (else ``t`` is 1: nothing found).
+
+def _descend(control: torch.Tensor):
+    """Isolate the leftmost non-positive point of each Bezier function on ``[0, 1]``.
+
+    Keeps the left half unless it is certified positive; stops once the kept interval
+    has exactly one sign change (one root inside: isolated), or is certified positive
+    (the uncertain half held no root after all). Returns ``(lo, hi, hit, control)``: the
+    interval kept, whether it holds a non-positive point, and its coefficients; where
+    nothing was hit, ``hi`` is where the search may resume.
     """
     lo = control.new_zeros(control.shape[0])
-    width = 1.0
+    width = torch.ones_like(lo)
+    stop = ((_variations(control) == 1) & (control[:, -1, 0] <= 0)) | _positive(control)
     for _ in range(_LEVELS):
+        if bool(stop.all()):
+            break
         left, right = split_bezier(control, 0.5)
         go_right = _positive(left)
-        width = 0.5 * width
-        lo = torch.where(go_right, lo + width, lo)
-        control = torch.where(go_right[:, None, None], right, left)
-    hit = ~_positive(control)
-    return torch.where(hit, lo, torch.ones_like(lo)), hit
+        half = 0.5 * width
+        lo = torch.where(stop, lo, torch.where(go_right, lo + half, lo))
+        width = torch.where(stop, width, half)
+        chosen = torch.where(go_right[:, None, None], right, left)
+        control = torch.where(stop[:, None, None], control, chosen)
+        stop = stop | ((_variations(control) == 1) & (control[:, -1, 0] <= 0)) \
+            | _positive(control)
+    return lo, lo + width, ~_positive(control), control
+
+
+def _polish(lo: torch.Tensor, hi: torch.Tensor, piece: torch.Tensor) -> torch.Tensor:
+    """The root in ``[lo, hi]`` (of the piece's ``[0, 1]``) by bracketed Newton/bisection on
+    the Bernstein form: ``q(lo) > 0 >= q(hi)``."""
+    n = piece.shape[-2] - 1
+    coef = piece[..., 0]  # (B, n + 1)
+    diff = n * (coef[:, 1:] - coef[:, :-1])  # the derivative's Bernstein coefficients
+    eps = torch.finfo(lo.dtype).eps
+    t = 0.5 * (lo + hi)
+    for _ in range(100):
+        value = (bernstein_basis(t[:, None], n)[:, 0] * coef).sum(-1)
+        slope = (bernstein_basis(t[:, None], n - 1)[:, 0] * diff).sum(-1) if n else 0 * t
+        lo = torch.where(value > 0, t, lo)
+        hi = torch.where(value <= 0, t, hi)
+        newton = t - value / torch.where(slope != 0, slope, torch.ones_like(slope))
+        inside = (slope != 0) & (newton > lo) & (newton < hi)
+        t = torch.where(inside, newton, 0.5 * (lo + hi))
+        if bool((hi - lo <= 4 * eps * hi).all()):
+            break
+    return hi
 
 
 def first_root(coeffs: torch.Tensor, span: float | None, rounds: int = 8) -> torch.Tensor:
@@ -79,19 +129,23 @@ def first_root(coeffs: torch.Tensor, span: float | None, rounds: int = 8) -> tor
     control = _bernstein(coeffs, span)[..., None]  # (B, n + 1, 1)
     start = coeffs.new_zeros(coeffs.shape[0])
     found = torch.zeros_like(start, dtype=torch.bool)
+    lo_at, hi_at, start_at = torch.ones_like(start), torch.ones_like(start), start.clone()
+    pieces = control
     for _ in range(rounds):
         # coefficients on [start, 1]: the right part of a split at start
         piece = split_bezier(control, start).right
-        t, hit = _descend(piece)
-        t = start + t * (1 - start)
-        start = torch.where(found, start, t)
+        lo, hi, hit, _ = _descend(piece)
+        new = hit & ~found
+        pieces = torch.where(new[:, None, None], piece, pieces)
+        lo_at, hi_at = torch.where(new, lo, lo_at), torch.where(new, hi, hi_at)
+        start_at = torch.where(new, start, start_at)
+        start = torch.where(found | hit, start, start + hi * (1 - start))
         found = found | hit
         if bool((found | (start >= 1)).all()):
             break
-    # a root in the last interval of the half-line is the leading coefficient's zero at
-    # infinity (a polynomial of lower degree): no root
-    end = 1 - 2.0 ** (4 - _LEVELS) if span is None else 1.0
-    none = start >= end
-    t = torch.where(none, torch.zeros_like(start), start)
+    root = _polish(lo_at, hi_at, pieces)
+    t = torch.where(found, start_at + root * (1 - start_at), start)
+    none = t >= 1
+    t = torch.where(none, torch.zeros_like(t), t)
     s = t / (1 - t) if span is None else t * span
     return torch.where(none, torch.full_like(s, math.inf), s)

@@ -37,6 +37,7 @@ from typing import NamedTuple
 import torch
 import torch.nn.functional as F
 
+from torchgeo_cg.cameras._fisheye import fisheye_angle, theta_d
 from torchgeo_cg.cameras._implicit import implicit_solution
 from torchgeo_cg.cameras._roots import first_root
 from torchgeo_cg.cameras._solve import newton_2d, solve_monotone, upper_bracket
@@ -129,7 +130,10 @@ def _plain(x: torch.Tensor, y: torch.Tensor, k: list[torch.Tensor], jacobian: bo
 
 
 def _tilt(k: list[torch.Tensor]) -> torch.Tensor:
-    """OpenCV's tilt ``M = P_z R_y(ty) R_x(tx)`` (``computeTiltProjectionMatrix``), ``(*, 1, 3, 3)``."""
+    """OpenCV's tilt ``M = P_z R_y(ty) R_x(tx)`` (``computeTiltProjectionMatrix``).
+
+    Returns ``(*, 1, 3, 3)``, to meet points ``(*, N)``.
+    """
     tx, ty = k[12], k[13]
     cx, sx, cy, sy = torch.cos(tx), torch.sin(tx), torch.cos(ty), torch.sin(ty)
     one, zero = torch.ones_like(tx), torch.zeros_like(tx)
@@ -317,45 +321,6 @@ def undistort_points(xy: torch.Tensor, distortion: torch.Tensor,
 # ----------------------------------------------------------------------------- fisheye
 
 
-def _theta_d(theta: torch.Tensor, k: torch.Tensor):
-    """Kannala-Brandt ``theta_d(theta)`` and its slope; ``k (*, 4)`` meets ``theta (*, N)``."""
-    k1, k2, k3, k4 = (k[..., i, None] for i in range(4))
-    t2 = theta * theta
-    value = theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
-    slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
-    return value, slope
-
-
-def _fisheye_limit(distortion: torch.Tensor, cap: float) -> torch.Tensor:
-    """``theta*`` per lens, ``(*, 1)``: the first root of ``theta_d'`` in ``(0, cap)``, else ``cap``."""
-    with torch.no_grad():
-        k = distortion.detach().double().reshape(-1, 4)
-        one = torch.ones_like(k[:, 0])
-        slope = torch.stack([one, 3 * k[:, 0], 5 * k[:, 1], 7 * k[:, 2], 9 * k[:, 3]], -1)
-        theta = torch.sqrt(first_root(slope, cap * cap)).clamp_max(cap)
-    return theta.reshape(distortion.shape[:-1] + (1,)).to(distortion.dtype)
-
-
-def _angle_residual(theta: torch.Tensor, rd: torch.Tensor, distortion: torch.Tensor):
-    return _theta_d(theta[..., 0], distortion)[0][..., None] - rd[..., None]
-
-
-def fisheye_angle(rd: torch.Tensor, distortion: torch.Tensor, cap: float):
-    """The incidence angle ``theta`` with ``theta_d(theta) = rd`` in ``[0, min(theta*, cap))``.
-
-    ``rd (*, N)`` (differentiable), ``distortion (*, 4)``; returns ``(theta, valid)``
-    with the implicit gradient in both.
-    """
-    with torch.no_grad():
-        limit = _fisheye_limit(distortion, cap)
-        rd_d, k_d = rd.detach(), distortion.detach()
-        top = _theta_d(limit, k_d)[0]
-        theta, done = solve_monotone(rd_d, lambda t: _theta_d(t, k_d), limit)
-        valid = done & (rd_d < top)
-    theta = implicit_solution(_angle_residual, valid, theta[..., None], rd, distortion)
-    return theta[..., 0], valid
-
-
 def _safe_radius(xy: torch.Tensor) -> torch.Tensor:
     """``|xy|`` over the last axis with a zero (not NaN) gradient at the origin."""
     sq = (xy * xy).sum(-1)
@@ -387,8 +352,8 @@ def fisheye_distort_points(xy: torch.Tensor, distortion: torch.Tensor) -> torch.
     work = working_dtype(dtype)
     xy, distortion = xy.to(work), distortion.to(work)
     r = _safe_radius(xy)
-    theta_d = _theta_d(torch.atan(r), distortion)[0]
-    scale = torch.where(r > 0, theta_d / torch.where(r > 0, r, torch.ones_like(r)), 1.0)
+    angle_d = theta_d(torch.atan(r), distortion)[0]
+    scale = torch.where(r > 0, angle_d / torch.where(r > 0, r, torch.ones_like(r)), 1.0)
     return cast_back(xy * scale[..., None], dtype)
 
 

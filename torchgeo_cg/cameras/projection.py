@@ -19,12 +19,8 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.cameras.distortion import (
-    distort_points,
-    fisheye_angle,
-    fisheye_distort_points,
-    undistort_points,
-)
+from torchgeo_cg.cameras._fisheye import fisheye_angle
+from torchgeo_cg.cameras.distortion import distort_points, undistort_points
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
