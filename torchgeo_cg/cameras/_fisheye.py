@@ -10,13 +10,17 @@ from torchgeo_cg.cameras._roots import first_root
 from torchgeo_cg.cameras._solve import solve_monotone
 
 
-def theta_d(theta: torch.Tensor, k: torch.Tensor):
-    """Kannala-Brandt ``theta_d(theta)`` and its slope; ``k (*, 4)`` meets ``theta (*, N)``."""
-    k1, k2, k3, k4 = (k[..., i, None] for i in range(4))
+def angle_map(theta: torch.Tensor, k1, k2, k3, k4):
+    """``theta_d(theta)`` and its slope, the coefficients broadcast against ``theta``."""
     t2 = theta * theta
     value = theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
     slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
     return value, slope
+
+
+def theta_d(theta: torch.Tensor, k: torch.Tensor):
+    """Kannala-Brandt ``theta_d(theta)`` and its slope; ``k (*, 4)`` meets ``theta (*, N)``."""
+    return angle_map(theta, *(k[..., i, None] for i in range(4)))
 
 
 def fisheye_limit(distortion: torch.Tensor, cap: float) -> torch.Tensor:
@@ -44,7 +48,9 @@ def fisheye_angle(rd: torch.Tensor, distortion: torch.Tensor, cap: float):
         limit = fisheye_limit(distortion, cap)
         rd_d, k_d = rd.detach(), distortion.detach()
         top = theta_d(limit, k_d)[0]
-        theta, done = solve_monotone(rd_d, lambda t: theta_d(t, k_d), limit)
-        valid = done & (rd_d < top)
+        inside = rd_d < top
+        ks = [k_d[..., i, None] for i in range(4)]
+        theta, done = solve_monotone(rd_d, lambda t, p: angle_map(t, *p), limit, ks, ~inside)
+        valid = done & inside
     theta = implicit_solution(_angle_residual, valid, theta[..., None], rd, distortion)
     return theta[..., 0], valid

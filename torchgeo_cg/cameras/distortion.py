@@ -27,6 +27,11 @@ inside that bracket a safeguarded Newton finds the radius; the tangential, thin-
 terms are then removed by a trust-region Newton in 2D, to convergence. ``valid`` is
 False outside the domain and where the solve did not converge. Gradients come by
 implicit differentiation (no unrolled iterations).
+
+Precision: every function computes in float64 and returns the input's dtype. A lens
+evaluated in float32 near its fold, or at 4K pixel coordinates, loses a few thousandths
+of a pixel per pass; in float64 the round trip ``project(unproject(p))`` of a float32
+camera stays within 1e-3 pixel, as OpenCV (which computes in double) does.
 """
 
 from __future__ import annotations
@@ -43,7 +48,7 @@ from torchgeo_cg.cameras._roots import first_root
 from torchgeo_cg.cameras._solve import newton_2d, solve_monotone, upper_bracket
 from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
-from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.core.numerics import cast_back
 
 __all__ = [
     "UndistortResult",
@@ -191,7 +196,7 @@ def distort_points(xy: torch.Tensor, distortion: torch.Tensor) -> torch.Tensor:
     """
     _check_pair(xy, distortion, _LENGTHS)
     dtype = xy.dtype
-    work = working_dtype(dtype)
+    work = torch.float64  # see the module's note on precision
     xy, distortion = xy.to(work), distortion.to(work)
     xd, yd = _distort(xy[..., 0], xy[..., 1], distortion)
     return cast_back(torch.stack([xd, yd], -1), dtype)
@@ -229,16 +234,22 @@ def _polymul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return out
 
 
+def _radial_map(r: torch.Tensor, k: list[torch.Tensor]):
+    """``r -> r c(r)`` and its slope."""
+    c, dc = _rational(r * r, k)
+    return r * c, c + 2 * r * r * dc
+
+
 def _solve_radial(rd: torch.Tensor, k: list[torch.Tensor], limit: torch.Tensor):
     """Radius ``r`` with ``r c(r) = rd`` inside ``[0, r*)``; ``(r, inside)``."""
-    def radial(r):
-        c, dc = _rational(r * r, k)
-        return r * c, c + 2 * r * r * dc
+    radial = [k[0], k[1], k[4], k[5], k[6], k[7]]
 
-    hi = upper_bracket(rd, radial, limit)
-    top = radial(hi)[0]
-    inside = rd < top
-    r, done = solve_monotone(rd, radial, hi)
+    def as_k(ks):
+        return [ks[0], ks[1], None, None, ks[2], ks[3], ks[4], ks[5]]
+
+    hi = upper_bracket(rd, lambda r, ks: _radial_map(r, as_k(ks)), limit, radial)
+    inside = rd < _radial_map(hi, k)[0]
+    r, done = solve_monotone(rd, lambda r, ks: _radial_map(r, as_k(ks)), hi, radial, ~inside)
     return r, inside & done
 
 
@@ -262,8 +273,8 @@ def _undistort(xd: torch.Tensor, yd: torch.Tensor, distortion: torch.Tensor,
     if distortion.shape[-1] >= 12:
         extra = torch.cat([extra, distortion[..., 8:12]], -1)
     if bool((extra != 0).any()):
-        x, y, done = newton_2d(x, y, xd, yd, lambda a, b: _plain(a, b, k, True),
-                               max_iterations)
+        x, y, done = newton_2d(x, y, xd, yd, lambda a, b, ks: _plain(a, b, ks, True), k,
+                               ~valid, max_iterations)
         _, _, j00, j01, j10, j11 = _plain(x, y, k, True)
         inside = (torch.sqrt(x * x + y * y) < limit) & (j00 * j11 - j01 * j10 > 0)
         valid = done & inside
@@ -300,7 +311,7 @@ def undistort_points(xy: torch.Tensor, distortion: torch.Tensor,
     """
     _check_pair(xy, distortion, _LENGTHS)
     dtype = xy.dtype
-    work = working_dtype(dtype)
+    work = torch.float64  # see the module's note on precision
     xy, distortion = xy.to(work), distortion.to(work)
     with torch.no_grad():
         x, y, valid, _, _ = _undistort(xy[..., 0].detach(), xy[..., 1].detach(),
@@ -349,7 +360,7 @@ def fisheye_distort_points(xy: torch.Tensor, distortion: torch.Tensor) -> torch.
     """
     _check_pair(xy, distortion, (4,))
     dtype = xy.dtype
-    work = working_dtype(dtype)
+    work = torch.float64  # see the module's note on precision
     xy, distortion = xy.to(work), distortion.to(work)
     r = _safe_radius(xy)
     angle_d = theta_d(torch.atan(r), distortion)[0]
@@ -382,7 +393,7 @@ def fisheye_undistort_points(xy: torch.Tensor, distortion: torch.Tensor) -> Undi
     """
     _check_pair(xy, distortion, (4,))
     dtype = xy.dtype
-    work = working_dtype(dtype)
+    work = torch.float64  # see the module's note on precision
     xy, distortion = xy.to(work), distortion.to(work)
     rd = _safe_radius(xy)
     theta, valid = fisheye_angle(rd, distortion, math.pi / 2)

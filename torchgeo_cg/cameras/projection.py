@@ -10,6 +10,9 @@ Convention:
     column vectors, ``p_cam = R p_world + t``; ``None`` is the identity.
     ``model``: ``"opencv"`` (pinhole when ``distortion`` is ``None``; the model of
     ``cv2.projectPoints``) or ``"fisheye"`` (Kannala-Brandt, ``cv2.fisheye``).
+
+Every function computes in float64 and returns the input's dtype (see
+:mod:`torchgeo_cg.cameras.distortion` on precision).
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from torchgeo_cg.core.check import (
     check_shape,
 )
 from torchgeo_cg.core.coerce import check_same_dtype
-from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.core.numerics import cast_back
 
 __all__ = ["UnprojectResult", "RayBundle", "project_points", "unproject_points", "pixel_rays"]
 
@@ -89,9 +92,9 @@ def _check_camera(K, distortion, extrinsics, model, tensors: dict, batches: dict
     check_broadcastable(batches)
 
 
-def _work(dtype: torch.dtype, *tensors):
-    work = working_dtype(dtype)
-    return [None if t is None else t.to(work) for t in tensors]
+def _work(*tensors):
+    """The tensors in float64, the computing dtype (see the module's note on precision)."""
+    return [None if t is None else t.to(torch.float64) for t in tensors]
 
 
 def _to_camera(points: torch.Tensor, extrinsics: torch.Tensor | None) -> torch.Tensor:
@@ -177,7 +180,7 @@ def project_points(points: torch.Tensor, K: torch.Tensor, distortion: torch.Tens
     check_shape(points, ["*", "N", "3"], "points")
     _check_camera(K, distortion, extrinsics, model, tensors, batches)
     dtype = points.dtype
-    points, K, distortion, extrinsics = _work(dtype, points, K, distortion, extrinsics)
+    points, K, distortion, extrinsics = _work(points, K, distortion, extrinsics)
     cam = _to_camera(points, extrinsics)
     if model == "fisheye":
         xy = _fisheye_normalised(cam, distortion)
@@ -250,7 +253,7 @@ def unproject_points(pixels: torch.Tensor, depth: torch.Tensor, K: torch.Tensor,
     if ray_distance and model != "fisheye":
         raise ValueError("ray_distance: only the fisheye model takes distances along rays")
     dtype = pixels.dtype
-    pixels, depth, K, distortion, extrinsics = _work(dtype, pixels, depth, K, distortion,
+    pixels, depth, K, distortion, extrinsics = _work(pixels, depth, K, distortion,
                                                      extrinsics)
     if model == "fisheye":
         direction, valid = _camera_rays(pixels, K, distortion, model, math.pi)
@@ -294,7 +297,7 @@ def pixel_rays(pixels: torch.Tensor, K: torch.Tensor, distortion: torch.Tensor |
     _check_pixels(pixels, None, tensors, batches)
     _check_camera(K, distortion, extrinsics, model, tensors, batches)
     dtype = pixels.dtype
-    pixels, K, distortion, extrinsics = _work(dtype, pixels, K, distortion, extrinsics)
+    pixels, K, distortion, extrinsics = _work(pixels, K, distortion, extrinsics)
     direction, valid = _camera_rays(pixels, K, distortion, model, math.pi)
     if extrinsics is not None:
         direction = direction @ extrinsics[..., :3, :3]
