@@ -57,8 +57,8 @@ def test_gradcheck_fisheye():
     px = C.project_points(pts, K, dist, ext, "fisheye").detach().requires_grad_(True)
     depth = torch.full((2, 5), 3.0, dtype=F64, requires_grad=True)
     for ray_distance in (False, True):
-        assert gradcheck(lambda p, z, k, d, e: C.unproject_points(
-            p, z, k, d, e, "fisheye", ray_distance).points, (px, depth, K, dist, ext))
+        assert gradcheck(lambda p, z, k, d, e, r=ray_distance: C.unproject_points(
+            p, z, k, d, e, "fisheye", r).points, (px, depth, K, dist, ext))
     assert gradcheck(lambda p, k, d, e: C.pixel_rays(p, k, d, e, "fisheye")[:2],
                      (px, K, dist, ext))
     xy = torch.tensor([[0.3, -0.2], [0.0, 0.0], [1.0, 0.5]], dtype=F64, requires_grad=True)

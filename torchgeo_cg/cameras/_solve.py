@@ -50,7 +50,8 @@ def solve_monotone(target: torch.Tensor, radial: Callable, hi: torch.Tensor, par
     Returns:
         ``(r, converged)``, shaped like ``target``.
     """
-    shape = target.shape
+    shape = torch.broadcast_shapes(target.shape, hi.shape, skip.shape,
+                                   *(p.shape for p in params))
     eps = torch.finfo(target.dtype).eps
     t_all, hi_all = _flat(shape, (target, hi))
     params_all = _flat(shape, params)
@@ -117,7 +118,8 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
     Returns:
         ``(x, y, converged)``, shaped like ``x``.
     """
-    shape = x.shape
+    shape = torch.broadcast_shapes(x.shape, y.shape, tx.shape, ty.shape, skip.shape,
+                                   *(p.shape for p in params))
     eps = torch.finfo(x.dtype).eps
     x_all, y_all, tx_all, ty_all = _flat(shape, (x, y, tx, ty))
     x_all, y_all = x_all.clone(), y_all.clone()

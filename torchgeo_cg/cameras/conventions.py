@@ -21,7 +21,7 @@ from typing import NamedTuple
 import torch
 
 from torchgeo_cg.cameras.models import PinholeCamera
-from torchgeo_cg.core.check import check_choice, check_float, check_shape
+from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.coerce import check_same_dtype
 
 __all__ = ["PyTorch3DCameras", "convert_pose", "to_pytorch3d", "from_pytorch3d"]
@@ -58,6 +58,8 @@ def _rigid_inverse(m: torch.Tensor) -> torch.Tensor:
 def _to_opencv(pose, src: str) -> torch.Tensor:
     if src == "pytorch3d":
         rot, t = pose
+        batch = torch.broadcast_shapes(rot.shape[:-2], t.shape[:-1])
+        rot, t = rot.expand(*batch, 3, 3), t.expand(*batch, 3)
         flip = _flip(rot, -1.0, -1.0, 1.0)
         rot_cv = flip @ rot.mT  # R_p3d = R_cv^T F  =>  R_cv = F R_p3d^T
         t_cv = t @ flip
@@ -81,6 +83,7 @@ def _check_pose(pose, kind: str, name: str):
         check_shape(rot, ["*", "3", "3"], "R")
         check_shape(t, ["*", "3"], "T")
         check_same_dtype({"R": rot, "T": t})
+        check_broadcastable({"R": rot.shape[:-2], "T": t.shape[:-1]})
         return
     check_float(pose, name)
     check_shape(pose, ["*", "4", "4"], name)
@@ -189,9 +192,13 @@ def from_pytorch3d(R: torch.Tensor, T: torch.Tensor, focal_length: torch.Tensor,
     check_shape(focal_length, ["*", "2"], "focal_length")
     check_shape(principal_point, ["*", "2"], "principal_point")
     check_same_dtype({"R": R, "focal_length": focal_length, "principal_point": principal_point})
+    check_broadcastable({"R": R.shape[:-2], "T": T.shape[:-1],
+                         "focal_length": focal_length.shape[:-1],
+                         "principal_point": principal_point.shape[:-1]})
     if isinstance(image_size, torch.Tensor):
         image_size = image_size.reshape(-1, 2)[0].tolist()
     extrinsics = convert_pose((R, T), "pytorch3d", "opencv")
+    focal_length, principal_point = torch.broadcast_tensors(focal_length, principal_point)
     fx, fy = focal_length[..., 0], focal_length[..., 1]
     cx, cy = principal_point[..., 0] - 0.5, principal_point[..., 1] - 0.5
     zero, one = torch.zeros_like(fx), torch.ones_like(fx)

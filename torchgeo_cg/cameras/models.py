@@ -26,8 +26,8 @@ from torchgeo_cg.cameras.projection import (
     project_points,
     unproject_points,
 )
-from torchgeo_cg.core.check import ShapeError, check_float, check_shape
-from torchgeo_cg.core.coerce import check_module_dtype
+from torchgeo_cg.core.check import ShapeError, check_broadcastable, check_float, check_shape
+from torchgeo_cg.core.coerce import check_module_dtype, check_same_dtype
 
 __all__ = ["PinholeCamera", "OpenCVCamera", "FisheyeCamera"]
 
@@ -54,6 +54,11 @@ class _Camera(nn.Module):
         if extrinsics is not None:
             check_float(extrinsics, "extrinsics")
             check_shape(extrinsics, ["*", "4", "4"], "extrinsics")
+        named = {"K": K, "distortion": distortion, "extrinsics": extrinsics}
+        check_same_dtype({k: v for k, v in named.items() if v is not None})
+        dims = {"K": 2, "distortion": 1, "extrinsics": 2}
+        check_broadcastable({k: v.shape[: v.dim() - dims[k]] for k, v in named.items()
+                             if v is not None})
         self.register_buffer("K", K)
         self.register_buffer("distortion", distortion)
         self.register_buffer("extrinsics", extrinsics)
