@@ -155,10 +155,11 @@ def project_points(points: torch.Tensor, K: torch.Tensor, distortion: torch.Tens
 
     Convention:
         See :mod:`torchgeo_cg.cameras.projection`. ``"opencv"``: ``(x, y) = (X / Z, Y / Z)``
-        (``1 / Z`` read as 1 where ``Z = 0``, as OpenCV does), then :func:`~torchgeo_cg.cameras.distort_points`,
-        then ``K``: ``cv2.projectPoints``. ``"fisheye"``: the incidence angle
-        ``theta = atan2(|(X, Y)|, Z)`` (points behind the camera included), then
-        Kannala-Brandt: ``cv2.fisheye.projectPoints`` for ``Z > 0``.
+        (``1 / Z`` read as 1 where ``Z = 0``, as OpenCV does), then
+        :func:`~torchgeo_cg.cameras.distort_points`, then ``K``: ``cv2.projectPoints``.
+        ``"fisheye"``: the incidence angle ``theta = atan2(|(X, Y)|, Z)`` (points behind
+        the camera included), then Kannala-Brandt: ``cv2.fisheye.projectPoints`` for
+        ``Z > 0``.
 
     Args:
         points: ``(*, N, 3)`` world points.
