@@ -374,7 +374,7 @@ def fisheye_undistort_points(xy: torch.Tensor, distortion: torch.Tensor) -> Undi
     Convention:
         As :func:`fisheye_distort_points`. The result is pinhole-normalised, so it covers
         incidence angles in ``[0, pi/2)`` only (``valid`` is False beyond); the camera's
-        :meth:`~torchgeo_cg.cameras.FisheyeCamera.pixel_rays` covers ``[0, pi)``. The
+        ``pixel_rays`` (:func:`torchgeo_cg.cameras.pixel_rays`) covers ``[0, pi)``. The
         angle is found inside the monotone domain of ``theta -> theta_d`` (the first
         root of its derivative, isolated in the Bernstein basis) by Newton safeguarded
         with bisection; gradients by implicit differentiation.

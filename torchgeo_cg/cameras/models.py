@@ -74,7 +74,7 @@ class _Camera(nn.Module):
         return project_points(points, self.K, self.distortion, self.extrinsics, self._model)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
-        """Same as :meth:`project`."""
+        """Same as ``project``."""
         return self.project(points)
 
     def depth(self, points: torch.Tensor) -> torch.Tensor:
@@ -129,7 +129,7 @@ class _Camera(nn.Module):
         return distort_points(xy, self.distortion)
 
     def undistort(self, xy: torch.Tensor) -> UndistortResult:
-        """The exact inverse of :meth:`distort`, with ``valid``."""
+        """The exact inverse of ``distort``, with ``valid``."""
         self._check(xy, "xy")
         if self.distortion is None:
             check_float(xy, "xy")
@@ -205,8 +205,8 @@ class FisheyeCamera(_Camera):
     Convention:
         As :class:`PinholeCamera`, with the incidence angle ``theta = atan2(|(X, Y)|, Z)``
         distorted to ``theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)``.
-        :meth:`pixel_rays` covers ``[0, pi)``; :meth:`undistort` returns
-        pinhole-normalised points (``[0, pi/2)``); :meth:`unproject` takes the
+        ``pixel_rays`` covers ``[0, pi)``; ``undistort`` returns
+        pinhole-normalised points (``[0, pi/2)``); ``unproject`` takes the
         camera-frame ``z`` or, with ``ray_distance=True``, the distance along the ray.
 
     Args:
