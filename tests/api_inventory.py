@@ -854,6 +854,7 @@ INVENTORY: dict[str, list[str]] = {
         "figure",
         "registered_figures",
     ],
+    "torchgeo_cg.viz.cameras": [],
     "torchgeo_cg.viz.curves": [],
     "torchgeo_cg.viz.estimation": ["plot_report_fits"],
     "torchgeo_cg.viz.gallery": [
