@@ -27,8 +27,12 @@ def _inputs(length: int, fisheye: bool = False):
     return [t.clone().requires_grad_(True) for t in (pts, K, dist, ext)]
 
 
+SLOW = pytest.mark.slow
+
+
 @pytest.mark.grad
-@pytest.mark.parametrize("length", [4, 5, 8, 14])
+@pytest.mark.parametrize("length", [4, pytest.param(5, marks=SLOW), pytest.param(8, marks=SLOW),
+                                    pytest.param(14, marks=SLOW)])
 def test_gradcheck_project_and_unproject(length):
     pts, K, dist, ext = _inputs(length)
     assert gradcheck(lambda p, k, d, e: C.project_points(p, k, d, e), (pts, K, dist, ext))
@@ -39,7 +43,7 @@ def test_gradcheck_project_and_unproject(length):
 
 
 @pytest.mark.grad
-@pytest.mark.parametrize("length", [4, 8, 14])
+@pytest.mark.parametrize("length", [4, pytest.param(8, marks=SLOW), pytest.param(14, marks=SLOW)])
 def test_gradcheck_undistort_and_pixel_rays(length):
     pts, K, dist, ext = _inputs(length)
     g = torch.Generator().manual_seed(9)
@@ -50,6 +54,7 @@ def test_gradcheck_undistort_and_pixel_rays(length):
 
 
 @pytest.mark.grad
+@pytest.mark.slow
 def test_gradcheck_fisheye():
     pts, K, dist, ext = _inputs(4, fisheye=True)
     assert gradcheck(lambda p, k, d, e: C.project_points(p, k, d, e, "fisheye"),
