@@ -56,7 +56,11 @@ def solve_monotone(target: torch.Tensor, radial: Callable, hi: torch.Tensor, par
     t_all, hi_all = _flat(shape, (target, hi))
     params_all = _flat(shape, params)
     skip = skip.expand(shape).reshape(-1)
-    r_all = torch.where(skip, hi_all, torch.minimum(t_all, 0.5 * hi_all))
+    # start: one fixed-point step from the target (r0 = t^2 / radial(t)), else mid-bracket
+    value0, _ = radial(t_all, params_all)
+    guess = t_all * t_all / torch.where(value0 > 0, value0, torch.ones_like(value0))
+    good = (value0 > 0) & (guess < hi_all)
+    r_all = torch.where(skip, hi_all, torch.where(good, guess, 0.5 * hi_all))
     r_all = torch.where(t_all == 0, torch.zeros_like(r_all), r_all)
     done_all = skip | (t_all == 0)
     idx = (~done_all).nonzero().squeeze(1)
@@ -116,7 +120,8 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
     has shrunk below the precision with the residual at its rounding floor.
 
     Returns:
-        ``(x, y, converged)``, shaped like ``x``.
+        ``(x, y, converged, det)``, shaped like ``x``: ``det`` is the Jacobian's
+        determinant at the returned point.
     """
     shape = torch.broadcast_shapes(x.shape, y.shape, tx.shape, ty.shape, skip.shape,
                                    *(p.shape for p in params))
@@ -125,6 +130,7 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
     x_all, y_all = x_all.clone(), y_all.clone()
     params_all = _flat(shape, params)
     done_all = torch.zeros(x_all.shape, dtype=torch.bool, device=x.device)
+    det_all = torch.zeros_like(x_all)
     live = ~skip.expand(shape).reshape(-1)
     idx = live.nonzero().squeeze(1)
     x, y, tx, ty = x_all[idx], y_all[idx], tx_all[idx], ty_all[idx]
@@ -142,6 +148,7 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
         if bool(now.any()):
             done_all[idx[now]] = True
             x_all[idx[now]], y_all[idx[now]] = x[now], y[now]
+            det_all[idx[now]] = (jac[0] * jac[3] - jac[1] * jac[2])[now]
             keep = ~now
             idx, x, y, tx, ty, rx, ry = (a[keep] for a in (idx, x, y, tx, ty, rx, ry))
             res, size, radius = res[keep], size[keep], radius[keep]
@@ -163,4 +170,6 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
         size = _norm2(x, y) + _norm2(tx, ty)
     if idx.numel():
         x_all[idx], y_all[idx] = x, y
-    return x_all.reshape(shape), y_all.reshape(shape), done_all.reshape(shape)
+        det_all[idx] = jac[0] * jac[3] - jac[1] * jac[2]
+    return (x_all.reshape(shape), y_all.reshape(shape), done_all.reshape(shape),
+            det_all.reshape(shape))

@@ -273,10 +273,9 @@ def _undistort(xd: torch.Tensor, yd: torch.Tensor, distortion: torch.Tensor,
     if distortion.shape[-1] >= 12:
         extra = torch.cat([extra, distortion[..., 8:12]], -1)
     if bool((extra != 0).any()):
-        x, y, done = newton_2d(x, y, xd, yd, lambda a, b, ks: _plain(a, b, ks, True), k,
-                               ~valid, max_iterations)
-        _, _, j00, j01, j10, j11 = _plain(x, y, k, True)
-        inside = (torch.sqrt(x * x + y * y) < limit) & (j00 * j11 - j01 * j10 > 0)
+        x, y, done, det = newton_2d(x, y, xd, yd, lambda a, b, ks: _plain(a, b, ks, True),
+                                    k, ~valid, max_iterations)
+        inside = (torch.sqrt(x * x + y * y) < limit) & (det > 0)
         valid = done & inside
     return x, y, valid, xd, yd
 
