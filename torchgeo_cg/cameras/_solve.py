@@ -79,7 +79,8 @@ def solve_monotone(target: torch.Tensor, radial: Callable, hi: torch.Tensor, par
         inside = ok & (newton > lo) & (newton < hi)
         # converged: Newton's own step is at rounding level (it may land on a bracket end)
         small = ok & ((newton - r).abs() <= 2 * eps * r)
-        now = (h == 0) | small | (hi - lo <= 2 * eps * hi)
+        # or the residual is at the target's rounding level: nothing more can be known
+        now = (h.abs() <= eps * t) | small | (hi - lo <= 2 * eps * hi)
         r = torch.where(h == 0, r, torch.where(small | inside, newton, 0.5 * (lo + hi)))
         if bool(now.any()):
             r_all[idx[now]] = r[now]

@@ -247,7 +247,12 @@ def _solve_radial(rd: torch.Tensor, k: list[torch.Tensor], limit: torch.Tensor):
     def as_k(ks):
         return [ks[0], ks[1], None, None, ks[2], ks[3], ks[4], ks[5]]
 
-    hi = upper_bracket(rd, lambda r, ks: _radial_map(r, as_k(ks)), limit, radial)
+    # one bracket per lens (and batch item): a radius whose image passes every target
+    if rd.shape[-1]:
+        need = rd.nan_to_num(0.0, 0.0, 0.0).amax(-1, keepdim=True)
+    else:
+        need = rd.new_zeros(rd.shape[:-1] + (1,))
+    hi = upper_bracket(need, lambda r, ks: _radial_map(r, as_k(ks)), limit, radial)
     inside = rd < _radial_map(hi, k)[0]
     r, done = solve_monotone(rd, lambda r, ks: _radial_map(r, as_k(ks)), hi, radial, ~inside)
     return r, inside & done
@@ -258,26 +263,46 @@ def _plain_residual(xy: torch.Tensor, target: torch.Tensor, distortion: torch.Te
     return torch.stack([xd, yd], -1) - target
 
 
-def _undistort(xd: torch.Tensor, yd: torch.Tensor, distortion: torch.Tensor,
-               max_iterations: int):
-    """The preimage without gradients: ``(x, y, valid)``, all ``(*, N)``."""
-    k = _coeffs(distortion)
-    if distortion.shape[-1] == 14:
-        xd, yd = _projective(torch.linalg.inv(_tilt(k)), xd, yd)
-    limit = _radial_limit(distortion)
+#: Points per block of the solve: a block's arrays stay in cache, so the solver's few
+#: dozen elementwise passes run at compute speed, not memory speed.
+_BLOCK = 1 << 15
+
+
+def _undistort_block(xd, yd, k, limit, tangential: bool, max_iterations: int):
     rd = torch.sqrt(xd * xd + yd * yd)
     r, valid = _solve_radial(rd, k, limit)
     ratio = torch.where(rd > 0, r / torch.where(rd > 0, rd, torch.ones_like(rd)), 1.0)
     x, y = xd * ratio, yd * ratio
-    extra = distortion[..., 2:4]
-    if distortion.shape[-1] >= 12:
-        extra = torch.cat([extra, distortion[..., 8:12]], -1)
-    if bool((extra != 0).any()):
+    if tangential:
         x, y, done, det = newton_2d(x, y, xd, yd, lambda a, b, ks: _plain(a, b, ks, True),
                                     k, ~valid, max_iterations)
         inside = (torch.sqrt(x * x + y * y) < limit) & (det > 0)
         valid = done & inside
-    return x, y, valid, xd, yd
+    return x, y, valid
+
+
+def _undistort(xd: torch.Tensor, yd: torch.Tensor, distortion: torch.Tensor,
+               max_iterations: int):
+    """The preimage without gradients: ``(x, y, valid)``, all ``(*, N)``.
+
+    Large inputs are solved in blocks of the point axis (a loop over blocks, not points).
+    """
+    k = _coeffs(distortion)
+    if distortion.shape[-1] == 14:
+        xd, yd = _projective(torch.linalg.inv(_tilt(k)), xd, yd)
+    limit = _radial_limit(distortion)
+    extra = distortion[..., 2:4]
+    if distortion.shape[-1] >= 12:
+        extra = torch.cat([extra, distortion[..., 8:12]], -1)
+    tangential = bool((extra != 0).any())
+    xd, yd = torch.broadcast_tensors(xd, yd)
+    count = xd.shape[-1]
+    step = max(1, _BLOCK // max(1, xd[..., 0].numel()))
+    if count <= step:
+        return _undistort_block(xd, yd, k, limit, tangential, max_iterations)
+    parts = [_undistort_block(xd[..., i: i + step], yd[..., i: i + step], k, limit,
+                              tangential, max_iterations) for i in range(0, count, step)]
+    return tuple(torch.cat(p, -1) for p in zip(*parts))
 
 
 def undistort_points(xy: torch.Tensor, distortion: torch.Tensor,
@@ -313,8 +338,8 @@ def undistort_points(xy: torch.Tensor, distortion: torch.Tensor,
     work = torch.float64  # see the module's note on precision
     xy, distortion = xy.to(work), distortion.to(work)
     with torch.no_grad():
-        x, y, valid, _, _ = _undistort(xy[..., 0].detach(), xy[..., 1].detach(),
-                                       distortion.detach(), max_iterations)
+        x, y, valid = _undistort(xy[..., 0].detach(), xy[..., 1].detach(),
+                                 distortion.detach(), max_iterations)
         bad = xy.isnan().any(-1) | distortion.isnan().any(-1, keepdim=True)
     solution = torch.stack([x, y], -1)
     if xy.requires_grad or distortion.requires_grad:
