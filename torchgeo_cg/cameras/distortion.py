@@ -297,7 +297,7 @@ def _undistort(xd: torch.Tensor, yd: torch.Tensor, distortion: torch.Tensor,
     tangential = bool((extra != 0).any())
     xd, yd = torch.broadcast_tensors(xd, yd)
     count = xd.shape[-1]
-    step = max(1, _BLOCK // max(1, xd[..., 0].numel()))
+    step = max(1, _BLOCK // max(1, math.prod(xd.shape[:-1])))
     if count <= step:
         return _undistort_block(xd, yd, k, limit, tangential, max_iterations)
     parts = [_undistort_block(xd[..., i: i + step], yd[..., i: i + step], k, limit,
