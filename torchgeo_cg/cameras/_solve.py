@@ -40,12 +40,14 @@ def upper_bracket(target: torch.Tensor, radial: Callable, limit: torch.Tensor,
 
 
 def solve_monotone(target: torch.Tensor, radial: Callable, hi: torch.Tensor, params,
-                   skip: torch.Tensor, max_iterations: int = 100):
+                   skip: torch.Tensor, max_iterations: int = 100, rtol: float = 0.0):
     """``r`` in ``[0, hi]`` with ``radial(r, params) = target`` for an increasing ``radial``.
 
     Newton where its step stays inside the bracket, bisection elsewhere (rtsafe), so it
     cannot leave the monotone domain. ``radial(r, params) -> (value, slope)``; ``params``
     broadcast against ``target``; ``skip`` marks points not to solve (left at ``hi``).
+    ``rtol > 0`` stops at that relative step instead of at rounding level (a start for a
+    solver that polishes the result).
 
     Returns:
         ``(r, converged)``, shaped like ``target``.
@@ -78,7 +80,7 @@ def solve_monotone(target: torch.Tensor, radial: Callable, hi: torch.Tensor, par
         newton = r - h / torch.where(ok, slope, torch.ones_like(slope))
         inside = ok & (newton > lo) & (newton < hi)
         # converged: Newton's own step is at rounding level (it may land on a bracket end)
-        small = ok & ((newton - r).abs() <= 2 * eps * r)
+        small = ok & ((newton - r).abs() <= max(2 * eps, rtol) * r)
         # or the residual is at the target's rounding level: nothing more can be known
         now = (h.abs() <= eps * t) | small | (hi - lo <= 2 * eps * hi)
         r = torch.where(h == 0, r, torch.where(small | inside, newton, 0.5 * (lo + hi)))

@@ -240,8 +240,11 @@ def _radial_map(r: torch.Tensor, k: list[torch.Tensor]):
     return r * c, c + 2 * r * r * dc
 
 
-def _solve_radial(rd: torch.Tensor, k: list[torch.Tensor], limit: torch.Tensor):
-    """Radius ``r`` with ``r c(r) = rd`` inside ``[0, r*)``; ``(r, inside)``."""
+def _solve_radial(rd: torch.Tensor, k: list[torch.Tensor], limit: torch.Tensor,
+                  rtol: float = 0.0):
+    """Radius ``r`` with ``r c(r) = rd`` inside ``[0, r*)``; ``(r, inside)``.
+
+    ``rtol``: the relative precision wanted (0: rounding level)."""
     radial = [k[0], k[1], k[4], k[5], k[6], k[7]]
 
     def as_k(ks):
@@ -254,7 +257,8 @@ def _solve_radial(rd: torch.Tensor, k: list[torch.Tensor], limit: torch.Tensor):
         need = rd.new_zeros(rd.shape[:-1] + (1,))
     hi = upper_bracket(need, lambda r, ks: _radial_map(r, as_k(ks)), limit, radial)
     inside = rd < _radial_map(hi, k)[0]
-    r, done = solve_monotone(rd, lambda r, ks: _radial_map(r, as_k(ks)), hi, radial, ~inside)
+    r, done = solve_monotone(rd, lambda r, ks: _radial_map(r, as_k(ks)), hi, radial, ~inside,
+                             rtol=rtol)
     return r, inside & done
 
 
@@ -270,7 +274,9 @@ _BLOCK = 1 << 15
 
 def _undistort_block(xd, yd, k, limit, tangential: bool, max_iterations: int):
     rd = torch.sqrt(xd * xd + yd * yd)
-    r, valid = _solve_radial(rd, k, limit)
+    # with tangential terms the radius is only the 2D Newton's start: half the digits do
+    rtol = torch.finfo(rd.dtype).eps ** 0.5 if tangential else 0.0
+    r, valid = _solve_radial(rd, k, limit, rtol)
     ratio = torch.where(rd > 0, r / torch.where(rd > 0, rd, torch.ones_like(rd)), 1.0)
     x, y = xd * ratio, yd * ratio
     if tangential:
