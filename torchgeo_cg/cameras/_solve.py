@@ -119,8 +119,8 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
 
     ``model(x, y, params) -> (fx, fy, j00, j01, j10, j11)``. A step is accepted when it
     lowers the residual, and the region then grows; a rejected step shrinks it.
-    Converged: the residual is at rounding level (``16 eps`` of the sizes), or the region
-    has shrunk below the precision with the residual at its rounding floor.
+    Converged: the residual is at rounding level (``4 eps`` of the sizes), or Newton's step
+    or the region has shrunk below the precision with the residual at its rounding floor.
 
     Returns:
         ``(x, y, converged, det)``, shaped like ``x``: ``det`` is the Jacobian's
@@ -144,10 +144,13 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
     size = _norm2(x, y) + _norm2(tx, ty)
     radius = torch.where(size > 0, 0.5 * size, torch.ones_like(size))
     for it in range(max_iterations + 1):
-        now = res <= 16 * eps * size
-        if it:
-            floor = res <= 64 * eps * size  # the residual's rounding floor
-            now = now | (floor & (radius <= 2 * eps * _norm2(x, y)))
+        dx, dy, length, good = _newton_step(x, y, rx, ry, jac, radius)
+        span = _norm2(x, y)
+        floor = res <= 64 * eps * size  # the residual's rounding floor
+        # converged: the residual at rounding level, or Newton's own (uncut) step below the
+        # precision of x with the residual at its floor, or a region shrunk to nothing
+        now = (res <= 4 * eps * size) | (good & (length <= 2 * eps * span) & floor) \
+            | (floor & (radius <= 2 * eps * span))
         if bool(now.any()):
             done_all[idx[now]] = True
             x_all[idx[now]], y_all[idx[now]] = x[now], y[now]
@@ -155,11 +158,11 @@ def newton_2d(x: torch.Tensor, y: torch.Tensor, tx: torch.Tensor, ty: torch.Tens
             keep = ~now
             idx, x, y, tx, ty, rx, ry = (a[keep] for a in (idx, x, y, tx, ty, rx, ry))
             res, size, radius = res[keep], size[keep], radius[keep]
+            dx, dy, length, good = dx[keep], dy[keep], length[keep], good[keep]
             jac = [j[keep] for j in jac]
             ps = [p[keep] for p in ps]
         if idx.numel() == 0 or it == max_iterations:
             break
-        dx, dy, length, good = _newton_step(x, y, rx, ry, jac, radius)
         nx, ny = x + dx, y + dy
         gx, gy, *jac_new = model(nx, ny, ps)
         sx, sy = gx - tx, gy - ty
