@@ -10,10 +10,14 @@ reports both errors: the largest residual ``|distort(x) - x_d|`` of the points e
 returns, in pixels (over the points ours marks valid: the whole image for this lens).
 
 Where the time goes (undistortion): the monotone-domain search (Bernstein isolation of
-the derivative's first root) is a few milliseconds per call whatever the point count; the
-bracketed Newton takes 5-7 iterations per point, the 2D trust-region polish of the
-tangential terms 1-2, and converged points leave both loops. OpenCV runs a fixed-point
-iteration per point in C++ that needs 20-60 iterations at 1e-12 for this lens.
+the derivative's first root) is a few milliseconds per call whatever the point count. The
+points are solved in blocks of 32768 that stay in cache: the bracketed radial Newton
+(a fixed-point first guess, then 3-4 steps to half precision, as it only starts the 2D
+solve), then the 2D trust-region Newton for the tangential terms (2-3 steps to rounding
+level); converged points leave both loops. Each step is a few dozen elementwise torch
+passes over the block. OpenCV runs its fixed-point iteration per point in C++ (about 10
+iterations at 1e-12 for this mild lens; more for strong ones, where it also stops short
+of the inverse).
 """
 
 from __future__ import annotations
