@@ -33,8 +33,10 @@ class PyTorch3DCameras(NamedTuple):
     """The arguments of ``PerspectiveCameras(..., in_ndc=False)``.
 
     Attributes:
-        R: ``(*, 3, 3)``; T: ``(*, 3)``; focal_length: ``(*, 2)`` ``(fx, fy)`` in pixels;
-        principal_point: ``(*, 2)`` in PyTorch3D's screen space (pixel corner at 0);
+        R: ``(*, 3, 3)``, row-vector rotation.
+        T: ``(*, 3)``, translation.
+        focal_length: ``(*, 2)`` ``(fx, fy)`` in pixels.
+        principal_point: ``(*, 2)`` in PyTorch3D's screen space (pixel corner at 0).
         image_size: ``(*, 2)`` ``(H, W)``.
     """
 
@@ -99,7 +101,8 @@ def convert_pose(pose, src: str, dst: str):
 
     Args:
         pose: ``(*, 4, 4)``, or ``(R (*, 3, 3), T (*, 3))`` for ``"pytorch3d"``.
-        src: its convention; dst: the one wanted.
+        src: its convention.
+        dst: the convention wanted.
 
     Returns:
         The pose in ``dst``'s form (a tensor, or the pair ``(R, T)``).
@@ -172,9 +175,11 @@ def from_pytorch3d(R: torch.Tensor, T: torch.Tensor, focal_length: torch.Tensor,
         The inverse of :func:`to_pytorch3d`: the principal point moves by ``-0.5``.
 
     Args:
-        R: ``(*, 3, 3)``; T: ``(*, 3)``; focal_length: ``(*, 2)``; principal_point:
-        ``(*, 2)`` in screen space; image_size: ``(H, W)`` (numbers, or a tensor whose
-        rows all hold the same size).
+        R: ``(*, 3, 3)``, PyTorch3D's rotation (row vectors).
+        T: ``(*, 3)``, PyTorch3D's translation.
+        focal_length: ``(*, 2)`` ``(fx, fy)`` in pixels.
+        principal_point: ``(*, 2)`` in screen space (pixel corner at 0).
+        image_size: ``(H, W)``: numbers, or a tensor whose rows all hold the same size.
 
     Returns:
         The camera, with extrinsics and image size.
