@@ -90,7 +90,7 @@ def test_valid_is_exactly_the_monotone_domain_opencv(name):
     ok = out.valid
     back = C.distort_points(out.points[ok], radial_only)[:, 0]
     assert float((back - rd[ok]).abs().max()) <= 1e-14 * max(1.0, top)
-    if name == "folding":  # the fold of the issue: r = 0.941
+    if name == "folding":  # this lens folds at r = 0.941
         assert 0.60 < top < 0.61
         last = out.points[ok][:, 0].max()
         assert abs(float(last) - 0.9414) < 1e-3
