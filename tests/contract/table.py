@@ -38,9 +38,9 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_cameras, table_estimation, table_fitting, table_meshes, table_points3d, table_queries,
-         table_subdivision, table_rotations, table_limit, table_splines, table_surfaces,
-         table_sparse_mc)
+AREAS = (table_cameras, table_estimation, table_fitting, table_meshes, table_points3d,
+         table_queries, table_subdivision, table_rotations, table_limit, table_splines,
+         table_surfaces, table_sparse_mc)
 
 # ----------------------------------------------------------------------------- helpers
 
