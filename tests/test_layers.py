@@ -28,6 +28,7 @@ ALLOWED: dict[str, set[str] | None] = {
     "sdf": {"core", "mesh", "engine"},
     "engine": {"core"},
     "surfaces": {"core", "curves"},
+    "cameras": {"core", "transforms", "curves"},
     "viz": None,
     "cli": None,
     "": None,  # torchgeo_cg/__init__.py and __main__.py

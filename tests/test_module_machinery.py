@@ -39,6 +39,7 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.optim.swa_utils import AveragedModel
 
 from tests.api_inventory import public_names
+from torchgeo_cg.cameras import FisheyeCamera, OpenCVCamera, PinholeCamera
 from torchgeo_cg.curves import (
     BezierCurve,
     BSplineCurve,
@@ -184,7 +185,23 @@ def _uv_call(module: nn.Module, x: torch.Tensor) -> torch.Tensor:
     return module(x[..., 0], x[..., 1])
 
 
+def _ahead(seed: int) -> torch.Tensor:
+    """Five points in front of a camera."""
+    return _rand(5, 3)(seed) + torch.tensor([0.0, 0.0, 3.0])
+
+
+_K = torch.tensor([[500.0, 0.0, 320.0], [0.0, 480.0, 240.0], [0.0, 0.0, 1.0]])
+
 SPECS: dict[str, Spec] = {
+    "torchgeo_cg.cameras.models.PinholeCamera": Spec(
+        lambda: PinholeCamera(_K, _RIGID, image_size=(480, 640)), _ahead
+    ),
+    "torchgeo_cg.cameras.models.OpenCVCamera": Spec(
+        lambda: OpenCVCamera(_K, torch.tensor([-0.2, 0.05, 1e-3, -2e-3, 0.01]), _RIGID), _ahead
+    ),
+    "torchgeo_cg.cameras.models.FisheyeCamera": Spec(
+        lambda: FisheyeCamera(_K, torch.tensor([0.05, -0.02, 0.003, -5e-4])), _ahead
+    ),
     "torchgeo_cg.curves.bspline.BSplineCurve": Spec(
         lambda: BSplineCurve(torch.tensor([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0], [4.0, 0.0],
                                            [5.0, 1.0]]), 3), _T

@@ -13,13 +13,15 @@ Subpackages, one per area:
 - :mod:`torchgeo_cg.engine`: the compiled kernel layer (NVIDIA Warp, loaded at first use);
 - :mod:`torchgeo_cg.points`: nearest neighbours, Chamfer distance, normals, radius search,
   voxel downsampling, outlier removal, sampling, ICP;
+- :mod:`torchgeo_cg.cameras`: camera models, lens distortion with an exact inverse, pose
+  conventions;
 - :mod:`torchgeo_cg.viz` and :mod:`torchgeo_cg.cli`: the gallery and ``torchgeo-cg``.
 """
 
-from torchgeo_cg import core, curves, engine, mesh, points, sdf, surfaces, transforms
+from torchgeo_cg import cameras, core, curves, engine, mesh, points, sdf, surfaces, transforms
 from torchgeo_cg.core import ShapeError
 
 __version__ = "0.1.0"
 
-__all__ = ["ShapeError", "core", "curves", "engine", "mesh", "points", "sdf", "surfaces",
+__all__ = ["ShapeError", "cameras", "core", "curves", "engine", "mesh", "points", "sdf", "surfaces",
            "transforms", "__version__"]

@@ -72,11 +72,11 @@ def check_sections(sections: list[str] | None) -> list[str]:
 
     Example:
         >>> check_sections(["curves"])[:2]
-        ['curves', 'estimation']
+        ['cameras', 'curves']
         >>> check_sections(["bogus"])  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        ValueError: unknown gallery section 'bogus'; the sections are curves, estimation, ...
+        ValueError: unknown gallery section 'bogus'; the sections are cameras, curves, ...
     """
     load_figure_modules()
     known = sorted({f.section for f in registered_figures()})
