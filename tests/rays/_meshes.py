@@ -60,7 +60,8 @@ def adversarial_rays(verts, faces, generator: torch.Generator, spread: float = 0
     """
     tris = check_mesh(verts, faces)
     normals = vertex_normals(verts, tris)
-    edges = torch.cat([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]).sort(1).values.unique(dim=0)
+    edges = torch.cat([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    edges = edges.sort(1).values.unique(dim=0)
     used = tris.unique()
     targets = torch.cat([verts[used], (verts[edges[:, 0]] + verts[edges[:, 1]]) / 2])
     n = torch.cat([normals[used], normals[edges[:, 0]] + normals[edges[:, 1]]])

@@ -97,7 +97,8 @@ def test_a_ray_along_a_shared_edge_plane_and_through_a_vertex_of_the_cube():
     hits = ray_mesh_intersect(QUAD_CUBE_V, QUAD_CUBE_F, o, d)
     n = ray_mesh_crossings(QUAD_CUBE_V, QUAD_CUBE_F, o, d)
     # the diagonal of the top quad, the cube's edge, the cube's corner
-    assert hits.hit[[0, 3]].all() and torch.equal(hits.t[[0, 3]], torch.tensor([2.0, 1.0], dtype=F64))
+    assert hits.hit[[0, 3]].all()
+    assert torch.equal(hits.t[[0, 3]], torch.tensor([2.0, 1.0], dtype=F64))
     assert n[0] == 2 and n[3] == 2
     assert n[1] % 2 == 0 and n[2] % 2 == 0  # touching the surface along an edge or face
 

@@ -160,7 +160,8 @@ def walk(grid: RayGrid, o: torch.Tensor, d: torch.Tensor, item: torch.Tensor,
         done = t_exit >= t1.index_select(0, act)
         if first:
             done |= best_t.index_select(0, act) <= t_exit
-        cell = cell.scatter_add(1, axis[:, None], step.index_select(0, act).gather(1, axis[:, None]))
+        move = step.index_select(0, act).gather(1, axis[:, None])
+        cell = cell.scatter_add(1, axis[:, None], move)
         done |= ((cell < 0) | (cell >= dims)).any(-1)
         keep = (~done).nonzero().squeeze(1)
         act, cell = act.index_select(0, keep), cell.index_select(0, keep)
