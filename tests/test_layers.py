@@ -26,6 +26,7 @@ ALLOWED: dict[str, set[str] | None] = {
     "points": {"core", "transforms"},
     "sdf": {"core", "mesh"},
     "surfaces": {"core", "curves"},
+    "rays": {"core", "mesh", "sdf", "cameras", "engine"},
     "viz": None,
     "cli": None,
     "": None,  # torchgeo_cg/__init__.py and __main__.py

@@ -87,8 +87,8 @@ def prepare(verts: torch.Tensor, faces, origins: torch.Tensor, directions: torch
     tris = check_mesh(verts, faces)
     rays = check_rays(origins, directions)
     check_same_dtype({"verts": verts, "origins": origins, "directions": directions})
-    check_shape(origins, ["*", "R", "3"], "origins")
-    check_shape(directions, ["*", "R", "3"], "directions")
+    if verts.dim() > 2 and not rays:  # a batch of meshes needs the ray dim R
+        check_shape(origins, ["*", "R", "3"], "origins")
     if verts.dim() == 2:
         B, R, lead = 1, math.prod(rays), rays
     else:
