@@ -20,7 +20,7 @@ import math
 import torch
 
 from torchgeo_cg.core.check import ShapeError
-from torchgeo_cg.core.numerics import safe_norm
+from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.rays._march import bracket, march, refine
 from torchgeo_cg.rays._prepare import check_rays
 from torchgeo_cg.rays.mesh_intersect import RayHits
@@ -157,8 +157,9 @@ def sphere_trace(sdf, origins: torch.Tensor, directions: torch.Tensor, *,
     _check_options(sdf, lipschitz, t_max, max_steps, tol)
     lead = check_rays(origins, directions)
     dtype = origins.dtype
-    o = origins.expand(*lead, 3).reshape(-1, 3)
-    d = directions.expand(*lead, 3).reshape(-1, 3)
+    work = working_dtype(dtype)  # float16/bfloat16 are traced in float32
+    o = origins.expand(*lead, 3).reshape(-1, 3).to(work)
+    d = directions.expand(*lead, 3).reshape(-1, 3).to(work)
     field = _field(sdf)
     finite = torch.isfinite(o).all(-1) & torch.isfinite(d).all(-1)
     valid = finite & (d != 0).any(-1)
@@ -175,6 +176,6 @@ def sphere_trace(sdf, origins: torch.Tensor, directions: torch.Tensor, *,
     points = torch.where(hit[:, None], o + t[:, None] * d, 0.0)
     points = torch.where(finite[:, None], points, torch.nan)
     face = torch.full(hit.shape, -1, dtype=torch.long, device=o.device)
-    return RayHits(hit.reshape(lead), t.to(dtype).reshape(lead), face.reshape(lead),
-                   o.new_zeros(*lead, 3), points.reshape(*lead, 3),
-                   normals.reshape(*lead, 3))
+    return RayHits(hit.reshape(lead), cast_back(t, dtype).reshape(lead), face.reshape(lead),
+                   origins.new_zeros(*lead, 3), cast_back(points, dtype).reshape(*lead, 3),
+                   cast_back(normals, dtype).reshape(*lead, 3))
