@@ -13,6 +13,10 @@
 - Under pytest-xdist (``-n auto``, as the README's command runs) every worker uses one
   torch thread: the workers already fill the cores, and oversubscribed OpenMP threads
   made small ops 10-100x slower on 2 shared cores.
+- The Warp kernel cache is warmed once, in the controlling process, before any test runs
+  (``pytest_configure``): the workers then load compiled kernels instead of compiling
+  the same ones side by side. Nothing happens when Warp is missing, broken or disabled
+  (``TORCHGEO_CG_DISABLE_WARP=1``).
 - Hypothesis profiles, chosen with ``HYPOTHESIS_PROFILE``: ``ci`` (the default, 40
   examples, the same on every run) and ``thorough`` (500 examples, for a nightly or a
   release check).
@@ -41,6 +45,20 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+
+def pytest_configure(config):
+    """Compile every kernel set of the package once, in the controller only (an xdist
+    worker has ``workerinput``), so the workers find a warm kernel cache."""
+    if hasattr(config, "workerinput"):
+        return
+    import torchgeo_cg  # noqa: F401  registers every kernel set of the package
+    from torchgeo_cg.engine import warm, warp_status
+
+    if warp_status()[0] == "ok":
+        warm()
+
 
 if os.environ.get("PYTEST_XDIST_WORKER"):  # the workers share the cores: no oversubscription
     torch.set_num_threads(1)

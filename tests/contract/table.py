@@ -20,6 +20,7 @@ import torchgeo_cg.curves as C
 import torchgeo_cg.sdf as S
 import torchgeo_cg.transforms as T
 from tests.contract import (
+    table_engine,
     table_estimation,
     table_fitting,
     table_limit,
@@ -38,9 +39,9 @@ from torchgeo_cg.curves.bernstein import bernstein_basis
 
 __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 
-AREAS = (table_estimation, table_fitting, table_meshes, table_points3d, table_queries,
-         table_subdivision, table_rotations, table_limit, table_splines, table_surfaces,
-         table_sparse_mc, table_rays)
+AREAS = (table_engine, table_estimation, table_fitting, table_meshes, table_points3d,
+         table_queries, table_subdivision, table_rotations, table_limit, table_splines,
+         table_surfaces, table_sparse_mc, table_rays)
 
 # ----------------------------------------------------------------------------- helpers
 

@@ -15,6 +15,7 @@ import trimesh
 import torchgeo_cg.sdf as S
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.testing import assert_close
+from torchgeo_cg.engine import backend as engine_backend
 from torchgeo_cg.sdf import mesh_distance as M
 
 
@@ -502,7 +503,14 @@ def broken_warp(monkeypatch):
     if hasattr(S, "_engine_warp"):  # the fresh import rebinds it; restored at teardown
         monkeypatch.setattr(S, "_engine_warp", S._engine_warp)
     monkeypatch.setattr(sys, "meta_path", [_BrokenWarp(), *sys.meta_path])
-    monkeypatch.setattr(E, "_WARNED", set())
+    _forget_warp(monkeypatch)
+
+
+def _forget_warp(monkeypatch):
+    """The engine layer loads Warp once per process: forget that load (and its warning)
+    for one test; the real state comes back after it."""
+    monkeypatch.setattr(engine_backend, "_STATE", {})
+    monkeypatch.setattr(engine_backend, "_WARNED", set())
 
 
 def test_engine_that_fails_to_import(broken_warp):
@@ -539,7 +547,7 @@ def test_engine_that_fails_to_import(broken_warp):
 def test_missing_engine_message_differs_from_failed_import(monkeypatch):
     """Not installed at all: the message names the extra and no warning is given."""
     monkeypatch.setitem(sys.modules, "warp", None)  # find_spec finds nothing
-    monkeypatch.setattr(E, "_WARNED", set())
+    _forget_warp(monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert E.resolve_backend("auto") == "torch"

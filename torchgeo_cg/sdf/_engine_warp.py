@@ -20,44 +20,23 @@ Convention:
     (Warp has no batched constructor); the query is one launch for all meshes.
 """
 
-from __future__ import annotations
-
-import logging
 from typing import NamedTuple
 
 import torch
 from tqdm.auto import tqdm
 
+from torchgeo_cg.engine import load_warp, register_kernels
 from torchgeo_cg.sdf._triangle import pseudo_normals, unit_normals
 
 __all__: list[str] = []
 
-#: Why Warp, although installed, cannot be used: the exception its import or
-#: initialisation raised (a broken CUDA driver, a missing system library, a failing
-#: dependency), else None. ``wp`` is None then, as without the extra.
-IMPORT_ERROR: Exception | None = None
-try:
-    import warp as wp
-
-    # Warp's info banner and kernel-load lines would print on every import; warnings stay
-    if wp.config.log_level < logging.WARNING:
-        wp.config.log_level = logging.WARNING
-    wp.init()
-    wp.set_module_options({"enable_backward": False})  # the search needs no adjoint kernels
-except ModuleNotFoundError as exc:
-    wp = None
-    if exc.name != "warp":  # Warp is there, one of its own imports is missing
-        IMPORT_ERROR = exc
-except Exception as exc:  # noqa: BLE001  any failure of an installed Warp disables it
-    wp, IMPORT_ERROR = None, exc
-
-if wp is not None:  # kernels exist only with a working optional extra
+def _edge_funcs(wp):
+    """The Warp functions on points and segments."""
 
     @wp.func
     def _dot3(u: wp.vec3d, v: wp.vec3d) -> wp.float64:
         """``u . v`` summed left to right, as the torch evaluation does."""
         return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
-
 
     @wp.func
     def _segment(p: wp.vec3d, u: wp.vec3d, v: wp.vec3d):
@@ -72,7 +51,6 @@ if wp is not None:  # kernels exist only with a working optional extra
         d = p - q
         return _dot3(d, d), t, q
 
-
     @wp.func
     def _defers(t: wp.float64, t_prev: wp.float64, t_next: wp.float64) -> bool:
         """An edge's candidate clamped to a corner that the other edge at that corner does
@@ -80,7 +58,6 @@ if wp is not None:  # kernels exist only with a working optional extra
         at_start = t <= wp.float64(0.0) and not (t_prev >= wp.float64(1.0))
         at_end = t >= wp.float64(1.0) and not (t_next <= wp.float64(0.0))
         return at_start or at_end
-
 
     @wp.func
     def _nearer_edge(d2: wp.float64, t: wp.float64, qe: wp.vec3d, edge: int, skip: bool,
@@ -91,6 +68,12 @@ if wp is not None:  # kernels exist only with a working optional extra
             return d2, t, qe, edge
         return best, t_best, q, code
 
+
+    return _dot3, _segment, _defers, _nearer_edge
+
+
+def _closest_funcs(wp, _dot3, _segment, _defers, _nearer_edge):
+    """The Warp function of the closest point on a triangle."""
 
     @wp.func
     def _closest_on_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
@@ -143,6 +126,12 @@ if wp is not None:  # kernels exist only with a working optional extra
         return best, q, feature
 
 
+    return _closest_on_triangle
+
+
+def _distance_funcs(wp, _dot3):
+    """The Warp functions of squared distances to triangles and segments."""
+
     @wp.func
     def _triangle_d2(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.float64:
         """Squared point-triangle distance only (the neighbour check's comparison): the
@@ -164,7 +153,6 @@ if wp is not None:  # kernels exist only with a working optional extra
                 return _dot3(d, d)
         return wp.min(wp.min(_segment_d2(w, e0), _segment_d2(w, e1)), _segment_d2(p - b, c - b))
 
-
     @wp.func
     def _segment_d2(w: wp.vec3d, e: wp.vec3d) -> wp.float64:
         """Squared distance from ``w`` to the segment ``[0, e]`` (zero length safe)."""
@@ -175,6 +163,15 @@ if wp is not None:  # kernels exist only with a working optional extra
         d = w - t * e
         return _dot3(d, d)
 
+
+    return _triangle_d2
+
+
+def _build(wp):
+    """The closest-face kernel (and the functions it calls)."""
+    _dot3, _segment, _defers, _nearer_edge = _edge_funcs(wp)
+    _closest_on_triangle = _closest_funcs(wp, _dot3, _segment, _defers, _nearer_edge)
+    _triangle_d2 = _distance_funcs(wp, _dot3)
 
     @wp.kernel
     def _closest_face_kernel(
@@ -227,6 +224,11 @@ if wp is not None:  # kernels exist only with a working optional extra
                 if _dot3(p - q, n) < wp.float64(0.0):
                     dist = -dist
             out_sdf[k] = dist
+
+    return _closest_face_kernel
+
+
+_kernels = register_kernels(_build)
 
 
 class WarpSearch:
@@ -350,12 +352,7 @@ def build_warp_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor) -> WarpSea
         >>> rings
         [0, 1, 2]
     """
-    if IMPORT_ERROR is not None:
-        raise ImportError(f"the Warp engine is installed but failed to import: "
-                          f"{type(IMPORT_ERROR).__name__}: {IMPORT_ERROR}") from IMPORT_ERROR
-    if wp is None:
-        raise ImportError("the Warp engine needs the optional extra 'fast': "
-                          "pip install 'torchgeo_cg[fast]'")
+    wp = load_warp()
     B, V = verts_bv3.shape[:2]
     device = wp.device_from_torch(verts_bv3.device)
     verts32 = verts_bv3.detach().reshape(B * V, 3).float().contiguous()
@@ -393,13 +390,16 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, mode: int =
         >>> v = torch.tensor([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]])
         >>> tris = torch.tensor([[0, 1, 2], [0, 1, 3]])
         >>> p = torch.tensor([[[0.2, 0.2, -1.0], [0.2, -1.0, 0.2]]])
-        >>> if wp is not None:
+        >>> from torchgeo_cg.engine import warp_status
+        >>> if warp_status()[0] == "ok":
         ...     print(warp_closest_faces(build_warp_search(v, tris), p).face_ids)
         ... else:  # without the extra, the same answer from the torch search
         ...     from torchgeo_cg.sdf.engines import search_faces
         ...     print(search_faces(v, tris, p, "torch"))
         tensor([[0, 1]])
     """
+    wp = load_warp()
+    kernel = _kernels()
     B, N = points_bn3.shape[:2]
     device = wp.device_from_torch(points_bn3.device)
     p64 = points_bn3.detach().reshape(B * N, 3).double().contiguous()
@@ -419,7 +419,7 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, mode: int =
     T = search.tris.shape[0]
     for s in tqdm(range(0, B * N, block), disable=not progress, desc="mesh_sdf search",
                   unit="block"):
-        wp.launch(_closest_face_kernel, dim=min(block, B * N - s), device=device,
+        wp.launch(kernel, dim=min(block, B * N - s), device=device,
                   inputs=[*args, s, N, T, mode, *outs])
     wp.synchronize_device(device)
     face_ids = torch.empty_like(faces_sorted).index_copy_(0, order, faces_sorted)

@@ -27,13 +27,15 @@ from __future__ import annotations
 import importlib.util
 import itertools
 import math
-import warnings
 import weakref
 
 import torch
 
 from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import power_of_two_scale
+from torchgeo_cg.engine import resolve_backend as engine_backend
+from torchgeo_cg.engine import warp_status
+from torchgeo_cg.sdf._engine_warp import build_warp_search, warp_closest_faces
 from torchgeo_cg.sdf._mesh_search import (
     build_torch_search,
     pull_in_far_points,
@@ -69,36 +71,30 @@ def available_engines() -> list[str]:
 
 
 def _installed() -> list[str]:
-    """Engines whose module is installed (found, not imported), fastest first."""
+    """Engines whose module is installed (found, not imported) and not disabled, fastest
+    first."""
     return [name for name, module in ENGINES.items()
-            if importlib.util.find_spec(module) is not None]
+            if (name == "warp" and warp_status()[0] != "missing")
+            or (name != "warp" and importlib.util.find_spec(module) is not None)]
 
 
 def _import_error(name: str) -> Exception | None:
     """The exception the import or initialisation of installed engine ``name`` raised,
-    else None (the engine module imports once per process and keeps it)."""
-    if name != "warp":
-        return None
-    from torchgeo_cg.sdf._engine_warp import IMPORT_ERROR
-
-    return IMPORT_ERROR
-
-
-def _describe(error: Exception) -> str:
-    return f"{type(error).__name__}: {error}"
-
-
-#: Engines whose failed import ``backend="auto"`` has already warned about.
-_WARNED: set[str] = set()
+    else None (Warp is loaded once per process by :func:`torchgeo_cg.engine.load_warp`)."""
+    status, why = warp_status() if name == "warp" else ("ok", None)
+    return why if status == "broken" else None
 
 
 def resolve_backend(backend: str) -> str:
     """``"auto"`` -> the fastest installed engine that imports, or ``"torch"``; an engine
     name is checked to be installed and to import.
 
+    Warp's loading, its errors and the one warning of ``"auto"`` are those of
+    :func:`torchgeo_cg.engine.resolve_backend`.
+
     Warns:
         UserWarning: ``"auto"`` skips an engine that is installed but failed to import
-            (once per process and engine).
+            (once per process).
 
     Raises:
         ValueError: unknown name.
@@ -110,26 +106,15 @@ def resolve_backend(backend: str) -> str:
         'torch'
     """
     if backend == "auto":
-        for name in _installed():
-            error = _import_error(name)
-            if error is None:
-                return name
-            if name not in _WARNED:
-                _WARNED.add(name)
-                warnings.warn(f"backend='auto': the {name!r} engine is installed but failed "
-                              f"to import ({_describe(error)}); using the torch search",
-                              UserWarning, stacklevel=3)
-        return "torch"
+        return "warp" if engine_backend("auto") == "warp" and "warp" in ENGINES else "torch"
     if backend == "torch":
         return backend
     check_choice(backend, ("auto", "torch", *sorted(ENGINES)), "backend")
+    if backend == "warp":
+        return engine_backend("warp")
     if importlib.util.find_spec(ENGINES[backend]) is None:
         raise ImportError(f"backend={backend!r} needs the optional extra 'fast': "
                           f"pip install 'torchgeo_cg[fast]' (installs {ENGINES[backend]})")
-    error = _import_error(backend)
-    if error is not None:
-        raise ImportError(f"backend={backend!r}: {ENGINES[backend]} is installed but failed "
-                          f"to import ({_describe(error)})") from error
     return backend
 
 
@@ -165,8 +150,6 @@ def build_search(verts_bv3: torch.Tensor, tris_t3: torch.Tensor, backend: str) -
     if backend == "torch":
         tri = verts_bv3.detach().to("cpu", torch.float64)[:, tris_t3.cpu()]
         return build_torch_search(tri)
-    from torchgeo_cg.sdf._engine_warp import build_warp_search
-
     return build_warp_search(verts_bv3, tris_t3)
 
 
@@ -176,8 +159,6 @@ def _query(structure, points_bn3: torch.Tensor, backend: str, mode: int, progres
         p = points_bn3.to("cpu", torch.float64)
         faces = torch_closest_faces(structure, p, progress=progress).to(points_bn3.device)
         return faces, _no_distances(points_bn3)
-    from torchgeo_cg.sdf._engine_warp import warp_closest_faces
-
     answer = warp_closest_faces(structure, points_bn3, mode=mode, progress=progress)
     return answer.face_ids, answer.sdf if mode else _no_distances(points_bn3)
 

@@ -1,0 +1,193 @@
+"""Kernel sets defined at first use, compiled once per machine, launched on the tensors'
+device.
+
+A kernel module of the package holds one builder, a function of the ``warp`` module that
+defines its ``@wp.func`` and ``@wp.kernel`` functions in its own scope and returns them;
+:func:`register_kernels` turns it into a cached getter, so no kernel exists (and Warp is
+not imported) until a call needs one::
+
+    # torchgeo_cg/points/_knn_kernels.py: no ``from __future__ import annotations`` here,
+    # Warp reads the annotations, and ``wp`` exists only in the builder's scope
+    from torchgeo_cg.engine import launch, register_kernels
+
+    def _build(wp):
+        @wp.kernel
+        def knn_kernel(points: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.int64)):
+            ...
+        return SimpleNamespace(knn=knn_kernel)
+
+    _kernels = register_kernels(_build)   # at module level: nothing is built yet
+
+    def knn_indices(points):              # the first call loads Warp and builds
+        k = _kernels()
+        launch(k.knn, n, [to_warp(points, ...), to_warp(out)], points.device)
+
+Convention:
+    One builder per Python module (Warp hashes a module's kernels together: a module
+    whose kernel set depended on which builder ran first would compile once per order).
+    The module's kernels compile without adjoints (``enable_backward=False``): kernels
+    decide integers, torch differentiates. :func:`warm` compiles every registered set;
+    the compiled code is cached by Warp across processes (see
+    :mod:`torchgeo_cg.engine.backend` for the cache directory).
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+import time
+from collections.abc import Callable, Sequence
+from types import ModuleType
+from typing import TypeVar
+
+import torch
+
+from torchgeo_cg.engine.backend import load_warp
+
+__all__ = ["launch", "register_kernels", "registered_kernels", "to_warp", "warm"]
+
+_T = TypeVar("_T")
+
+#: Python module name -> the cached getter of its kernel set.
+_REGISTRY: dict[str, Callable[[], object]] = {}
+_LOCK = threading.RLock()
+
+
+def register_kernels(builder: Callable[[ModuleType], _T]) -> Callable[[], _T]:
+    """A getter that builds ``builder(warp)`` at its first call and then returns it.
+
+    Args:
+        builder: a function of the ``warp`` module that defines kernels in its scope and
+            returns them (any object); one per Python module (a second one in the same
+            module raises ``ValueError``; re-importing a module replaces its entry).
+
+    Returns:
+        A function of no argument returning the built kernels; it loads Warp (raising
+        :func:`~torchgeo_cg.engine.load_warp`'s ``ImportError`` when it cannot).
+
+    Example:
+        >>> from torchgeo_cg.engine import warp_status
+        >>> def _build(wp):  # a real builder defines @wp.kernel functions here
+        ...     return {"name": wp.__name__}
+        >>> kernels = register_kernels(_build)   # nothing loaded or built yet
+        >>> kernels()["name"] if warp_status()[0] == "ok" else "warp"
+        'warp'
+    """
+    name = builder.__module__
+    with _LOCK:
+        known = _REGISTRY.get(name)
+        if known is not None and known.__qualname__ != builder.__qualname__:
+            raise ValueError(f"register_kernels: module {name!r} already registered "
+                             f"{known.__qualname__!r}; one kernel builder per module")
+
+    @functools.wraps(builder)
+    def kernels() -> _T:
+        with _LOCK:
+            if not built:
+                wp = load_warp()
+                wp.set_module_options({"enable_backward": False}, module=name)
+                built.append(builder(wp))
+        return built[0]
+
+    built: list = []
+    with _LOCK:
+        _REGISTRY[name] = kernels
+    return kernels
+
+
+def registered_kernels() -> list[str]:
+    """The Python modules whose kernel sets are registered, sorted.
+
+    Convention:
+        ``import torchgeo_cg`` imports every area, so it registers all of the package's
+        kernel sets.
+
+    Example:
+        >>> import torchgeo_cg
+        >>> isinstance(registered_kernels(), list)
+        True
+    """
+    with _LOCK:
+        return sorted(_REGISTRY)
+
+
+def warm(devices: Sequence[str] | None = None) -> dict[str, float]:
+    """Build and compile every registered kernel set (the kernel cache is then warm).
+
+    Args:
+        devices: the Warp devices to compile for; None: ``"cpu"``, and ``"cuda:0"`` when
+            torch and Warp both see CUDA.
+
+    Returns:
+        Seconds spent per kernel set (module name -> seconds): a fraction of a second
+        each with a warm cache, the compile time with a cold one.
+
+    Raises:
+        ImportError: Warp cannot be loaded (see :func:`~torchgeo_cg.engine.load_warp`).
+
+    Example:
+        >>> from torchgeo_cg.engine import warp_status
+        >>> times = warm() if warp_status()[0] == "ok" else {}
+        >>> all(t >= 0 for t in times.values())
+        True
+    """
+    wp = load_warp()
+    if devices is None:
+        devices = ["cpu"]
+        if torch.cuda.is_available() and wp.is_cuda_available():
+            devices.append("cuda:0")
+    with _LOCK:
+        items = sorted(_REGISTRY.items())
+    spent = {}
+    for name, kernels in items:
+        start = time.perf_counter()
+        kernels()
+        wp.load_module(name, device=list(devices))
+        spent[name] = time.perf_counter() - start
+    return spent
+
+
+def to_warp(tensor: torch.Tensor, dtype: object = None) -> object:
+    """A Warp array viewing ``tensor`` (no copy; made contiguous first), for a launch.
+
+    Args:
+        tensor: a CPU or CUDA tensor.
+        dtype: the Warp dtype (``wp.vec3`` views the last dimension as vectors); None:
+            from the tensor's dtype.
+
+    Returns:
+        A ``warp.array`` sharing the tensor's memory (keep the tensor alive meanwhile).
+
+    Example:
+        >>> from torchgeo_cg.engine import warp_status
+        >>> if warp_status()[0] == "ok":
+        ...     print(to_warp(torch.zeros(4, 3)).shape)
+        ... else:
+        ...     print((4, 3))
+        (4, 3)
+    """
+    wp = load_warp()
+    return wp.from_torch(tensor.contiguous(), dtype=dtype, requires_grad=False)
+
+
+def launch(kernel: object, dim: int | Sequence[int], inputs: Sequence,
+           device: torch.device) -> None:
+    """Launch ``kernel`` over ``dim`` threads on torch ``device``, ordered after the work
+    torch queued there (on CUDA: torch's current stream); nothing runs for zero threads.
+
+    Args:
+        kernel: a kernel from a registered builder.
+        dim: the launch size (an int or a tuple of up to 4 ints).
+        inputs: the kernel's arguments (``to_warp`` arrays and scalars).
+        device: the torch device of the arrays.
+
+    Example:
+        >>> launch(None, 0, [], torch.device("cpu"))  # zero threads: nothing happens
+    """
+    sizes = (dim,) if isinstance(dim, int) else tuple(dim)
+    if any(int(s) == 0 for s in sizes):
+        return
+    wp = load_warp()
+    target = wp.device_from_torch(device)
+    stream = wp.stream_from_torch(device) if target.is_cuda else None
+    wp.launch(kernel, dim=dim, inputs=list(inputs), device=target, stream=stream)
