@@ -88,7 +88,7 @@ def build_grid(tri_bf33: torch.Tensor, cell_edges: float = 2.0) -> RayGrid:
     return RayGrid(tri, F, lo, h, dims, cells, start, count, face.index_select(0, order))
 
 
-def _enter(grid: RayGrid, o: torch.Tensor, d: torch.Tensor, t_lo: torch.Tensor,
+def enter_grid(grid: RayGrid, o: torch.Tensor, d: torch.Tensor, t_lo: torch.Tensor,
            t_hi: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """``(t0, t1)``: the part of ``[t_lo, t_hi]`` inside the grid's box (slabs)."""
     lo = grid.lo
@@ -129,7 +129,7 @@ def walk(grid: RayGrid, o: torch.Tensor, d: torch.Tensor, item: torch.Tensor,
     """
     n, dev = o.shape[0], o.device
     perm, shear = ray_shear(d)
-    t0, t1 = _enter(grid, o, d, t_lo, t_hi)
+    t0, t1 = enter_grid(grid, o, d, t_lo, t_hi)
     best_t = o.new_full((n,), torch.inf)
     best_f = torch.full((n,), -1, dtype=torch.long, device=dev)
     found_r, found_f = [], []

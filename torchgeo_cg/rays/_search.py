@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import torch
 
+from torchgeo_cg.engine import resolve_backend
 from torchgeo_cg.rays._evaluate import refine_t
 from torchgeo_cg.rays._grid import build_grid, grid_hits
 from torchgeo_cg.rays._prepare import RayProblem
+from torchgeo_cg.rays._walk_warp import warp_first_faces
 
 __all__: list[str] = []
-
-BACKENDS = ("auto", "torch")
 
 
 def scaled_query(prob: RayProblem, t_min: float, t_max: float):
@@ -61,7 +61,11 @@ def first_hits(prob: RayProblem, t_min: float, t_max: float, backend: str
     with torch.no_grad():
         tri, rows, o, d, item, lo, hi = scaled_query(prob, t_min, t_max)
         if rows.numel():
-            _, f = grid_hits(build_grid(tri), o, d, item, lo, hi, first=True)
+            grid = build_grid(tri)
+            if resolve_backend(backend, o.device) == "warp":
+                f = warp_first_faces(grid, o, d, item, lo, hi)
+            else:
+                _, f = grid_hits(grid, o, d, item, lo, hi, first=True)
             hit = (f >= 0).nonzero().squeeze(1)
             fh = f.index_select(0, hit)
             t_out[rows[hit]] = refine_t(tri.reshape(-1, 3, 3).index_select(0, fh),

@@ -31,11 +31,11 @@ from typing import NamedTuple
 
 import torch
 
-from torchgeo_cg.core.check import check_choice
 from torchgeo_cg.core.numerics import cast_back, working_dtype
+from torchgeo_cg.engine import resolve_backend
 from torchgeo_cg.rays._evaluate import hit_geometry
 from torchgeo_cg.rays._prepare import RayProblem, check_limits, prepare
-from torchgeo_cg.rays._search import BACKENDS, crossings, first_hits
+from torchgeo_cg.rays._search import crossings, first_hits
 
 __all__ = ["RayHits", "ray_mesh_intersect", "ray_mesh_crossings"]
 
@@ -112,7 +112,8 @@ def ray_mesh_intersect(verts: torch.Tensor, faces, origins: torch.Tensor,
         directions: ``(*, R, 3)`` ray directions, any nonzero length (differentiable).
         t_min: smallest ``t`` of a hit (finite).
         t_max: largest ``t`` of a hit.
-        backend: ``"auto"`` or ``"torch"`` (the search; the results are identical).
+        backend: the search: ``"torch"``, ``"warp"`` (one compiled kernel, the same
+            float64 arithmetic, identical results) or ``"auto"`` (Warp when it loads).
 
     Returns:
         :class:`RayHits` ``(hit, t, face, bary, points, normals)``, shapes ``(*, R)`` and
@@ -136,8 +137,8 @@ def ray_mesh_intersect(verts: torch.Tensor, faces, origins: torch.Tensor,
         tensor([0.5774, 0.5774, 0.5774])
     """
     check_limits(t_min, t_max)
-    check_choice(backend, BACKENDS, "backend")
     prob = prepare(verts, faces, origins, directions)
+    resolve_backend(backend, prob.origins.device)  # validated before any work
     face, t_scaled = first_hits(prob, t_min, t_max, backend)
     return _evaluate(prob, face, t_scaled)
 
