@@ -11,7 +11,8 @@ points and the normals are differentiable w.r.t. the corners, the origins and th
 directions (piecewise in the choice of face, like :func:`torchgeo_cg.sdf.mesh_sdf`).
 
 Near-grazing rays make ``den`` a difference of nearly equal products, and plain float64
-loses digits there; the value of ``t`` is therefore refined with the plane equation
+loses digits there; the value of ``t`` of such rays (:func:`plane_t` estimates the
+condition) is therefore refined with the plane equation
 ``t = ((v0 - o) . n) / (d . n)``, ``n = e1 x e2``, in double-double arithmetic from the
 exact float64 inputs (:mod:`~torchgeo_cg.rays._exact`): the correction is added detached,
 so the value is the correctly computed one and the gradient stays the closed form's.
@@ -49,6 +50,35 @@ def refine_t(tri_n33: torch.Tensor, o_n3: torch.Tensor, d_n3: torch.Tensor) -> t
     den = dd_dot3([(d_n3[:, i], zero) for i in range(3)], n)
     safe = torch.where(den[0] == 0, 1.0, den[0])
     return dd_div_to_float(num[0], num[1], safe, den[1])
+
+
+def plane_t(tri_n33: torch.Tensor, o_n3: torch.Tensor, d_n3: torch.Tensor) -> torch.Tensor:
+    """``t`` on the planes of ``tri`` in plain float64, refined in double-double where its
+    condition could cost more than a few ulps.
+
+    The plain value ``((v0 - o) . n) / (d . n)`` has a relative error of about
+    ``cond * eps`` with ``cond = sum|d_i n_i| / |d . n| + sum|w_i n_i| / |w . n| +
+    2 |e1| |e2| / |n|`` (cancellation in each dot product, rounding of ``n``); rays
+    with ``cond > 16`` (near-grazing, thin faces) get :func:`refine_t`.
+
+    Example:
+        >>> tri = torch.tensor([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]], dtype=torch.float64)
+        >>> plane_t(tri, torch.tensor([[0.1, 0.2, 0.3]], dtype=torch.float64),
+        ...         torch.tensor([[0.0, 0.0, -0.1]], dtype=torch.float64))
+        tensor([3.], dtype=torch.float64)
+    """
+    v0, v1, v2 = tri_n33.unbind(-2)
+    e1, e2, w = v1 - v0, v2 - v0, v0 - o_n3
+    n = _cross(e1, e2)
+    num, den = _dot(w, n), _dot(d_n3, n)
+    t = num / torch.where(den == 0, 1.0, den)
+    na = n.abs()
+    cond = ((d_n3.abs() * na).sum(-1) / den.abs() + (w.abs() * na).sum(-1) / num.abs()
+            + 2 * e1.norm(dim=-1) * e2.norm(dim=-1) / n.norm(dim=-1))
+    bad = (~(cond <= 16)).nonzero().squeeze(1)  # NaN (0 / 0) included
+    if bad.numel():
+        t = t.index_put((bad,), refine_t(tri_n33[bad], o_n3[bad], d_n3[bad]))
+    return t
 
 
 def _cross(a, b):

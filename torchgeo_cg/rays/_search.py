@@ -3,8 +3,8 @@
 Runs without a graph on the exactly scaled float64 copy of the query
 (:mod:`~torchgeo_cg.rays._prepare`). Candidates come from the torch grid walk
 (:mod:`~torchgeo_cg.rays._grid`); every reported hit is decided by the float64
-watertight test, and the first hit's ``t`` is refined in double-double
-(:func:`~torchgeo_cg.rays._evaluate.refine_t`).
+watertight test, and the first hit's ``t`` is refined in double-double where needed
+(:func:`~torchgeo_cg.rays._evaluate.plane_t`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import torch
 
 from torchgeo_cg.engine import resolve_backend
-from torchgeo_cg.rays._evaluate import refine_t
+from torchgeo_cg.rays._evaluate import plane_t
 from torchgeo_cg.rays._grid import build_grid, grid_hits
 from torchgeo_cg.rays._prepare import RayProblem
 from torchgeo_cg.rays._walk_warp import warp_first_faces
@@ -68,7 +68,7 @@ def first_hits(prob: RayProblem, t_min: float, t_max: float, backend: str
                 _, f = grid_hits(grid, o, d, item, lo, hi, first=True)
             hit = (f >= 0).nonzero().squeeze(1)
             fh = f.index_select(0, hit)
-            t_out[rows[hit]] = refine_t(tri.reshape(-1, 3, 3).index_select(0, fh),
+            t_out[rows[hit]] = plane_t(tri.reshape(-1, 3, 3).index_select(0, fh),
                                         o.index_select(0, hit), d.index_select(0, hit))
             face[rows[hit]] = fh - item.index_select(0, hit) * T
     return face.reshape(B, R), t_out.reshape(B, R)
