@@ -41,7 +41,8 @@ __all__ = ["RayHits", "ray_mesh_intersect", "ray_mesh_crossings"]
 
 
 class RayHits(NamedTuple):
-    """First hits of a ray bundle (:func:`ray_mesh_intersect`, :func:`sphere_trace`).
+    """First hits of a ray bundle (:func:`~torchgeo_cg.rays.ray_mesh_intersect`,
+    :func:`~torchgeo_cg.rays.sphere_trace`).
 
     Attributes:
         hit: ``(*, R)`` bool, a hit in ``[t_min, t_max]``.
@@ -71,7 +72,7 @@ def _gather_corners(verts_bv3: torch.Tensor, tris: torch.Tensor, face_br: torch.
 
 
 def _evaluate(prob: RayProblem, face: torch.Tensor, t_scaled: torch.Tensor) -> RayHits:
-    """The differentiable hits of the chosen faces (see :mod:`torchgeo_cg.rays._evaluate`)."""
+    """The differentiable hits of the chosen faces (see ``torchgeo_cg.rays._evaluate``)."""
     dtype = prob.origins.dtype
     work = working_dtype(dtype)
     hit = face >= 0
@@ -116,8 +117,9 @@ def ray_mesh_intersect(verts: torch.Tensor, faces, origins: torch.Tensor,
             float64 arithmetic, identical results) or ``"auto"`` (Warp when it loads).
 
     Returns:
-        :class:`RayHits` ``(hit, t, face, bary, points, normals)``, shapes ``(*, R)`` and
-        ``(*, R, 3)``, dtype of the inputs (float16/bfloat16 evaluated in float32).
+        :class:`~torchgeo_cg.rays.RayHits` ``(hit, t, face, bary, points, normals)``,
+        shapes ``(*, R)`` and ``(*, R, 3)``, dtype of the inputs (float16/bfloat16 evaluated
+        in float32).
 
     Raises:
         ShapeError: an argument of the wrong shape (named), or batches that do not
@@ -155,7 +157,7 @@ def ray_mesh_crossings(verts: torch.Tensor, faces, origins: torch.Tensor,
     point outside and odd from a point inside.
 
     Convention:
-        As :func:`ray_mesh_intersect`; not differentiable (integers).
+        As :func:`~torchgeo_cg.rays.ray_mesh_intersect`; not differentiable (integers).
 
     Args:
         verts: ``(V, 3)`` or ``(*, V, 3)`` vertices.

@@ -27,7 +27,7 @@ __all__ = ["RenderResult", "render_depth"]
 
 
 class RenderResult(NamedTuple):
-    """Images of :func:`render_depth`, in the shape ``(*)`` of the ray bundle.
+    """Images of :func:`~torchgeo_cg.rays.render_depth`, in the shape ``(*)`` of the ray bundle.
 
     Attributes:
         depth: ``(*)`` ray parameter of the first hit (``inf`` without hit).
@@ -61,8 +61,8 @@ def render_depth(scene, origins: torch.Tensor, directions: torch.Tensor, *,
         backend: the mesh search (see :func:`~torchgeo_cg.rays.ray_mesh_intersect`).
 
     Returns:
-        :class:`RenderResult` ``(depth (*), normals (*, 3), mask (*))``, differentiable
-        like the function it dispatches to.
+        :class:`~torchgeo_cg.rays.RenderResult` ``(depth (*), normals (*, 3), mask (*))``,
+        differentiable like the function it dispatches to.
 
     Raises:
         TypeError: ``scene`` is neither a ``(verts, faces)`` pair nor callable.

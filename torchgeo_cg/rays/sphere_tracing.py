@@ -1,6 +1,6 @@
 """Sphere tracing of signed distance fields, batched, with implicit-function gradients.
 
-The march (:mod:`~torchgeo_cg.rays._march`) runs without a graph: Lipschitz steps (or
+The march (``torchgeo_cg.rays._march``) runs without a graph: Lipschitz steps (or
 over-relaxed steps with sign-change bracketing when no bound is known), then a
 safeguarded secant refinement of the root. One differentiable evaluation at the root
 then gives the gradients by the implicit function theorem: with ``f(o + t d; theta) = 0``,
