@@ -111,12 +111,14 @@ def _build(wp):
             y[c] = r1 - sh[1] * r2
             z[c] = sh[2] * r2
         u, su = cross_sign(x[2], y[1], y[2], x[1])
-        v, sv = cross_sign(x[0], y[2], y[0], x[2])
-        w, sw = cross_sign(x[1], y[0], y[1], x[0])
         if su == 0:
             su = tie(x[1], y[1], x[2], y[2])
+        v, sv = cross_sign(x[0], y[2], y[0], x[2])
         if sv == 0:
             sv = tie(x[2], y[2], x[0], y[0])
+        if su != sv:  # (the decision needs all three signs equal: stop early)
+            return False, f64(0.0)
+        w, sw = cross_sign(x[1], y[0], y[1], x[0])
         if sw == 0:
             sw = tie(x[0], y[0], x[1], y[1])
         det = u + v + w
