@@ -262,6 +262,10 @@ def test_bad_input():
         ray_mesh_intersect(verts, faces, o, d.float())
     with pytest.raises(ValueError, match="t_min"):
         ray_mesh_intersect(verts, faces, o, d, t_min=2.0, t_max=1.0)
+    bad = verts.clone()
+    bad[3, 1] = math.nan
+    with pytest.raises(ValueError, match="verts"):
+        ray_mesh_intersect(bad, faces, o, d)
     with pytest.raises(ValueError, match="backend"):
         ray_mesh_intersect(verts, faces, o, d, backend="embree")
 

@@ -84,7 +84,7 @@ def prepare(verts: torch.Tensor, faces, origins: torch.Tensor, directions: torch
         >>> p.origins.shape, p.lead, p.scale.flatten().tolist()
         (torch.Size([1, 8, 3]), (4, 2), [2.0])
     """
-    tris = check_mesh(verts, faces)
+    tris = check_mesh(verts, faces, finite=True)
     rays = check_rays(origins, directions)
     check_same_dtype({"verts": verts, "origins": origins, "directions": directions})
     if verts.dim() > 2 and not rays:  # a batch of meshes needs the ray dim R

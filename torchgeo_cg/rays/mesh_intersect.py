@@ -125,7 +125,8 @@ def ray_mesh_intersect(verts: torch.Tensor, faces, origins: torch.Tensor,
         ShapeError: an argument of the wrong shape (named), or batches that do not
             broadcast.
         TypeError: non-float or mixed dtypes.
-        ValueError: ``t_min`` not finite or above ``t_max``; a bad mesh.
+        ValueError: ``t_min`` not finite or above ``t_max``; a bad mesh, or NaN or inf
+            vertex coordinates (which face a ray would hit is then unknown).
 
     Example:
         >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
@@ -169,6 +170,9 @@ def ray_mesh_crossings(verts: torch.Tensor, faces, origins: torch.Tensor,
 
     Returns:
         ``(*, R)`` long counts (0 for zero, NaN or inf rays).
+
+    Raises:
+        As :func:`~torchgeo_cg.rays.ray_mesh_intersect`.
 
     Example:
         >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
