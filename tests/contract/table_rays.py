@@ -40,9 +40,12 @@ _FIELD = "the SDF is a callable closing over the radius; the rays' batch is test
          "ray_mesh_intersect's entries"
 
 
-def _intersect(origins, directions, verts):
-    h = Y.ray_mesh_intersect(verts, OCTA, origins, directions, backend="torch")
-    return h.t, h.bary, h.points, h.normals
+def _intersect(backend: str):
+    def call(origins, directions, verts):
+        h = Y.ray_mesh_intersect(verts, OCTA, origins, directions, backend=backend)
+        return h.t, h.bary, h.points, h.normals
+
+    return call
 
 
 def _crossings(origins, directions, verts):
@@ -61,7 +64,11 @@ def _render(origins, directions, verts):
 
 
 ENTRIES = [
-    Entry("rays.ray_mesh_intersect", _intersect, (ORIGINS, DIRECTIONS, VERTS),
+    Entry("rays.ray_mesh_intersect", _intersect("torch"), (ORIGINS, DIRECTIONS, VERTS),
+          out=("unitless", "unitless", "length", "unitless"), empty=_EMPTY, bad=BAD_RAYS,
+          bad_arg=1, rtol=1e-9),
+    # "auto": the Warp kernel when Warp loads (the same decisions), else torch
+    Entry("rays.ray_mesh_intersect[auto]", _intersect("auto"), (ORIGINS, DIRECTIONS, VERTS),
           out=("unitless", "unitless", "length", "unitless"), empty=_EMPTY, bad=BAD_RAYS,
           bad_arg=1, rtol=1e-9),
     # integer counts: a NaN ray crosses nothing (0, documented), there is no NaN to return
