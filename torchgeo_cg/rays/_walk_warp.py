@@ -90,8 +90,8 @@ def _exact_funcs(wp):
     return cross_sign, tie
 
 
-def _build(wp):
-    wp.set_module_options({"fuse_fp": False}, module=__name__)
+def _test_func(wp):
+    """The watertight test of one ray and one face (mirrors ``watertight_test``)."""
     cross_sign, tie = _exact_funcs(wp)
     f64 = wp.float64
 
@@ -128,6 +128,14 @@ def _build(wp):
         if not wp.isfinite(t):
             return False, t
         return t >= t_lo and t <= t_hi, t
+
+    return test
+
+
+def _build(wp):
+    wp.set_module_options({"fuse_fp": False}, module=__name__)
+    test = _test_func(wp)
+    f64 = wp.float64
 
     @wp.kernel
     def walk_kernel(tri: wp.array(dtype=wp.float64, ndim=3), o: wp.array(dtype=wp.vec3d),
