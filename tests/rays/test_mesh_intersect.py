@@ -294,3 +294,20 @@ def test_t_limits_and_float32():
     assert ray_mesh_crossings(verts, faces, o, d, t_min=3.0).tolist() == [1]
     f32 = ray_mesh_intersect(verts.float(), faces, o.float(), d.float())
     assert f32.t.dtype == torch.float32 and torch.equal(f32.face, near.face)
+
+
+@pytest.mark.parametrize("backend", ["torch", "auto"])
+def test_far_origins_and_extreme_direction_lengths(backend):
+    verts, faces = icosphere(2)
+    o = torch.tensor([[0.01, 0.02, 1e20], [0.01, 0.02, 3.0], [0.01, 0.02, 3.0],
+                      [0.01, 0.02, -1e9]], dtype=F64)
+    d = torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.0, -1e-300], [0.0, 0.0, -1e300],
+                      [0.0, 0.0, 1.0]], dtype=F64)
+    hits = ray_mesh_intersect(verts, faces, o, d, backend=backend)
+    near = ray_mesh_intersect(verts, faces, o[1:2], d[:1])
+    assert hits.hit.all()
+    assert hits.t[0] == 1e20  # 1e20 - 0.99...: within the rounding of the origin
+    torch.testing.assert_close(hits.t[1:3], near.t * torch.tensor([1e300, 1e-300], dtype=F64),
+                               rtol=1e-15, atol=0)
+    torch.testing.assert_close(hits.t[3] - 1e9, near.t[0] - 3.0, rtol=0, atol=1e-6)
+    assert torch.equal(ray_mesh_crossings(verts, faces, o, d), torch.tensor([2, 2, 2, 2]))
