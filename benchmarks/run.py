@@ -34,6 +34,7 @@ PEERS: dict[str, tuple[str, ...]] = {
     "estimation": ("cv2", "kornia"),
     "icp": ("open3d",),
     "marching_cubes": ("skimage", "mcubes"),
+    "rays": ("open3d", "trimesh"),
     "rotations": ("roma", "scipy"),
     "sdf": ("trimesh", "rtree"),
     "splines": ("scipy", "geomdl"),

@@ -30,6 +30,7 @@ INVENTORY: dict[str, list[str]] = {
         "engine",
         "mesh",
         "points",
+        "rays",
         "sdf",
         "surfaces",
         "transforms",
@@ -561,6 +562,26 @@ INVENTORY: dict[str, list[str]] = {
         "VoxelResult",
         "voxel_downsample",
     ],
+    "torchgeo_cg.rays": [
+        "RayHits",
+        "RenderResult",
+        "ray_mesh_crossings",
+        "ray_mesh_intersect",
+        "render_depth",
+        "sphere_trace",
+    ],
+    "torchgeo_cg.rays.mesh_intersect": [
+        "RayHits",
+        "ray_mesh_crossings",
+        "ray_mesh_intersect",
+    ],
+    "torchgeo_cg.rays.render": [
+        "RenderResult",
+        "render_depth",
+    ],
+    "torchgeo_cg.rays.sphere_tracing": [
+        "sphere_trace",
+    ],
     "torchgeo_cg.sdf": [
         "Annulus",
         "Box",
@@ -949,6 +970,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.viz.points_cleanup": [],
     "torchgeo_cg.viz.limit_surface": [],
     "torchgeo_cg.viz.marching_cubes": [],
+    "torchgeo_cg.viz.rays": [],
     "torchgeo_cg.viz.registration": [],
     "torchgeo_cg.viz.registry": [
         "GalleryFigure",

@@ -29,6 +29,7 @@ ALLOWED: dict[str, set[str] | None] = {
     "engine": {"core"},
     "surfaces": {"core", "curves"},
     "cameras": {"core", "transforms", "curves"},
+    "rays": {"core", "mesh", "sdf", "cameras", "engine"},
     "viz": None,
     "cli": None,
     "": None,  # torchgeo_cg/__init__.py and __main__.py

@@ -15,13 +15,25 @@ Subpackages, one per area:
   voxel downsampling, outlier removal, sampling, ICP;
 - :mod:`torchgeo_cg.cameras`: camera models, lens distortion with an exact inverse, pose
   conventions;
+- :mod:`torchgeo_cg.rays`: exact ray casting on meshes, sphere tracing, depth images;
 - :mod:`torchgeo_cg.viz` and :mod:`torchgeo_cg.cli`: the gallery and ``torchgeo-cg``.
 """
 
-from torchgeo_cg import cameras, core, curves, engine, mesh, points, sdf, surfaces, transforms
+from torchgeo_cg import (
+    cameras,
+    core,
+    curves,
+    engine,
+    mesh,
+    points,
+    rays,
+    sdf,
+    surfaces,
+    transforms,
+)
 from torchgeo_cg.core import ShapeError
 
 __version__ = "0.1.0"
 
-__all__ = ["ShapeError", "cameras", "core", "curves", "engine", "mesh", "points", "sdf", "surfaces",
-           "transforms", "__version__"]
+__all__ = ["ShapeError", "cameras", "core", "curves", "engine", "mesh", "points", "rays",
+           "sdf", "surfaces", "transforms", "__version__"]

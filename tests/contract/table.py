@@ -28,6 +28,7 @@ from tests.contract import (
     table_meshes,
     table_points3d,
     table_queries,
+    table_rays,
     table_rotations,
     table_sparse_mc,
     table_splines,
@@ -42,7 +43,7 @@ __all__ = ["Arg", "Entry", "TABLE", "EXEMPT", "LAWS", "apply_law", "generate"]
 AREAS = (table_cameras, table_engine, table_estimation, table_fitting, table_meshes,
          table_points3d,
          table_queries, table_subdivision, table_rotations, table_limit, table_splines,
-         table_surfaces, table_sparse_mc)
+         table_surfaces, table_sparse_mc, table_rays)
 
 # ----------------------------------------------------------------------------- helpers
 

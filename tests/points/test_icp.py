@@ -239,7 +239,8 @@ def test_cauchy_with_outliers_beats_least_squares():
 
 @pytest.mark.slow
 def test_tukey_from_a_rough_alignment():
-    pairs = rabbit_scan_pairs(3, 3000, generator=torch.Generator().manual_seed(3), outliers=0.3, angles=(3.0, 5.0), shift=0.01)
+    pairs = rabbit_scan_pairs(3, 3000, generator=torch.Generator().manual_seed(3), outliers=0.3,
+                              angles=(3.0, 5.0), shift=0.01)
     res = icp(pairs.source, pairs.target, robust=ICPRobust("tukey"), method="point_to_plane",
               convergence=ICPConvergence(30))
     assert bool((_angle_deg(res.transform, pairs.truth) < 0.5).all())

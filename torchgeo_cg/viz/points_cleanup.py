@@ -41,7 +41,8 @@ def _panel(fig, where: int, title: str, layers) -> None:
     "Right: icp(method='point_to_plane') registers the cleaned scan onto the target.",
 )
 def _cleanup_figure(path: Path) -> None:
-    pairs = rabbit_scan_pairs(1, 6000, generator=torch.Generator().manual_seed(2), outliers=0.08, angles=(30.0, 40.0))
+    pairs = rabbit_scan_pairs(1, 6000, generator=torch.Generator().manual_seed(2), outliers=0.08,
+                              angles=(30.0, 40.0))
     source, target = pairs.source[0], pairs.target[0]
     inliers = remove_statistical_outliers(source, 16, 2.0)
     thin = voxel_downsample(source[inliers], 0.02 * pairs.size).points
