@@ -39,6 +39,7 @@ CAPABILITIES = [
 
 #: the guides in reading order; a guide not listed follows, by name.
 GUIDE_ORDER = ["transforms", "estimation", "curves", "surfaces", "sdf", "marching_cubes",
+               "marching_cubes_kernels",
                "subdivision", "points", "neighbourhoods", "cameras", "rays"]
 
 
