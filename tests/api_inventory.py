@@ -103,6 +103,7 @@ INVENTORY: dict[str, list[str]] = {
         "clamp_away_from_zero",
         "hypot",
         "index_to_world",
+        "is_transform_wrapped",
         "power_of_two_scale",
         "records_graph",
         "safe_div",
@@ -112,6 +113,7 @@ INVENTORY: dict[str, list[str]] = {
         "world_to_index",
     ],
     "torchgeo_cg.core.autograd": [
+        "is_transform_wrapped",
         "records_graph",
     ],
     "torchgeo_cg.core.check": [

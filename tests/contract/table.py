@@ -421,6 +421,7 @@ EXEMPT: dict[str, str] = {
     "core.cast_back": "dtype helper (tests/core/test_numerics.py)",
     "core.working_dtype": "dtype helper (tests/core/test_numerics.py)",
     "core.records_graph": "autograd predicate, no geometry (tests/core/test_autograd.py)",
+    "core.is_transform_wrapped": "autograd predicate, no geometry (its doctest)",
     "core.power_of_two_scale": "a detached constant factor, exact by construction "
                                "(tests/core/test_numerics.py)",
     "curves.SplitResult": "NamedTuple result type",

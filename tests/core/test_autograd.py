@@ -99,3 +99,14 @@ def test_no_private_torch_query_outside_records_graph():
         if found:
             offenders[str(path.relative_to(root))] = found
     assert offenders == {}, offenders
+
+
+def test_is_transform_wrapped_inside_and_outside_torch_func():
+    from torchgeo_cg.core import is_transform_wrapped
+
+    x = torch.randn(2, 3)
+    assert not is_transform_wrapped(x)
+    seen = []
+    torch.func.vmap(lambda r: seen.append(is_transform_wrapped(r)) or r)(x)
+    torch.func.grad(lambda r: seen.append(is_transform_wrapped(r)) or r.sum())(x)
+    assert seen == [True, True]

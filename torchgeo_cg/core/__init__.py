@@ -2,7 +2,7 @@
 (:mod:`torchgeo_cg.core.grid`), the autograd question (:func:`records_graph`) and test
 support."""
 
-from torchgeo_cg.core.autograd import records_graph
+from torchgeo_cg.core.autograd import is_transform_wrapped, records_graph
 from torchgeo_cg.core.check import (
     ShapeError,
     check_broadcastable,
@@ -42,6 +42,7 @@ __all__ = [
     "clamp_away_from_zero",
     "hypot",
     "index_to_world",
+    "is_transform_wrapped",
     "power_of_two_scale",
     "records_graph",
     "safe_div",

@@ -20,7 +20,7 @@ from __future__ import annotations
 import torch
 from torch.autograd import forward_ad
 
-__all__ = ["records_graph"]
+__all__ = ["is_transform_wrapped", "records_graph"]
 
 
 def _transforms_active() -> bool:
@@ -69,3 +69,23 @@ def records_graph(*tensors: torch.Tensor | None) -> bool:
     if torch.compiler.is_compiling():
         return False
     return _transforms_active() or _forward_mode(present)
+
+
+def is_transform_wrapped(tensor: torch.Tensor) -> bool:
+    """Whether ``tensor`` is a ``torch.func`` wrapper (inside ``vmap``, ``grad``,
+    ``jacrev``...), whose storage a compiled kernel cannot read.
+
+    Args:
+        tensor: any tensor.
+
+    Returns:
+        ``bool``.
+
+    Example:
+        >>> is_transform_wrapped(torch.zeros(3))
+        False
+        >>> torch.func.vmap(lambda x: torch.tensor(is_transform_wrapped(x)))(torch.zeros(2))
+        tensor([True, True])
+    """
+    query = getattr(getattr(torch._C, "_functorch", None), "is_functorch_wrapped_tensor", None)
+    return _transforms_active() if query is None else bool(query(tensor))

@@ -44,6 +44,7 @@ from typing import TypeVar
 
 import torch
 
+from torchgeo_cg.core.autograd import is_transform_wrapped
 from torchgeo_cg.engine.backend import load_warp
 
 __all__ = ["kernel_ready", "launch", "register_kernels", "registered_kernels", "to_warp",
@@ -163,7 +164,7 @@ def kernel_ready(*tensors: torch.Tensor) -> bool:
         tensor([False, False])
     """
     for t in tensors:
-        if torch._C._functorch.is_functorch_wrapped_tensor(t) or t.device.type == "meta":
+        if is_transform_wrapped(t) or t.device.type == "meta":
             return False
         try:
             t.untyped_storage().data_ptr()

@@ -19,6 +19,7 @@ import math
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.check import ShapeError
 from torchgeo_cg.core.numerics import cast_back, safe_norm, working_dtype
 from torchgeo_cg.rays._march import bracket, march, refine
@@ -73,7 +74,6 @@ def _other_leaves(out: torch.Tensor, leaf: torch.Tensor) -> bool:
 
 def _differentiable(field, o, d, t_star, hit):
     """``(t, normals)`` at the hits by the implicit function theorem (see the module)."""
-    need = torch.is_grad_enabled()
     t0 = torch.where(hit, t_star, 0.0).detach()
     rows = hit.nonzero().squeeze(1)
     t_out = torch.where(hit, t_star, 0.0).to(o.dtype)
@@ -87,7 +87,9 @@ def _differentiable(field, o, d, t_star, hit):
         if not p.requires_grad:
             p = leaf = p.detach().requires_grad_(True)
         f = field(p).to(o.dtype)
-        need = need and (leaf is None or _other_leaves(f, leaf))
+    # the caller's grad mode decides (f itself always records, through p)
+    need = records_graph(f) and (leaf is None or _other_leaves(f, leaf))
+    with torch.enable_grad():
         (g,) = torch.autograd.grad(f.sum(), p, create_graph=need)
     den = (g * drow).sum(-1).detach()
     ok = den != 0
