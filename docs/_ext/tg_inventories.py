@@ -46,6 +46,9 @@ STDTYPES = {"str", "list", "tuple", "dict", "set", "frozenset", "bytes", "bytear
 TORCH_MODULES = ("torch", "torch.nn", "torch.nn.functional", "torch.linalg", "torch.fft",
                  "torch.sparse", "torch.autograd", "torch.func")
 SPECIAL = {
+    "python": {
+        "types.ModuleType": ("py:class", "library/types.html#types.ModuleType"),
+    },
     "torch": {
         "torch.Tensor": ("py:class", "tensors.html#torch.Tensor"),
         "torch.dtype": ("py:class", "tensor_attributes.html#torch.dtype"),
@@ -112,6 +115,7 @@ def python_entries() -> dict[str, tuple[str, str]]:
             if (getattr(obj, "__module__", None) or module).split(".")[0] == "builtins":
                 continue
             out[f"{module}.{name}"] = (_role(obj), f"library/{page}.html#{module}.{name}")
+    out.update(SPECIAL["python"])  # documented in its module, defined in builtins
     return out
 
 

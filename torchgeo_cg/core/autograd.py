@@ -6,7 +6,7 @@ such decision in torchgeo_cg asks :func:`records_graph`, so the three ways a cal
 be differentiated are all seen, everywhere the same:
 
 - reverse mode: grad mode is on and a tensor requires grad;
-- forward mode: a tensor is a dual tensor of :mod:`torch.autograd.forward_ad` (with
+- forward mode: a tensor is a dual tensor of ``torch.autograd.forward_ad`` (with
   or without grad mode);
 - ``torch.func`` transforms (``vmap``, ``grad``, ``jvp``, ...): the tensors are
   wrappers whose flags do not tell, so any active transform counts.

@@ -124,7 +124,7 @@ def warm(devices: Sequence[str] | None = None) -> dict[str, float]:
             torch and Warp both see CUDA.
 
     Returns:
-        Seconds spent per kernel set (module name -> seconds): a fraction of a second
+        The seconds spent per kernel set, a dict by module name; a fraction of a second
         each with a warm cache, the compile time with a cold one.
 
     Raises:

@@ -125,7 +125,7 @@ class LossOptions:
 
     Attributes:
         loss: ``"l2"`` (default, the mean squared transfer error), ``"huber"``,
-            ``"cauchy"`` or ``"tukey"`` (:data:`~torchgeo_cg.transforms.LOSSES`, the
+            ``"cauchy"`` or ``"tukey"`` (``torchgeo_cg.transforms.robust.LOSSES``, the
             ``rho`` of :func:`~torchgeo_cg.transforms.robust_loss`).
         scale: the robust scale ``c`` in input units (pixels), finite and ``> 0``;
             unused by ``"l2"``.
@@ -166,8 +166,8 @@ class FitResult(NamedTuple):
         params: ``(*, P)`` parameters of the normalized transform (see
             :func:`parameters_to_matrix`).
         loss: ``(*)`` final loss in input units squared (mean squared transfer
-            error, robust ``ρ`` of :attr:`LossOptions.loss`, plus the backward one if
-            :attr:`LossOptions.symmetric`).
+            error, robust ``ρ`` of ``LossOptions.loss``, plus the backward one if
+            ``LossOptions.symmetric``).
         history: ``(steps_run + 1, *)`` the loss at the start and after each step.
     """
 

@@ -113,7 +113,7 @@ def fit_torus_radii(
     points: int = 600,
     verbose: bool = False,
 ) -> TorusFit:
-    """Fit ``(R, r)`` from :data:`START_RADII` to points of the :data:`TRUE_RADII` torus.
+    """Fit ``(R, r)`` from ``START_RADII`` to points of the :data:`TRUE_RADII` torus.
 
     Args:
         steps: Adam steps (learning rate ``lr``, decayed by 0.95 per step).

@@ -34,7 +34,7 @@ class SubdivisionOperator(NamedTuple):
         num_faces_in: ``F0`` (Catmark face points start at row ``V0``).
         num_edges_in: ``E0`` (edge points start at row ``V0 + F0``; Loop: ``V0``).
         boundary: the boundary rule this level was built with
-            (:attr:`~torchgeo_cg.mesh.subdivision.SchemeOptions.boundary`; ``"none"`` acts
+            (``SchemeOptions.boundary``; ``"none"`` acts
             at the base level only, later levels record ``"edge_only"``).
         scheme: ``"catmark"`` or ``"loop"``, the rules that built it.
         child_faces: every child face, holes' children included (what the next level

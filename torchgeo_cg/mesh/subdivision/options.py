@@ -19,13 +19,13 @@ __all__ = [
     "FVAR_INTERPOLATIONS",
 ]
 
-#: values of :attr:`SchemeOptions.boundary` (OpenSubdiv ``VtxBoundaryInterpolation``)
+#: values of ``SchemeOptions.boundary`` (OpenSubdiv ``VtxBoundaryInterpolation``)
 BOUNDARY_MODES = ("edge_only", "edge_and_corner", "none")
-#: values of :attr:`SchemeOptions.crease_method` (OpenSubdiv ``CreasingMethod``)
+#: values of ``SchemeOptions.crease_method`` (OpenSubdiv ``CreasingMethod``)
 CREASE_METHODS = ("uniform", "chaikin")
-#: values of :attr:`SchemeOptions.triangle_rule` (OpenSubdiv ``TriangleSubdivision``)
+#: values of ``SchemeOptions.triangle_rule`` (OpenSubdiv ``TriangleSubdivision``)
 TRIANGLE_RULES = ("catmark", "smooth")
-#: values of :attr:`SchemeOptions.fvar_interpolation` (OpenSubdiv ``FVarLinearInterpolation``)
+#: values of ``SchemeOptions.fvar_interpolation`` (OpenSubdiv ``FVarLinearInterpolation``)
 FVAR_INTERPOLATIONS = (
     "none", "corners_only", "corners_plus1", "corners_plus2", "boundaries", "all"
 )
