@@ -15,8 +15,7 @@ Convention:
 
 import torch
 
-from torchgeo_cg.engine import launch as _launch
-from torchgeo_cg.engine import load_warp, register_kernels, to_warp
+from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
 from torchgeo_cg.rays._grid import RayGrid, enter_grid
 from torchgeo_cg.rays._watertight import ray_shear
 
@@ -223,7 +222,7 @@ def warp_first_faces(grid: RayGrid, o: torch.Tensor, d: torch.Tensor, item: torc
     cell = cell.clamp(min=torch.zeros_like(dims), max=dims - 1)
     found = torch.empty(rows.numel(), dtype=torch.long, device=o.device)
     dims_i = [int(x) for x in dims]
-    _launch(kernel, rows.numel(), [
+    launch(kernel, rows.numel(), [
         to_warp(grid.tri), to_warp(o, wp.vec3d), to_warp(d, wp.vec3d), to_warp(item[rows]),
         to_warp(perm[rows]), to_warp(shear[rows], wp.vec3d), to_warp(t_lo[rows]),
         to_warp(t_hi[rows]), to_warp(t1[rows]), to_warp(cell),
