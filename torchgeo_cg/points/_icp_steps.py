@@ -17,7 +17,7 @@ import torch
 
 from torchgeo_cg.transforms.rotations import axis_angle_to_matrix
 
-__all__ = ["point_to_plane_step", "apply_transform"]
+__all__ = ["point_to_plane_step", "apply_transform", "dot3", "cross3", "weighted_sum"]
 
 
 def apply_transform(matrix_b44: torch.Tensor, points_bn3: torch.Tensor) -> torch.Tensor:
@@ -32,13 +32,39 @@ def apply_transform(matrix_b44: torch.Tensor, points_bn3: torch.Tensor) -> torch
     return points_bn3 @ matrix_b44[:, :3, :3].transpose(1, 2) + matrix_b44[:, None, :3, 3]
 
 
-def _weighted_means(src, dst, w):
-    total_b1 = w.sum(-1, keepdim=True)
-    ok_b = total_b1[:, 0] > 0
-    total_b1 = torch.where(total_b1 > 0, total_b1, torch.ones_like(total_b1))
-    mu_src = (w[..., None] * src).sum(1) / total_b1
-    mu_dst = (w[..., None] * dst).sum(1) / total_b1
-    return mu_src, mu_dst, total_b1, ok_b
+def dot3(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``(..., 3) . (..., 3) -> (...)``, by components (a reduction over a last dimension
+    of 3 is several times slower on the CPU).
+
+    Example:
+        >>> dot3(torch.tensor([1.0, 2.0, 3.0]), torch.tensor([4.0, 5.0, 6.0]))
+        tensor(32.)
+    """
+    a0, a1, a2 = a.unbind(-1)
+    b0, b1, b2 = b.unbind(-1)
+    return a0 * b0 + a1 * b1 + a2 * b2
+
+
+def cross3(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``a x b`` of ``(..., 3)`` vectors, by components.
+
+    Example:
+        >>> cross3(torch.tensor([1.0, 0.0, 0.0]), torch.tensor([0.0, 1.0, 0.0]))
+        tensor([0., 0., 1.])
+    """
+    a0, a1, a2 = a.unbind(-1)
+    b0, b1, b2 = b.unbind(-1)
+    return torch.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], -1)
+
+
+def weighted_sum(w_bn: torch.Tensor, x_bnk: torch.Tensor) -> torch.Tensor:
+    """``sum_n w[b, n] x[b, n]`` ``(B, K)`` as one batched product.
+
+    Example:
+        >>> weighted_sum(torch.tensor([[1.0, 2.0]]), torch.tensor([[[1.0, 0.0], [0.0, 1.0]]]))
+        tensor([[1., 2.]])
+    """
+    return (w_bn[:, None, :] @ x_bnk)[:, 0]
 
 
 def point_to_plane_step(p: torch.Tensor, q: torch.Tensor, n: torch.Tensor, w: torch.Tensor,
@@ -60,19 +86,20 @@ def point_to_plane_step(p: torch.Tensor, q: torch.Tensor, n: torch.Tensor, w: to
         >>> torch.allclose(m[0, :3, 3], torch.full((3,), -1e-3, dtype=torch.float64))
         True
     """
-    c_b3 = _weighted_means(p, q, w)[0]
-    pc = p - c_b3[:, None]
     total_b = w.sum(-1)
-    radius2 = (w * pc.square().sum(-1)).sum(-1) / torch.where(total_b > 0, total_b, 1.0)
+    total_b = torch.where(total_b > 0, total_b, torch.ones_like(total_b))
+    c_b3 = weighted_sum(w, p) / total_b[:, None]
+    pc = p - c_b3[:, None]
+    radius2 = (w * dot3(pc, pc)).sum(-1) / total_b
     rho_b = torch.where(radius2 > 0, radius2, torch.ones_like(radius2)).sqrt()
     unit = pc / rho_b[:, None, None]
-    cols = [torch.linalg.cross(unit, n), n]
+    cols = [cross3(unit, n), n]
     if similarity:
-        cols.append((unit * n).sum(-1, keepdim=True))
+        cols.append(dot3(unit, n)[..., None])
     jac_bnk = torch.cat(cols, -1)
-    res_bn = ((p - q) * n).sum(-1)
-    a_bkk = torch.einsum("bn,bni,bnj->bij", w, jac_bnk, jac_bnk)
-    rhs_bk = -torch.einsum("bn,bni,bn->bi", w, jac_bnk, res_bn)
+    wjac_bkn = (jac_bnk * w[..., None]).transpose(1, 2)
+    a_bkk = wjac_bkn @ jac_bnk
+    rhs_bk = -(wjac_bkn @ dot3(p - q, n)[..., None])[..., 0]
     trace_b = a_bkk.diagonal(dim1=-2, dim2=-1).sum(-1)
     ok_b = trace_b > 0
     eye_k = torch.eye(a_bkk.shape[-1], dtype=p.dtype, device=p.device)

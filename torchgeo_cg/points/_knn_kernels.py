@@ -36,6 +36,26 @@ KERNEL_RINGS = 24
 #: References per occupied cell of the kernel's grid, at least: coarser than the torch
 #: search's for small k (a thread pays per cell visited, the torch search per candidate).
 KERNEL_PER_CELL = 8.0
+#: Rings a thread scans on a level before it leaves its query to the next, coarser one:
+#: a query far from every reference crosses many empty fine cells.
+LEVEL_RINGS = 1
+#: References per occupied cell, from one level to the next.
+LEVEL_FACTOR = 8.0
+
+
+def kernel_grids(reference_bmd: torch.Tensor, reference_lengths_b: torch.Tensor, k: int,
+                 levels: int = 1) -> list[GridIndex]:
+    """The kernel's grids of the references for ``k`` neighbours, finest first: level
+    ``i`` holds :data:`LEVEL_FACTOR` ``** i`` times as many references per cell.
+
+    Example:
+        >>> grids = kernel_grids(torch.rand(1, 4000, 3), torch.tensor([4000]), 1, levels=2)
+        >>> bool(grids[1].h_b[0] > grids[0].h_b[0])
+        True
+    """
+    per_cell = kernel_per_cell(k)
+    return [build_grid(reference_bmd, reference_lengths_b, per_cell * LEVEL_FACTOR ** i)
+            for i in range(levels)]  # loop over levels
 
 
 def kernel_per_cell(k: int) -> float:
@@ -111,7 +131,7 @@ def _build(wp):
                  lo: wp.array2d(dtype=Any), h_b: wp.array(dtype=Any),
                  slack_b: wp.array(dtype=Any), dims: wp.array2d(dtype=wp.int64),
                  base: wp.array(dtype=wp.int64), stride: wp.array2d(dtype=wp.int64),
-                 dim: int, k: int, max_ring: int, pad: int,
+                 dim: int, k: int, max_ring: int, pad: int, prev: wp.array(dtype=wp.int64),
                  best: wp.array2d(dtype=Any), best_i: wp.array2d(dtype=wp.int64)):
         row = wp.tid()
         b = int(q_batch[row])
@@ -145,6 +165,9 @@ def _build(wp):
             wall = wp.min(wall, wp.min(qz - az, az + h - qz))
         wall = wp.max(wall, type(h)(0.0))
         found = int(0)  # noqa: UP018  a dynamic variable for Warp
+        if k == 1 and prev.shape[0] > 0:  # a known reference bounds the search (exact)
+            found = scan_cell(pts, index, prev[row], wp.int64(1), qx, qy, qz, dim, row, k,
+                              found, best, best_i)
         done = int(0)  # noqa: UP018  a dynamic variable for Warp
         r = r0
         while r <= r1 and r - r0 <= max_ring:
@@ -220,11 +243,14 @@ def _build(wp):
 _kernels = register_kernels(_build)
 
 
-def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
+def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int,
+                  slot_q: torch.Tensor | None = None, rings: int = KERNEL_RINGS
                   ) -> torch.Tensor:
     """Indices ``(Q, k)`` of the ``k`` nearest references of queries ``q_qd`` (rows of batch
     item ``b_q``) in ``grid``; ``-1`` where there are fewer, and row ``[-2, ...]`` for a
-    query left to the torch search (more than :data:`KERNEL_RINGS` rings).
+    query left to a coarser search (more than ``rings`` rings). For ``k = 1``,
+    ``slot_q`` ``(Q,)`` may name a reference of each query's item (its position in the
+    grid's sorted order): its distance bounds the search from the start (same answer).
 
     Example:
         >>> from torchgeo_cg.points._search_grid import build_grid
@@ -253,15 +279,54 @@ def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
             to_warp(grid.index_t.long()), to_warp(grid.start_c.long()),
             to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
             to_warp(grid.lo_bd), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
-            to_warp(grid.base_b.long()), to_warp(stride), D, k, KERNEL_RINGS, MAX_RING,
+            to_warp(grid.base_b.long()), to_warp(stride), D, k, rings, MAX_RING,
+            to_warp(stride.new_zeros(0) if slot_q is None else slot_q.long()),
             to_warp(best), to_warp(best_i)]
     launch(_kernels(), Q, args, device)
     return best_i
 
 
+def _sorted_slots(grid: GridIndex, reference_lengths_b: torch.Tensor, M: int) -> torch.Tensor:
+    """``(B * M,)`` position in the grid's sorted order of reference ``b * M + j`` (the
+    grid lists the items in turn, each item's valid references sorted by cell)."""
+    B = reference_lengths_b.shape[0]
+    batch_t = torch.repeat_interleave(torch.arange(B, device=grid.index_t.device),
+                                      reference_lengths_b)
+    slots = torch.zeros(B * M, dtype=torch.long, device=grid.index_t.device)
+    slots[batch_t * M + grid.index_t] = torch.arange(batch_t.numel(), device=slots.device)
+    return slots
+
+
+def _warp_levels(grids: list[GridIndex], q_qd: torch.Tensor, b_q: torch.Tensor, k: int,
+                 previous_q: torch.Tensor | None, reference_lengths_b: torch.Tensor, M: int
+                 ) -> torch.Tensor:
+    """``(Q, k)`` as :func:`warp_grid_knn`: each level answers the queries it resolves
+    within its rings (exact answers, whatever the level) and passes the rest on."""
+    found = None
+    todo = None  # every query
+    for level, grid in enumerate(grids):  # loop over levels
+        rings = KERNEL_RINGS if level == len(grids) - 1 else LEVEL_RINGS
+        q, b, prev = (q_qd, b_q, previous_q) if todo is None else (
+            q_qd[todo], b_q[todo], None if previous_q is None else previous_q[todo])
+        slot = None
+        if prev is not None:
+            slot = _sorted_slots(grid, reference_lengths_b, M).index_select(0, b * M + prev)
+        got = warp_grid_knn(grid, q, b, k, slot, rings)
+        if todo is None:
+            found = got
+        else:
+            found[todo] = got
+        left = got[:, 0] == -2
+        if level == len(grids) - 1 or not bool(left.any()):
+            return found
+        todo = left.nonzero()[:, 0] if todo is None else todo[left]
+    return found
+
+
 def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: int,
                      query_lengths_b: torch.Tensor, reference_lengths_b: torch.Tensor,
-                     grid: GridIndex | None = None) -> torch.Tensor:
+                     grids: list[GridIndex] | None = None,
+                     previous_bn: torch.Tensor | None = None) -> torch.Tensor:
     """Indices ``(B, N, k)`` of the ``k`` nearest references (``-1`` where none), equal to
     :func:`~torchgeo_cg.points._search_grid.grid_knn_indices`: the kernel answers, the
     torch search finishes the queries the kernel left (far from every reference).
@@ -270,8 +335,10 @@ def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: in
         query_bnd, reference_bmd: ``(B, N, D)``, ``(B, M, D)`` finite, ``D`` in {2, 3}.
         k: neighbours, ``>= 1``.
         query_lengths_b, reference_lengths_b: ``(B,)`` long valid counts.
-        grid: the references' grid built with :func:`kernel_per_cell` of ``min(k, M)``
-            (:func:`~torchgeo_cg.points._search_grid.build_grid`), reused when given.
+        grids: the references' grids from :func:`kernel_grids` for ``min(k, M)``, reused
+            when given (default: one level, built for this call).
+        previous_bn: ``(B, N)`` long, for ``k = 1``: any valid reference of each query's
+            item (e.g. its match at the last step); its distance bounds the search.
 
     Example:
         >>> from torchgeo_cg.engine import warp_status
@@ -291,10 +358,14 @@ def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: in
     qb, qn = valid_bn.nonzero(as_tuple=True)
     if qb.numel() == 0:
         return out_bnk
-    if grid is None:
-        grid = build_grid(reference_bmd, reference_lengths_b, kernel_per_cell(kk))
+    if grids is None:
+        grids = kernel_grids(reference_bmd, reference_lengths_b, kk)
     rows = qb * N + qn
-    found = warp_grid_knn(grid, query_bnd.reshape(B * N, D).index_select(0, rows), qb, kk)
+    previous_q = None
+    if previous_bn is not None and kk == 1:
+        previous_q = previous_bn.reshape(B * N).index_select(0, rows)
+    found = _warp_levels(grids, query_bnd.reshape(B * N, D).index_select(0, rows), qb, kk,
+                         previous_q, reference_lengths_b, M)
     out_bnk.view(B * N, k)[rows, :kk] = found
     left = found[:, 0] == -2
     if bool(left.any()):  # far from every reference: the torch search's coarser grids

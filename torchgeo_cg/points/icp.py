@@ -13,7 +13,10 @@ Convention:
       (column vectors, homogeneous ``(*, 4, 4)``).
     - Convergence is relative: a pair stops when its update moves the valid source
       points by at most ``tol`` times their RMS radius about their centroid (RMS over
-      the points). No absolute epsilon.
+      the points), or when the update keeps the number of inlier matches and changes
+      their RMSE by at most ``tol`` times itself (the matches of noisy scans can cycle
+      between neighbours with a small motion that never dies out; Open3D stops by the
+      same two quantities, in absolute units). No absolute epsilon.
     - ``rmse`` is the root mean square point-to-point distance over the inlier
       matches (those within ``max_distance``), ``inlier_fraction`` their share of
       the valid source points, as Open3D's ``inlier_rmse`` and ``fitness``.
@@ -51,8 +54,13 @@ import torch
 from torchgeo_cg.core.check import check_broadcastable, check_choice, check_float, check_shape
 from torchgeo_cg.core.numerics import cast_back, safe_sqrt, working_dtype
 from torchgeo_cg.engine import kernel_ready, resolve_backend
-from torchgeo_cg.points._icp_steps import apply_transform, point_to_plane_step
-from torchgeo_cg.points._knn_kernels import kernel_per_cell, warp_knn_indices
+from torchgeo_cg.points._icp_steps import (
+    apply_transform,
+    dot3,
+    point_to_plane_step,
+    weighted_sum,
+)
+from torchgeo_cg.points._knn_kernels import kernel_grids, warp_knn_indices
 from torchgeo_cg.points._search import check_lengths, search_scale
 from torchgeo_cg.points._search_grid import build_grid, grid_knn_indices, grid_per_cell
 from torchgeo_cg.points.normals import estimate_normals
@@ -67,6 +75,9 @@ METHODS: tuple[str, ...] = ("point_to_point", "point_to_plane")
 MODELS: tuple[str, ...] = ("euclidean", "similarity")
 #: Neighbours of the PCA normals :func:`icp` estimates for point-to-plane.
 _NORMAL_NEIGHBOURS = 10
+#: Grid levels of the kernel search: the first matches of a rough start lie far off
+#: the target, where a coarser grid crosses fewer empty cells.
+_KERNEL_LEVELS = 2
 #: 95%-efficiency constants of the robust losses (in units of the residual's sigma).
 _EFFICIENCY = {"huber": 1.345, "cauchy": 2.385, "tukey": 4.685}
 
@@ -78,7 +89,8 @@ class ICPConvergence:
     Attributes:
         max_iterations: at most this many updates, ``>= 0``.
         tol: a pair has converged when an update moves its valid source points by at most
-            ``tol`` times their RMS radius about their centroid, ``> 0``.
+            ``tol`` times their RMS radius about their centroid, or keeps the number of
+            inliers and changes their RMSE by at most ``tol`` times itself; ``> 0``.
 
     Example:
         >>> ICPConvergence(max_iterations=60).tol
@@ -243,35 +255,67 @@ class _Match(NamedTuple):
     r2: torch.Tensor  # (B, N) squared residual of the method
 
 
-def _match(pairs: _Pairs, grid, matrix, max_d2_b, search, previous=None, moved_b=None
-           ) -> _Match:
-    """The nearest target point of every moved source point; ``search`` is ``(dtype,
-    backend)``: the Warp kernel reuses the target's finest grid ``grid[0]``. With
-    ``previous`` and ``moved_b`` (the pairs whose transform changed), only those pairs are
-    searched; the others keep their previous match (the same answer)."""
-    moved = apply_transform(matrix, pairs.src)
-    B, N, _ = moved.shape
+class _Geometry(NamedTuple):
+    """The moved source points and their matches' target points and normals ``(A, N, 3)``
+    of the pairs a step works on (``normals`` None for point-to-point)."""
+
+    moved: torch.Tensor
+    q: torch.Tensor
+    n: torch.Tensor | None
+
+
+def _subset(pairs: _Pairs, ids: torch.Tensor | None) -> _Pairs:
+    """The pairs ``ids`` (all when None)."""
+    if ids is None:
+        return pairs
+    return _Pairs(*(None if x is None else x.index_select(0, ids) for x in pairs))
+
+
+def _search(pairs: _Pairs, grid, moved: torch.Tensor, ids, search, previous) -> torch.Tensor:
+    """Nearest target index ``(A, N)`` of the moved source points of pairs ``ids`` (``-1``
+    where none); the search runs on the whole batch with the other pairs' lengths at 0.
+    ``grid`` holds the target's grids of the search (the torch search's cache, or the
+    kernel's levels); the kernel starts from the previous matches' distances (exact
+    bounds)."""
     dtype, backend = search
-    sl = pairs.sl if moved_b is None else torch.where(moved_b, pairs.sl, 0)
-    args = (moved.to(dtype), pairs.tgt.to(dtype), 1, sl, pairs.tl)
+    query, sl = moved, pairs.sl
+    if ids is not None:
+        query = moved.new_zeros(pairs.src.shape).index_copy_(0, ids, moved)
+        sl = torch.zeros_like(pairs.sl).index_copy_(0, ids, pairs.sl.index_select(0, ids))
+    args = (query.to(dtype), pairs.tgt.to(dtype), 1, sl, pairs.tl)
     if backend == "warp":
-        idx = warp_knn_indices(*args, grid=grid[0])[..., 0]
+        idx = warp_knn_indices(*args, grids=grid, previous_bn=previous)[..., 0]
     else:
         idx = grid_knn_indices(*args, grid)[..., 0]
+    return idx if ids is None else idx.index_select(0, ids)
+
+
+def _gather(points_bm3: torch.Tensor, idx_bn: torch.Tensor) -> torch.Tensor:
+    """``points[b, idx[b, n]]`` ``(B, N, 3)``."""
+    B, M, _ = points_bm3.shape
+    flat = (idx_bn + M * torch.arange(B, device=idx_bn.device)[:, None]).reshape(-1)
+    return points_bm3.reshape(B * M, 3).index_select(0, flat).reshape(*idx_bn.shape, 3)
+
+
+def _match(pairs: _Pairs, grid, matrix, max_d2_b, search, ids=None, previous=None
+           ) -> tuple[_Match, _Geometry]:
+    """The nearest target point of every moved source point of the pairs ``ids`` (all
+    when None; ``matrix`` and ``max_d2_b`` are theirs), the rejection by distance and the
+    residuals; ``previous`` ``(B, N)`` holds every pair's last match."""
+    sub = _subset(pairs, ids)
+    moved = apply_transform(matrix, sub.src)
+    idx = _search(pairs, grid, moved, ids, search, previous)
     found = idx >= 0
     idx = idx.clamp_min(0)
-    q = torch.gather(pairs.tgt, 1, idx[..., None].expand(B, N, 3))
-    d2 = (moved - q).square().sum(-1)
-    inlier = found & pairs.src_valid & (d2 <= max_d2_b[:, None])
-    r2 = d2
-    if pairs.normals is not None:
-        n = torch.gather(pairs.normals, 1, idx[..., None].expand(B, N, 3))
-        r2 = ((moved - q) * n).sum(-1).square()
-    match = _Match(idx, inlier, d2, r2)
-    if previous is None:
-        return match
-    keep = moved_b[:, None]
-    return _Match(*(torch.where(keep, new, old) for new, old in zip(match, previous)))
+    q = _gather(sub.tgt, idx)
+    diff = moved - q
+    d2 = dot3(diff, diff)
+    inlier = found & sub.src_valid & (d2 <= max_d2_b[:, None])
+    r2, n = d2, None
+    if sub.normals is not None:
+        n = _gather(sub.normals, idx)
+        r2 = dot3(diff, n).square()
+    return _Match(idx, inlier, d2, r2), _Geometry(moved, q, n)
 
 
 def _weights(match: _Match, loss: str, scale_b) -> torch.Tensor:
@@ -290,58 +334,125 @@ def _weights(match: _Match, loss: str, scale_b) -> torch.Tensor:
     return w * robust_weights(match.r2, loss, scale_b[:, None])
 
 
-def _solve(method, model, src, tgt_all, normals_all, matrix, match, w):
-    """The next transform ``(B, 4, 4)`` from the matches (differentiable in the points).
+def _step(method, model, src, geometry: _Geometry, matrix, w):
+    """The next transform ``(B, 4, 4)`` from the matches' geometry at ``matrix``
+    (differentiable in the points).
 
     A pair without a weighted match keeps ``matrix`` (the closed forms would read an
     all-zero weight set as uniform weights); so does an empty source (``N = 0``, which
     the closed forms reject as undefined).
     """
-    B, N, _ = src.shape
-    if N == 0:
+    if src.shape[1] == 0:
         return matrix
-    q = torch.gather(tgt_all, 1, match.idx[..., None].expand(B, N, 3))
     similarity = model == "similarity"
     if method == "point_to_point":
         closed = find_similarity if similarity else find_euclidean
-        fit = closed(src, q, w).matrix  # Kabsch / Umeyama, no reflection
+        fit = closed(src, geometry.q, w).matrix  # Kabsch / Umeyama, no reflection
         return torch.where((w.sum(-1) > 0)[:, None, None], fit, matrix)
-    n = torch.gather(normals_all, 1, match.idx[..., None].expand(B, N, 3))
-    step = point_to_plane_step(apply_transform(matrix, src), q, n, w, similarity)
+    step = point_to_plane_step(geometry.moved, geometry.q, geometry.n, w, similarity)
     return step @ matrix
 
 
-def _motion(pairs: _Pairs, old, new, radius_b):
-    """RMS displacement of the valid source points between two transforms / radius."""
-    d2 = (apply_transform(new, pairs.src) - apply_transform(old, pairs.src)).square().sum(-1)
-    count = pairs.sl.clamp_min(1).to(d2)
-    return (torch.where(pairs.src_valid, d2, 0.0).sum(-1) / count).sqrt() <= radius_b
+def _solve(method, model, src, tgt_all, normals_all, matrix, match, w):
+    """The next transform from the matches ``match`` at ``matrix`` (differentiable in
+    the points): :func:`_step` on the gathered geometry."""
+    n = None if method == "point_to_point" else _gather(normals_all, match.idx)
+    geometry = _Geometry(apply_transform(matrix, src), _gather(tgt_all, match.idx), n)
+    return _step(method, model, src, geometry, matrix, w)
+
+
+class _Spread(NamedTuple):
+    """The valid source points' centroid ``(B, 3)`` and second moment about it
+    ``(B, 3, 3)`` (means over the points): an update's RMS motion in closed form."""
+
+    centre: torch.Tensor
+    moment: torch.Tensor
+
+    @staticmethod
+    def of(pairs: _Pairs) -> _Spread:
+        count = pairs.sl.clamp_min(1).to(pairs.src)[:, None]
+        w = pairs.src_valid.to(pairs.src)
+        centre = weighted_sum(w, pairs.src) / count
+        pc = (pairs.src - centre[:, None]) * w[..., None]
+        return _Spread(centre, pc.transpose(1, 2) @ pc / count[..., None])
+
+    def select(self, ids) -> _Spread:
+        return _Spread(self.centre.index_select(0, ids), self.moment.index_select(0, ids))
+
+    def rms_radius(self) -> torch.Tensor:
+        return self.moment.diagonal(dim1=-2, dim2=-1).sum(-1).clamp_min(0).sqrt()
+
+    def rms_motion(self, old, new) -> torch.Tensor:
+        """RMS displacement of the points from ``old`` to ``new`` ``(B, 4, 4)``: with
+        ``D`` the change of the linear part and ``e`` that of the centroid's image,
+        ``tr(D S D^T) + |e|^2`` (two non-negative terms: no cancellation)."""
+        d = new[:, :3, :3] - old[:, :3, :3]
+        e = apply_transform(new, self.centre[:, None])[:, 0] - apply_transform(
+            old, self.centre[:, None])[:, 0]
+        spread = ((d @ self.moment) * d).sum((-2, -1))
+        return (spread.clamp_min(0) + dot3(e, e)).sqrt()
+
+
+def _inlier_stats(match: _Match) -> tuple[torch.Tensor, torch.Tensor]:
+    """Inlier count ``(B,)`` and RMS inlier distance ``(B,)`` of the matches."""
+    count = match.inlier.sum(-1)
+    ms = torch.where(match.inlier, match.d2, 0.0).sum(-1) / count.clamp_min(1).to(match.d2)
+    return count, ms.sqrt()
+
+
+def _stationary(before: _Match, after: _Match, tol: float) -> torch.Tensor:
+    """``(B,)``: the same number of inliers, and their RMSE fell by at most ``tol`` of it
+    (or rose)."""
+    count0, rmse0 = _inlier_stats(before)
+    count1, rmse1 = _inlier_stats(after)
+    return (count0 == count1) & (rmse0 - rmse1 <= tol * rmse0)
+
+
+def _converged(spread: _Spread, old, new, before: _Match, after: _Match, tol: float
+               ) -> torch.Tensor:
+    """``(A,)``: the update moved the points by at most ``tol`` of their RMS radius, or by
+    at most ``sqrt(tol)`` of it without lowering the inliers' RMSE by more than ``tol``
+    (the discrete matches cycle)."""
+    motion, radius = spread.rms_motion(old, new), spread.rms_radius()
+    return (motion <= tol * radius) | ((motion <= math.sqrt(tol) * radius)
+                                       & _stationary(before, after, tol))
 
 
 def _iterate(pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations, tol, search):
-    """The IRLS loop over iterations; returns the last matrix, matches and counters."""
+    """The IRLS loop over iterations; returns the last matrix, matches and counters. Each
+    iteration works on the pairs still active only (``ids``)."""
     B = pairs.src.shape[0]
-    centre = pairs.src.sum(1) / pairs.sl.clamp_min(1)[:, None].to(pairs.src)
-    spread = torch.where(pairs.src_valid, (pairs.src - centre[:, None]).square().sum(-1), 0.0)
-    radius_b = tol * (spread.sum(-1) / pairs.sl.clamp_min(1).to(spread)).sqrt()
+    spread_all = _Spread.of(pairs)
     matrix = pairs.init
     active = (pairs.sl > 0) & (pairs.tl > 0) & ~pairs.bad_b
     iterations = torch.zeros(B, dtype=torch.long, device=matrix.device)
     converged = torch.zeros(B, dtype=torch.bool, device=matrix.device)
-    match = _match(pairs, grid, matrix, max_d2_b, search)
+    match, geometry = _match(pairs, grid, matrix, max_d2_b, search)
+    ids = active.nonzero()[:, 0]
+    m_sub, geometry = _Match(*(x.index_select(0, ids) for x in match)), _select(geometry, ids)
     for _ in range(max_iterations):  # loop over iterations
-        if not bool(active.any()):
+        if ids.numel() == 0:
             break
-        w = _weights(match, loss, scale_b)
-        new = _solve(method, model, pairs.src, pairs.tgt, pairs.normals, matrix, match, w)
-        new = torch.where(active[:, None, None], new, matrix)
-        done = _motion(pairs, matrix, new, radius_b) & active
-        iterations += active.long()
-        converged |= done
-        matrix = new
-        match = _match(pairs, grid, matrix, max_d2_b, search, match, active.clone())
-        active &= ~done
+        sub = _subset(pairs, ids)
+        old = matrix.index_select(0, ids)
+        w = _weights(m_sub, loss, None if scale_b is None else scale_b.index_select(0, ids))
+        new = _step(method, model, sub.src, geometry, old, w)
+        matrix = matrix.index_copy(0, ids, new)
+        fresh, geometry = _match(pairs, grid, new, max_d2_b.index_select(0, ids), search,
+                                 ids, match.idx)
+        done = _converged(spread_all.select(ids), old, new, m_sub, fresh, tol)
+        iterations.index_add_(0, ids, torch.ones_like(ids))
+        converged.index_copy_(0, ids, done)
+        match = _Match(*(x.index_copy(0, ids, y) for x, y in zip(match, fresh)))
+        keep = (~done).nonzero()[:, 0]
+        ids, geometry = ids.index_select(0, keep), _select(geometry, keep)
+        m_sub = _Match(*(x.index_select(0, keep) for x in fresh))
     return matrix, match, iterations, converged
+
+
+def _select(geometry: _Geometry, rows: torch.Tensor) -> _Geometry:
+    """The rows ``rows`` of every tensor of ``geometry``."""
+    return _Geometry(*(None if x is None else x.index_select(0, rows) for x in geometry))
 
 
 def _finish(source, target, target_normals, pairs, batch, matrix, match, w, method, model):
@@ -457,8 +568,10 @@ def icp(
             target_normals_d = target.new_zeros(*batch, M, 3)
         pairs = _prepare(source, target, init, target_normals_d if method == "point_to_plane"
                          else None, sl, tl, batch)
-        per_cell = kernel_per_cell(1) if backend == "warp" else grid_per_cell(1)
-        grid = [build_grid(pairs.tgt.to(sdtype), pairs.tl, per_cell)]  # reused
+        if backend == "warp":  # the target's grids, reused by every iteration
+            grid = kernel_grids(pairs.tgt.to(sdtype), pairs.tl, 1, levels=_KERNEL_LEVELS)
+        else:
+            grid = [build_grid(pairs.tgt.to(sdtype), pairs.tl, grid_per_cell(1))]
         max_d2_b = torch.full_like(pairs.scale_b, float("inf"))
         if max_distance is not None:
             max_d2_b = (max_distance / pairs.scale_b).square()
