@@ -351,6 +351,7 @@ def test_vmap_and_jacrev():
 
 # --- backends -------------------------------------------------------------------------------
 
+from torchgeo_cg.sdf import _closest_faces as CF  # noqa: E402
 from torchgeo_cg.sdf import engines as E  # noqa: E402
 
 BACKENDS = ["torch", *E.ENGINES]
@@ -473,7 +474,7 @@ def test_backend_names_and_missing_engine(monkeypatch):
         M.mesh_sdf(V, F, TET_P, backend="ghost")
     assert "ghost" not in E.available_engines()
     expected = E.available_engines()[0] if E.available_engines() else "torch"
-    assert E.resolve_backend("auto") == expected
+    assert CF.resolve_backend("auto") == expected
     with pytest.raises(ImportError, match="fast"):
         M.MeshSDF(V, F, backend="ghost")
 
@@ -521,7 +522,7 @@ def test_engine_that_fails_to_import(broken_warp):
     V, F = _mesh(m)
     p = _points(m, 50, seed=3)
     with pytest.warns(UserWarning, match="failed to import.*OSError: libcuda.so") as record:
-        assert E.resolve_backend("auto") == "torch"
+        assert CF.resolve_backend("auto") == "torch"
         got = M.mesh_sdf(V, F, p, return_closest=True)  # backend="auto"
         M.MeshSDF(V, F)
     assert len([w for w in record if "failed to import" in str(w.message)]) == 1
@@ -551,9 +552,9 @@ def test_missing_engine_message_differs_from_failed_import(monkeypatch):
     _forget_warp(monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert E.resolve_backend("auto") == "torch"
+        assert CF.resolve_backend("auto") == "torch"
     with pytest.raises(ImportError, match="optional extra 'fast'") as info:
-        E.resolve_backend("warp")
+        CF.resolve_backend("warp")
     assert "failed to import" not in str(info.value)
 
 
@@ -569,8 +570,8 @@ def test_mesh_sdf_module_caches_its_structure(backend, monkeypatch):
     ref = M.mesh_sdf(V, F, p, return_closest=True, backend=backend)
     ref2 = M.mesh_sdf(2 * V, F, p, backend=backend)
     builds = []
-    real = E._build_search
-    monkeypatch.setattr(E, "_build_search", lambda *a: builds.append(1) or real(*a))
+    real = CF._build_search
+    monkeypatch.setattr(CF, "_build_search", lambda *a: builds.append(1) or real(*a))
     first = module(p, return_closest=True)
     second = module(p.flip(0))
     assert len(builds) == 1  # the second query reused the structure
@@ -598,8 +599,8 @@ def test_without_the_extra_auto_falls_back_to_torch():
 import sys, doctest, warnings
 sys.modules["warp"] = None  # import warp now fails, find_spec finds nothing
 import torch
-from torchgeo_cg.sdf import _engine_warp as engine_warp, engines, mesh_sdf
-assert engines.available_engines() == [] and engines.resolve_backend("auto") == "torch"
+from torchgeo_cg.sdf import _closest_faces, _engine_warp as engine_warp, engines, mesh_sdf
+assert engines.available_engines() == [] and _closest_faces.resolve_backend("auto") == "torch"
 v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=torch.float64)
 f = torch.tensor([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
 p = torch.tensor([[0.1, 0.2, 0.3]], dtype=torch.float64)
@@ -657,8 +658,8 @@ def test_repeated_calls_reuse_only_an_identical_mesh(backend, monkeypatch):
     p = _points(m, 50, seed=3)
     want2 = M.mesh_sdf(2 * V, F, p, backend="torch").sdf
     builds = []
-    real = E._build_search
-    monkeypatch.setattr(E, "_build_search", lambda *a: builds.append(1) or real(*a))
+    real = CF._build_search
+    monkeypatch.setattr(CF, "_build_search", lambda *a: builds.append(1) or real(*a))
     first = M.mesh_sdf(V, F, p, backend=backend).sdf
     again = M.mesh_sdf(V, F, p, backend=backend).sdf
     assert torch.equal(first, again)

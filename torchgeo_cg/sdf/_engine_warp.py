@@ -394,7 +394,7 @@ def warp_closest_faces(search: WarpSearch, points_bn3: torch.Tensor, mode: int =
         >>> if warp_status()[0] == "ok":
         ...     print(warp_closest_faces(build_warp_search(v, tris), p).face_ids)
         ... else:  # without the extra, the same answer from the torch search
-        ...     from torchgeo_cg.sdf.engines import search_faces
+        ...     from torchgeo_cg.sdf._closest_faces import search_faces
         ...     print(search_faces(v, tris, p, "torch"))
         tensor([[0, 1]])
     """

@@ -51,18 +51,18 @@ from torchgeo_cg.core.check import (
 )
 from torchgeo_cg.core.numerics import cast_back, hypot, power_of_two_scale, working_dtype
 from torchgeo_cg.mesh.faces import check_mesh
+from torchgeo_cg.sdf._closest_faces import (
+    engine_sdf,
+    new_cache_key,
+    resolve_backend,
+    search_faces,
+)
 from torchgeo_cg.sdf._mesh_search import far_radius, pull_in_far_points
 from torchgeo_cg.sdf._triangle import (
     closest_point_on_triangle,
     dot3,
     pseudo_normals,
     solid_angles_sum,
-)
-from torchgeo_cg.sdf.engines import (
-    engine_sdf,
-    new_cache_key,
-    resolve_backend,
-    search_faces,
 )
 
 __all__ = ["MeshSDFResult", "MeshSDF", "is_watertight", "winding_number", "mesh_sdf"]

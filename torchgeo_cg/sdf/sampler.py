@@ -53,7 +53,7 @@ from torchgeo_cg.core.check import (
 from torchgeo_cg.core.coerce import check_same_dtype
 from torchgeo_cg.core.numerics import cast_back, working_dtype
 from torchgeo_cg.mesh.faces import check_mesh
-from torchgeo_cg.sdf.engines import resolve_backend
+from torchgeo_cg.sdf._closest_faces import resolve_backend
 from torchgeo_cg.sdf.mesh_distance import mesh_sdf
 
 __all__ = ["SDFSamples", "SDFSampler", "sample_mesh_surface", "save_samples", "load_samples"]

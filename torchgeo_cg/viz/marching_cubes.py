@@ -12,12 +12,11 @@ from torchgeo_cg.mesh.data import mri_phantom
 from torchgeo_cg.mesh.marching_cubes import AMBIGUOUS_CASES, marching_cubes
 from torchgeo_cg.sdf.grid import sample_grid
 from torchgeo_cg.sdf.primitives import torus
-from torchgeo_cg.viz._style import plt, save
+from torchgeo_cg.viz._style import LIGHT, axes3d, plt, save, shaded_mesh
 from torchgeo_cg.viz.registry import figure
 
 __all__: list[str] = []
 
-_LIGHT = np.array([0.4, -0.6, 0.7]) / np.linalg.norm([0.4, -0.6, 0.7])
 _LO, _HI = -1.2, 1.2
 
 
@@ -28,28 +27,6 @@ def _torus_field(n: int, R: float = 0.7, r: float = 0.3) -> Volume:
 
 def _extract(field: Volume, **kwargs):
     return marching_cubes(field, **kwargs)
-
-
-def axes3d(ax, lim: float = 1.05, view=(35, -60)) -> None:
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(-lim, lim)
-    ax.set_zlim(-lim, lim)
-    ax.set_box_aspect((1, 1, 1))
-    ax.view_init(*view)
-    ax.set_axis_off()
-
-
-def shaded_mesh(ax, mesh, color=(0.85, 0.65, 0.45), edges: bool = False) -> None:
-    """Lambert shading from the marching-cubes normals (outward, unit)."""
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-
-    v, f = mesh.verts.detach().numpy(), mesh.faces.numpy()
-    n = mesh.normals.detach().numpy()[f].mean(1)
-    shade = 0.3 + 0.7 * np.clip(n @ _LIGHT, 0, 1)
-    ax.add_collection3d(Poly3DCollection(
-        v[f], facecolors=np.clip(shade[:, None] * np.asarray(color), 0, 1),
-        edgecolors=(0, 0, 0, 0.25) if edges else "none", linewidths=0.2,
-    ))
 
 
 @figure(
@@ -154,7 +131,7 @@ def _ambiguity(path: Path) -> None:
         from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
         n = mesh.normals.numpy()[f].mean(1)
-        shade = 0.35 + 0.65 * np.abs(n @ _LIGHT)  # two-sided: we look at both sides
+        shade = 0.35 + 0.65 * np.abs(n @ LIGHT)  # two-sided: we look at both sides
         colour = np.where(in_ambiguous[:, None], [[0.35, 0.55, 0.95]], [[0.85, 0.65, 0.45]])
         ax = fig.add_subplot(1, 2, col + 1, projection="3d")
         ax.add_collection3d(Poly3DCollection(v[f], facecolors=np.clip(shade[:, None] * colour,

@@ -9,8 +9,7 @@ import torch
 
 from torchgeo_cg.mesh.marching_cubes import sparse_marching_cubes
 from torchgeo_cg.sdf.primitives import torus
-from torchgeo_cg.viz._style import plt, save
-from torchgeo_cg.viz.marching_cubes import axes3d, shaded_mesh
+from torchgeo_cg.viz._style import axes3d, plt, save, shaded_mesh
 from torchgeo_cg.viz.registry import figure
 
 __all__: list[str] = []
