@@ -369,7 +369,7 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
 
 
 def vertex_stencils(lower, d, corner_ijk, sizes):
-    """``(index (10, V), axes [2 x (V,)], steps [2 x (V,)])`` long, as
+    """``(index (10, V), axes [2 x (V,)], steps (2, V))`` long, as
     ``_steps.sample_stencil``."""
     k = _kernels()
     X, Y, Z = sizes
@@ -382,4 +382,4 @@ def vertex_stencils(lower, d, corner_ijk, sizes):
     launch(k.stencils, (V + G - 1) // G,
            [to_warp(lower), to_warp(d), to_warp(corner_ijk), G, X, Y, Z, to_warp(index),
             to_warp(axes), to_warp(steps)], device)
-    return index, list(axes.unbind(0)), list(steps.unbind(0))
+    return index, list(axes.unbind(0)), steps
