@@ -51,14 +51,22 @@ def _build(wp):
             word = word | (((bits[row * W + w] >> last) & wp.uint64(1)) << last)
         return word
 
-    @wp.kernel
-    def classify_rows(bits: wp.array(dtype=wp.uint64), X: int, Y: int, Z: int, W: int,
-                      write: int, first: wp.array(dtype=wp.int64),
-                      count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
-                      cases: wp.array(dtype=wp.int64)):
+    @wp.func
+    def popcount(x: wp.uint64):
+        # the number of set bits (SWAR: pairs, nibbles, bytes, then one multiply)
+        x = x - ((x >> wp.uint64(1)) & wp.uint64(0x5555555555555555))
+        x = (x & wp.uint64(0x3333333333333333)) + ((x >> wp.uint64(2))
+                                                   & wp.uint64(0x3333333333333333))
+        x = (x + (x >> wp.uint64(4))) & wp.uint64(0x0F0F0F0F0F0F0F0F)
+        return int((x * wp.uint64(0x0101010101010101)) >> wp.uint64(56))
+
+    @wp.func
+    def classify_row(bits: wp.array(dtype=wp.uint64), r: int, X: int, Y: int, Z: int, W: int,
+                     write: int, first: wp.array(dtype=wp.int64),
+                     count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
+                     cases: wp.array(dtype=wp.int64)):
         # one row (l, j) of cells along z: its mixed cells (not all eight corners of one
         # class), 64 at a time from the packed bits; count them, or write them in order
-        r = wp.tid()
         layer = r // Y
         j0 = r - layer * Y
         l1 = layer + 1
@@ -87,24 +95,37 @@ def _build(wp):
             mixed = any_in & (all_in ^ wp.uint64(0xFFFFFFFFFFFFFFFF))
             if Z - w * 64 < 64:
                 mixed = mixed & ((wp.uint64(1) << wp.uint64(Z - w * 64)) - wp.uint64(1))
-            if mixed != wp.uint64(0):
-                for t in range(64):
-                    u = wp.uint64(t)
-                    if ((mixed >> u) & wp.uint64(1)) != wp.uint64(0):
-                        if write != 0:
-                            one = wp.uint64(1)
-                            case = (((c0 >> u) & one) | (((c1 >> u) & one) << wp.uint64(1))
-                                    | (((c2 >> u) & one) << wp.uint64(2))
-                                    | (((c3 >> u) & one) << wp.uint64(3))
-                                    | (((c4 >> u) & one) << wp.uint64(4))
-                                    | (((c5 >> u) & one) << wp.uint64(5))
-                                    | (((c6 >> u) & one) << wp.uint64(6))
-                                    | (((c7 >> u) & one) << wp.uint64(7)))
-                            cell_id[base + n] = wp.int64(r) * wp.int64(Z) + wp.int64(w * 64 + t)
-                            cases[base + n] = wp.int64(case)
-                        n += wp.int64(1)
+            if write == 0:  # counting: the set bits, no loop
+                n += wp.int64(popcount(mixed))
+                mixed = wp.uint64(0)
+            while mixed != wp.uint64(0):  # the set bits, lowest first
+                low = mixed & (wp.uint64(0) - mixed)
+                u = wp.uint64(popcount(low - wp.uint64(1)))
+                mixed = mixed ^ low
+                one = wp.uint64(1)
+                case = (((c0 >> u) & one) | (((c1 >> u) & one) << wp.uint64(1))
+                        | (((c2 >> u) & one) << wp.uint64(2))
+                        | (((c3 >> u) & one) << wp.uint64(3))
+                        | (((c4 >> u) & one) << wp.uint64(4))
+                        | (((c5 >> u) & one) << wp.uint64(5))
+                        | (((c6 >> u) & one) << wp.uint64(6))
+                        | (((c7 >> u) & one) << wp.uint64(7)))
+                cell_id[base + n] = wp.int64(r) * wp.int64(Z) + wp.int64(w * 64) + wp.int64(u)
+                cases[base + n] = wp.int64(case)
+                n += wp.int64(1)
         if write == 0:
             count[r] = n
+        return 0
+
+    @wp.kernel
+    def classify_rows(bits: wp.array(dtype=wp.uint64), X: int, Y: int, Z: int, W: int,
+                      write: int, first: wp.array(dtype=wp.int64),
+                      count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
+                      cases: wp.array(dtype=wp.int64), G: int, rows: int):
+        # rows t G .. t G + G - 1 (a few rows a thread: a CPU thread costs more than a row)
+        t = wp.tid()
+        for r in range(t * G, wp.min(t * G + G, rows)):
+            classify_row(bits, r, X, Y, Z, W, write, first, count, cell_id, cases)
 
     @wp.func
     def crosses(case: wp.int64, corner: wp.int64):
@@ -251,6 +272,12 @@ def _build(wp):
 _kernels = register_kernels(_build)
 
 
+def _rows_per_thread(device: torch.device) -> int:
+    """Rows of cells one thread takes: one on CUDA; on the CPU (where Warp runs each
+    thread as a call that copies the kernel's arguments) a few dozen."""
+    return 1 if device.type == "cuda" else 32
+
+
 def _exclusive(count: torch.Tensor) -> tuple[torch.Tensor, int]:
     """``(first (N,), total)``: the exclusive prefix sum of ``count`` and its sum."""
     inclusive = count.cumsum(0)
@@ -294,14 +321,17 @@ def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
     bits_w = to_warp(bits, dtype=load_warp().uint64)
     count = torch.empty(rows, dtype=torch.long, device=device)
     empty = torch.empty(0, dtype=torch.long, device=device)
-    launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 0, to_warp(empty), to_warp(count),
-                                   to_warp(empty), to_warp(empty)], device)
+    G = _rows_per_thread(device)
+    launch(k.classify_rows, (rows + G - 1) // G,
+           [bits_w, X, Y, Z, W, 0, to_warp(empty), to_warp(count), to_warp(empty),
+            to_warp(empty), G, rows], device)
     first, total = _exclusive(count)
     cell_id = torch.empty(total, dtype=torch.long, device=device)
     cases = torch.empty(total, dtype=torch.long, device=device)
     if total:
-        launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 1, to_warp(first), to_warp(count),
-                                       to_warp(cell_id), to_warp(cases)], device)
+        launch(k.classify_rows, (rows + G - 1) // G,
+               [bits_w, X, Y, Z, W, 1, to_warp(first), to_warp(count), to_warp(cell_id),
+                to_warp(cases), G, rows], device)
     return cell_id, cases
 
 
