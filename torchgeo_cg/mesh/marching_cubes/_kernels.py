@@ -299,14 +299,17 @@ def _packed_inside(stacked: torch.Tensor, iso_b: torch.Tensor, X: int, W: int) -
     layers, Y, Z = stacked.shape
     iso_layer = iso_b.repeat_interleave(X).view(layers, 1, 1)
     bits = torch.empty(layers * Y, W, dtype=torch.int64, device=stacked.device)
+    bytes_out = bits.view(torch.uint8).view(layers * Y, W * 8)
     slab = max(1, _SLAB_SAMPLES // (Y * W * 64))
+    # one flag buffer for every slab; its padding (past Z) stays False
+    flag_buf = torch.zeros(min(slab, layers), Y, W * 64, dtype=torch.bool, device=stacked.device)
     for l0 in range(0, layers, slab):  # loop over slabs of layers, not over samples
         l1 = min(layers, l0 + slab)
-        inside = torch.zeros(l1 - l0, Y, W * 64, dtype=torch.bool, device=stacked.device)
+        inside = flag_buf[:l1 - l0]
         torch.lt(stacked[l0:l1], iso_layer[l0:l1], out=inside[..., :Z])
         flags = inside.view(torch.uint8).view(-1, 8).view(torch.int64)  # 8 flags a value
         packed = (flags * _PACK8).bitwise_right_shift_(56).bitwise_and_(0xFF)
-        bits[l0 * Y:l1 * Y] = packed.to(torch.uint8).view(-1, W * 8).view(torch.int64)
+        bytes_out[l0 * Y:l1 * Y] = packed.view(-1, W * 8)  # cast to bytes in the copy
     return bits.view(-1)
 
 
