@@ -4,7 +4,7 @@ Kernels decide, torch differentiates: these return integers only (active cells a
 their cases, the crossing lower edges, the faces' vertex ids), each exactly what the
 torch steps of ``_steps`` return, so positions, normals, gradients and the soft weights
 are computed from them by the same torch code. Every step is count, prefix sum (torch),
-write: one thread per row of cells (classification) or per active cell, each writing
+write: one thread per row of cells (a few dozen rows on the CPU), each writing
 its own contiguous range, so the order is the torch order and no atomic decides it.
 
 The samples are compared with ``iso`` by torch (the same ``torch.lt`` as the torch path,
