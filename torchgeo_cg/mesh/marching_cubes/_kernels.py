@@ -4,7 +4,7 @@ Kernels decide, torch differentiates: these return integers only (active cells a
 their cases, the crossing lower edges, the faces' vertex ids), each exactly what the
 torch steps of ``_steps`` return, so positions, normals, gradients and the soft weights
 are computed from them by the same torch code. Every step is count, prefix sum (torch),
-write: one thread per row of cells (classification) or per active cell, each writing
+write: one thread per row of cells (a few dozen rows on the CPU), each writing
 its own contiguous range, so the order is the torch order and no atomic decides it.
 
 The samples are compared with ``iso`` by torch (the same ``torch.lt`` as the torch path,
@@ -51,14 +51,22 @@ def _build(wp):
             word = word | (((bits[row * W + w] >> last) & wp.uint64(1)) << last)
         return word
 
-    @wp.kernel
-    def classify_rows(bits: wp.array(dtype=wp.uint64), X: int, Y: int, Z: int, W: int,
-                      write: int, first: wp.array(dtype=wp.int64),
-                      count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
-                      cases: wp.array(dtype=wp.int64)):
+    @wp.func
+    def popcount(x: wp.uint64):
+        # the number of set bits (SWAR: pairs, nibbles, bytes, then one multiply)
+        x = x - ((x >> wp.uint64(1)) & wp.uint64(0x5555555555555555))
+        x = (x & wp.uint64(0x3333333333333333)) + ((x >> wp.uint64(2))
+                                                   & wp.uint64(0x3333333333333333))
+        x = (x + (x >> wp.uint64(4))) & wp.uint64(0x0F0F0F0F0F0F0F0F)
+        return int((x * wp.uint64(0x0101010101010101)) >> wp.uint64(56))
+
+    @wp.func
+    def classify_row(bits: wp.array(dtype=wp.uint64), r: int, X: int, Y: int, Z: int, W: int,
+                     write: int, first: wp.array(dtype=wp.int64),
+                     count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
+                     cases: wp.array(dtype=wp.int64)):
         # one row (l, j) of cells along z: its mixed cells (not all eight corners of one
         # class), 64 at a time from the packed bits; count them, or write them in order
-        r = wp.tid()
         layer = r // Y
         j0 = r - layer * Y
         l1 = layer + 1
@@ -87,24 +95,37 @@ def _build(wp):
             mixed = any_in & (all_in ^ wp.uint64(0xFFFFFFFFFFFFFFFF))
             if Z - w * 64 < 64:
                 mixed = mixed & ((wp.uint64(1) << wp.uint64(Z - w * 64)) - wp.uint64(1))
-            if mixed != wp.uint64(0):
-                for t in range(64):
-                    u = wp.uint64(t)
-                    if ((mixed >> u) & wp.uint64(1)) != wp.uint64(0):
-                        if write != 0:
-                            one = wp.uint64(1)
-                            case = (((c0 >> u) & one) | (((c1 >> u) & one) << wp.uint64(1))
-                                    | (((c2 >> u) & one) << wp.uint64(2))
-                                    | (((c3 >> u) & one) << wp.uint64(3))
-                                    | (((c4 >> u) & one) << wp.uint64(4))
-                                    | (((c5 >> u) & one) << wp.uint64(5))
-                                    | (((c6 >> u) & one) << wp.uint64(6))
-                                    | (((c7 >> u) & one) << wp.uint64(7)))
-                            cell_id[base + n] = wp.int64(r) * wp.int64(Z) + wp.int64(w * 64 + t)
-                            cases[base + n] = wp.int64(case)
-                        n += wp.int64(1)
+            if write == 0:  # counting: the set bits, no loop
+                n += wp.int64(popcount(mixed))
+                mixed = wp.uint64(0)
+            while mixed != wp.uint64(0):  # the set bits, lowest first
+                low = mixed & (wp.uint64(0) - mixed)
+                u = wp.uint64(popcount(low - wp.uint64(1)))
+                mixed = mixed ^ low
+                one = wp.uint64(1)
+                case = (((c0 >> u) & one) | (((c1 >> u) & one) << wp.uint64(1))
+                        | (((c2 >> u) & one) << wp.uint64(2))
+                        | (((c3 >> u) & one) << wp.uint64(3))
+                        | (((c4 >> u) & one) << wp.uint64(4))
+                        | (((c5 >> u) & one) << wp.uint64(5))
+                        | (((c6 >> u) & one) << wp.uint64(6))
+                        | (((c7 >> u) & one) << wp.uint64(7)))
+                cell_id[base + n] = wp.int64(r) * wp.int64(Z) + wp.int64(w * 64) + wp.int64(u)
+                cases[base + n] = wp.int64(case)
+                n += wp.int64(1)
         if write == 0:
             count[r] = n
+        return 0
+
+    @wp.kernel
+    def classify_rows(bits: wp.array(dtype=wp.uint64), X: int, Y: int, Z: int, W: int,
+                      write: int, first: wp.array(dtype=wp.int64),
+                      count: wp.array(dtype=wp.int64), cell_id: wp.array(dtype=wp.int64),
+                      cases: wp.array(dtype=wp.int64), G: int, rows: int):
+        # rows t G .. t G + G - 1 (a few rows a thread: a CPU thread costs more than a row)
+        t = wp.tid()
+        for r in range(t * G, wp.min(t * G + G, rows)):
+            classify_row(bits, r, X, Y, Z, W, write, first, count, cell_id, cases)
 
     @wp.func
     def crosses(case: wp.int64, corner: wp.int64):
@@ -251,6 +272,12 @@ def _build(wp):
 _kernels = register_kernels(_build)
 
 
+def _rows_per_thread(device: torch.device) -> int:
+    """Rows of cells one thread takes: one on CUDA; on the CPU (where Warp runs each
+    thread as a call that copies the kernel's arguments) a few dozen."""
+    return 1 if device.type == "cuda" else 32
+
+
 def _exclusive(count: torch.Tensor) -> tuple[torch.Tensor, int]:
     """``(first (N,), total)``: the exclusive prefix sum of ``count`` and its sum."""
     inclusive = count.cumsum(0)
@@ -272,14 +299,17 @@ def _packed_inside(stacked: torch.Tensor, iso_b: torch.Tensor, X: int, W: int) -
     layers, Y, Z = stacked.shape
     iso_layer = iso_b.repeat_interleave(X).view(layers, 1, 1)
     bits = torch.empty(layers * Y, W, dtype=torch.int64, device=stacked.device)
+    bytes_out = bits.view(torch.uint8).view(layers * Y, W * 8)
     slab = max(1, _SLAB_SAMPLES // (Y * W * 64))
+    # one flag buffer for every slab; its padding (past Z) stays False
+    flag_buf = torch.zeros(min(slab, layers), Y, W * 64, dtype=torch.bool, device=stacked.device)
     for l0 in range(0, layers, slab):  # loop over slabs of layers, not over samples
         l1 = min(layers, l0 + slab)
-        inside = torch.zeros(l1 - l0, Y, W * 64, dtype=torch.bool, device=stacked.device)
+        inside = flag_buf[:l1 - l0]
         torch.lt(stacked[l0:l1], iso_layer[l0:l1], out=inside[..., :Z])
         flags = inside.view(torch.uint8).view(-1, 8).view(torch.int64)  # 8 flags a value
         packed = (flags * _PACK8).bitwise_right_shift_(56).bitwise_and_(0xFF)
-        bits[l0 * Y:l1 * Y] = packed.to(torch.uint8).view(-1, W * 8).view(torch.int64)
+        bytes_out[l0 * Y:l1 * Y] = packed.view(-1, W * 8)  # cast to bytes in the copy
     return bits.view(-1)
 
 
@@ -294,14 +324,17 @@ def classify_cells(stacked: torch.Tensor, iso_b: torch.Tensor, X: int):
     bits_w = to_warp(bits, dtype=load_warp().uint64)
     count = torch.empty(rows, dtype=torch.long, device=device)
     empty = torch.empty(0, dtype=torch.long, device=device)
-    launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 0, to_warp(empty), to_warp(count),
-                                   to_warp(empty), to_warp(empty)], device)
+    G = _rows_per_thread(device)
+    launch(k.classify_rows, (rows + G - 1) // G,
+           [bits_w, X, Y, Z, W, 0, to_warp(empty), to_warp(count), to_warp(empty),
+            to_warp(empty), G, rows], device)
     first, total = _exclusive(count)
     cell_id = torch.empty(total, dtype=torch.long, device=device)
     cases = torch.empty(total, dtype=torch.long, device=device)
     if total:
-        launch(k.classify_rows, rows, [bits_w, X, Y, Z, W, 1, to_warp(first), to_warp(count),
-                                       to_warp(cell_id), to_warp(cases)], device)
+        launch(k.classify_rows, (rows + G - 1) // G,
+               [bits_w, X, Y, Z, W, 1, to_warp(first), to_warp(count), to_warp(cell_id),
+                to_warp(cases), G, rows], device)
     return cell_id, cases
 
 
@@ -369,7 +402,7 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
 
 
 def vertex_stencils(lower, d, corner_ijk, sizes):
-    """``(index (10, V), axes [2 x (V,)], steps [2 x (V,)])`` long, as
+    """``(index (10, V), axes [2 x (V,)], steps (2, V))`` long, as
     ``_steps.sample_stencil``."""
     k = _kernels()
     X, Y, Z = sizes
@@ -382,4 +415,4 @@ def vertex_stencils(lower, d, corner_ijk, sizes):
     launch(k.stencils, (V + G - 1) // G,
            [to_warp(lower), to_warp(d), to_warp(corner_ijk), G, X, Y, Z, to_warp(index),
             to_warp(axes), to_warp(steps)], device)
-    return index, list(axes.unbind(0)), list(steps.unbind(0))
+    return index, list(axes.unbind(0)), steps

@@ -116,25 +116,17 @@ def extract_slabbed(vol, args, ambiguity, cell_id, cases_a, backend: str = "torc
             verts_w.append(verts[:n_own])
             normals_w.append(normals[:n_own])
             del verts, normals
-            # ids: welded sub index i -> v_at[n] + i; centre V_sub + k -> W + n_centres + k
-            is_c = faces >= V_sub
-            faces += v_at[n]
-            faces[is_c] += W + n_centres - V_sub - v_at[n]
-            if B > 1:  # volume b's centres follow its welded vertices
-                b_f = idiv(take(own_id, cell_of_face), XYZ)  # (F_s,)
-                c_excl = c_per.cumsum(0) - c_per  # centres in volumes < b (all seen)
-                shift = torch.where(is_c, (take(w_incl, b_f) - W)[:, None],
-                                    take(c_excl, b_f)[:, None])
-                faces += shift
+            b_f = idiv(take(own_id, cell_of_face), XYZ) if B > 1 else None  # (F_s,)
+            _packed_ids(faces, b_f, V_sub, v_at[n], W, n_centres, c_per if B > 1 else None,
+                        w_incl if B > 1 else None, centres is not None)
+            if B > 1:
                 b_f_parts.append(b_f)
             n_centres += n_c
             face_parts.append(faces.to(id_dtype) if W + n_centres < 2**31 else faces)
-            del faces, is_c, cell_of_face
+            del faces, cell_of_face
     del cell_id, cases_a
     with torch.no_grad():
-        faces = torch.cat(face_parts).long() if face_parts else torch.zeros(
-            0, 3, dtype=torch.long, device=device)
-        del face_parts
+        faces = _cat_faces(face_parts, device)
     if B == 1 or not verts_c:
         verts, normals = _cat(verts_w + verts_c, args), _cat(normals_w + normals_c, args)
     else:  # volume b: its welded vertices, then its centres
@@ -154,6 +146,41 @@ def extract_slabbed(vol, args, ambiguity, cell_id, cases_a, backend: str = "torc
                                                                      device=device)
             counts = (w_per + c_per, torch.bincount(b_f, minlength=B))
     return verts, faces, normals, counts
+
+
+def _packed_ids(faces, b_f, V_sub: int, v_lo: int, W: int, n_centres: int, c_per, w_incl,
+                has_centres: bool) -> None:
+    """Turn a slab's face ids (welded ``i < V_sub``, centres ``V_sub + k``) into packed
+    ids, in place: welded ``v_lo + i``, centre ``W + n_centres + k`` (``W`` welded vertices
+    in all, ``n_centres`` centres before the slab's). With a batch (``b_f (F_s,)`` the
+    faces' volumes, ``c_per (B,)`` the centres per volume so far, ``w_incl (B,)`` the
+    welded vertices in volumes ``<= b``), volume ``b``'s welded vertices follow the
+    centres of the volumes before it, and its centres follow its welded vertices."""
+    c_excl = None if b_f is None else c_per.cumsum(0) - c_per  # centres in volumes < b
+    is_c = faces >= V_sub if has_centres else None
+    if b_f is None:
+        faces += v_lo
+    else:
+        faces += (take(c_excl, b_f) + v_lo)[:, None]
+    if is_c is None:
+        return
+    if b_f is None:
+        faces[is_c] += W + n_centres - V_sub - v_lo
+        return
+    shift = take(w_incl, b_f) - take(c_excl, b_f) + (n_centres - V_sub - v_lo)
+    faces += torch.where(is_c, shift[:, None], 0)
+
+
+def _cat_faces(parts: list, device) -> torch.Tensor:
+    """The slabs' faces (int32 or long) as one long ``(F, 3)`` tensor, emptying the list
+    (each part converted straight into the result)."""
+    faces = torch.empty(sum(p.shape[0] for p in parts), 3, dtype=torch.long, device=device)
+    start = 0
+    while parts:  # loop over slabs
+        part = parts.pop(0)
+        faces[start:start + part.shape[0]] = part
+        start += part.shape[0]
+    return faces
 
 
 def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_world, backend):

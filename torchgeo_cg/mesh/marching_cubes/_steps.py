@@ -333,7 +333,7 @@ def sample_stencil(welded: Welded, sizes):
     """Flat sample indices needed per vertex, gathered in one go (one backward scatter).
 
     Returns:
-        ``(index (10, V), axes [2 x (V,)], steps [2 x (V,)])``: rows 0-1 of ``index`` are the
+        ``(index (10, V), axes [2 x (V,)], steps (2, V))``: rows 0-1 of ``index`` are the
         edge ends; rows ``2 + 4 s .. 5 + 4 s`` are (lower + up, lower - down,
         upper + up, upper - down) along the ``s``-th axis across the edge, ``axes``;
         ``steps`` is the index distance covered by those differences (2, or 1 on the border).
@@ -361,30 +361,36 @@ def sample_stencil(welded: Welded, sizes):
         torch.sub(upper, step_down, out=index[5 + 4 * s])
         axes.append(a)
         steps.append(up + down)
-    return index, axes, steps
+    return index, axes, torch.stack(steps)
 
 
-def _unit_normals(samples, t, d_v, axes, steps, spacing_v):
+#: ``_ROTATE[d, c]``: the column of ``(along d, across (d + 1) % 3, across (d + 2) % 3)``
+#: that holds world axis ``c`` for an edge along axis ``d``.
+_ROTATE = ((0, 1, 2), (2, 0, 1), (1, 2, 0))
+
+
+def _unit_normals(samples, t, d_v, steps, spacing_v):
     """Unit field gradient at the vertices ``(V, 3)``, in world units, zero where it is zero.
 
-    Along the edge the slope of the interpolant ``(f2 - f1) / spacing_d``; across it,
-    central differences (one-sided on the border) at both edge ends, blended with ``t``.
-    The gradient is divided by its largest component before normalising, so neither
-    tiny nor huge gradients under- or overflow.
+    Along the edge the slope of the interpolant ``(f2 - f1) / spacing_d``; across it
+    (axes ``(d + 1) % 3`` and ``(d + 2) % 3``, the stencil's order), central differences
+    (one-sided on the border) at both edge ends, blended with ``t``; both across axes at
+    once, then one gather puts the three components on their world axes. The gradient
+    is divided by its largest component before normalising, so neither tiny nor huge
+    gradients under- or overflow.
     """
-    one_hot = torch.eye(3, dtype=samples.dtype, device=samples.device)
-    grad = take(one_hot, d_v) * (samples[1] - samples[0])[:, None]  # (V, 3)
-    for s in range(2):
-        g_lower = samples[2 + 4 * s] - samples[3 + 4 * s]
-        g_upper = samples[4 + 4 * s] - samples[5 + 4 * s]
-        g = (g_lower + t * (g_upper - g_lower)) / steps[s].to(samples.dtype)
-        grad = grad + take(one_hot, axes[s]) * g[:, None]
-    grad = grad / spacing_v
+    across = samples[2:].view(2, 4, -1)  # (axis, [lower +- step, upper +- step], V)
+    g_lower = across[:, 0] - across[:, 1]
+    g_upper = across[:, 2] - across[:, 3]
+    g = (g_lower + t * (g_upper - g_lower)) / steps.to(samples.dtype)  # (2, V)
+    parts = torch.cat([(samples[1] - samples[0])[None], g]).T  # (V, 3): d, d + 1, d + 2
+    rotate = torch.tensor(_ROTATE, device=d_v.device)
+    grad = parts.gather(1, take(rotate, d_v)) / spacing_v
     big = grad.abs().amax(dim=1, keepdim=True)
     nonzero = big > 0
-    scaled = grad / torch.where(nonzero, big, torch.ones_like(big))  # components in [-1, 1]
+    scaled = grad / torch.where(nonzero, big, 1.0)  # components in [-1, 1]
     length = torch.linalg.vector_norm(scaled, dim=1, keepdim=True)  # >= 1 where nonzero
-    return scaled / torch.where(nonzero, length, torch.ones_like(length))
+    return scaled / torch.where(nonzero, length, 1.0)
 
 
 def _keep_in_range(samples: torch.Tensor, iso_v: torch.Tensor):
@@ -464,7 +470,7 @@ def place_vertices(samples, iso_v, welded: Welded, axes, steps, spacing_v, to_wo
     # normals depend on the ratios of the spacings only: relative spacings in (0, 1]
     # keep the world gradient from overflowing at a tiny spacing
     relative_v = spacing_v / spacing_v.amax(-1, keepdim=True)
-    normals = _unit_normals(samples, t, welded.d, axes, steps, relative_v)
+    normals = _unit_normals(samples, t, welded.d, steps, relative_v)
     return verts, normals
 
 
