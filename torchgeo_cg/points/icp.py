@@ -264,13 +264,6 @@ class _Geometry(NamedTuple):
     n: torch.Tensor | None
 
 
-def _subset(pairs: _Pairs, ids: torch.Tensor | None) -> _Pairs:
-    """The pairs ``ids`` (all when None)."""
-    if ids is None:
-        return pairs
-    return _Pairs(*(None if x is None else x.index_select(0, ids) for x in pairs))
-
-
 def _search(pairs: _Pairs, grid, moved: torch.Tensor, ids, search, previous) -> torch.Tensor:
     """Nearest target index ``(A, N)`` of the moved source points of pairs ``ids`` (``-1``
     where none); the search runs on the whole batch with the other pairs' lengths at 0.
@@ -290,11 +283,16 @@ def _search(pairs: _Pairs, grid, moved: torch.Tensor, ids, search, previous) -> 
     return idx if ids is None else idx.index_select(0, ids)
 
 
-def _gather(points_bm3: torch.Tensor, idx_bn: torch.Tensor) -> torch.Tensor:
-    """``points[b, idx[b, n]]`` ``(B, N, 3)``."""
+def _gather(points_bm3: torch.Tensor, idx_an: torch.Tensor, ids=None) -> torch.Tensor:
+    """``points[ids[a], idx[a, n]]`` ``(A, N, 3)`` (``ids`` None: every pair, in order)."""
     B, M, _ = points_bm3.shape
-    flat = (idx_bn + M * torch.arange(B, device=idx_bn.device)[:, None]).reshape(-1)
-    return points_bm3.reshape(B * M, 3).index_select(0, flat).reshape(*idx_bn.shape, 3)
+    rows = torch.arange(B, device=idx_an.device) if ids is None else ids
+    flat = (idx_an + M * rows[:, None]).reshape(-1)
+    return points_bm3.reshape(B * M, 3).index_select(0, flat).reshape(*idx_an.shape, 3)
+
+
+def _rows(x: torch.Tensor, ids) -> torch.Tensor:
+    return x if ids is None else x.index_select(0, ids)
 
 
 def _match(pairs: _Pairs, grid, matrix, max_d2_b, search, ids=None, previous=None
@@ -302,18 +300,17 @@ def _match(pairs: _Pairs, grid, matrix, max_d2_b, search, ids=None, previous=Non
     """The nearest target point of every moved source point of the pairs ``ids`` (all
     when None; ``matrix`` and ``max_d2_b`` are theirs), the rejection by distance and the
     residuals; ``previous`` ``(B, N)`` holds every pair's last match."""
-    sub = _subset(pairs, ids)
-    moved = apply_transform(matrix, sub.src)
+    moved = apply_transform(matrix, _rows(pairs.src, ids))
     idx = _search(pairs, grid, moved, ids, search, previous)
     found = idx >= 0
     idx = idx.clamp_min(0)
-    q = _gather(sub.tgt, idx)
+    q = _gather(pairs.tgt, idx, ids)
     diff = moved - q
     d2 = dot3(diff, diff)
-    inlier = found & sub.src_valid & (d2 <= max_d2_b[:, None])
+    inlier = found & _rows(pairs.src_valid, ids) & (d2 <= max_d2_b[:, None])
     r2, n = d2, None
-    if sub.normals is not None:
-        n = _gather(sub.normals, idx)
+    if pairs.normals is not None:
+        n = _gather(pairs.normals, idx, ids)
         r2 = dot3(diff, n).square()
     return _Match(idx, inlier, d2, r2), _Geometry(moved, q, n)
 
@@ -433,10 +430,9 @@ def _iterate(pairs, grid, method, model, loss, scale_b, max_d2_b, max_iterations
     for _ in range(max_iterations):  # loop over iterations
         if ids.numel() == 0:
             break
-        sub = _subset(pairs, ids)
         old = matrix.index_select(0, ids)
         w = _weights(m_sub, loss, None if scale_b is None else scale_b.index_select(0, ids))
-        new = _step(method, model, sub.src, geometry, old, w)
+        new = _step(method, model, pairs.src.index_select(0, ids), geometry, old, w)
         matrix = matrix.index_copy(0, ids, new)
         fresh, geometry = _match(pairs, grid, new, max_d2_b.index_select(0, ids), search,
                                  ids, match.idx)
