@@ -35,6 +35,8 @@ class Case:
         target: the ratio ours/peer we must stay at or under (``None``: reported only).
         peer_scale: multiply the peer time by this (extrapolating a loop run on a subset).
         threads: thread counts to time at.
+        target_threads: the thread counts ``target`` applies to (None: all); rows at the
+            other counts are reported without a target.
         extra: free-form numbers to report (errors, peak memory, points/s, ...).
         sync: synchronize CUDA inside the timed region.
         once: ``ours`` and ``peer`` each run once and time themselves (a run of minutes,
@@ -50,6 +52,7 @@ class Case:
     target: float | None = None
     peer_scale: float = 1.0
     threads: tuple[int, ...] = (1, 2)
+    target_threads: tuple[int, ...] | None = None
     extra: dict = field(default_factory=dict)
     sync: bool = False
     once: bool = False
@@ -138,7 +141,8 @@ def run_case(case: Case, min_run_time: float = 0.5, rounds: int = 5) -> list[Mea
         if ratios:
             peer, peer_iqr = statistics.median(peer_t), statistics.median(peer_q)
             ratio = statistics.median(ratios)
-        passed = None if (ratio is None or case.target is None) else ratio <= case.target
+        target = _target(case, n)
+        passed = None if (ratio is None or target is None) else ratio <= target
         out.append(
             Measurement(
                 case=case.name,
@@ -149,7 +153,7 @@ def run_case(case: Case, min_run_time: float = 0.5, rounds: int = 5) -> list[Mea
                 peer_iqr_ms=None if peer_iqr is None else peer_iqr * 1e3,
                 peer_name=case.peer_name,
                 ratio=ratio,
-                target=case.target,
+                target=target,
                 passed=passed,
                 extra=dict(case.extra),
             )
@@ -168,13 +172,21 @@ def _run_once(case: Case, threads: int) -> Measurement:
     if peer is not None:
         extra.update({f"peer_{k}": v for k, v in peer.items() if k != "s"})
         ratio = ours["s"] / (peer["s"] * case.peer_scale)
-    passed = None if (ratio is None or case.target is None) else ratio <= case.target
+    target = _target(case, threads)
+    passed = None if (ratio is None or target is None) else ratio <= target
     return Measurement(
         case=case.name, threads=threads, ours_ms=ours["s"] * 1e3, ours_iqr_ms=0.0,
         peer_ms=None if peer is None else peer["s"] * case.peer_scale * 1e3,
         peer_iqr_ms=None if peer is None else 0.0, peer_name=case.peer_name, ratio=ratio,
-        target=case.target, passed=passed, extra=extra,
+        target=target, passed=passed, extra=extra,
     )
+
+
+def _target(case: Case, threads: int) -> float | None:
+    """The case's target at ``threads`` threads."""
+    if case.target_threads is not None and threads not in case.target_threads:
+        return None
+    return case.target
 
 
 def metadata() -> dict:
