@@ -25,3 +25,13 @@ def test_median_run_per_row_keeps_its_times_and_lists_every_ratio():
 def test_rows_of_one_case_against_several_peers_stay_apart():
     rows = median_of_runs([[_m("a", 1.0, 10.0, "p1"), _m("a", 2.0, 10.0, "p2")]])
     assert [(m.peer_name, m.ratio) for m in rows] == [("p1", 1.0), ("p2", 2.0)]
+
+
+def test_a_target_holds_at_its_thread_counts_only():
+    from benchmarks.harness import Case, run_case
+
+    case = Case("noop", lambda: None, lambda: None, "noop", target=1e9, threads=(1, 2),
+                target_threads=(1,))
+    one, two = run_case(case, min_run_time=0.01, rounds=1)
+    assert (one.threads, one.target, one.passed) == (1, 1e9, True)
+    assert (two.threads, two.target, two.passed) == (2, None, None)
