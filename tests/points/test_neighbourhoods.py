@@ -295,6 +295,20 @@ def test_fps_backends_agree(kind, dtype):
                        farthest_point_sampling(p2, 50, backend="warp").indices)
 
 
+@pytest.mark.parametrize("kind", ["clustered", "duplicates", "lattice"])
+@pytest.mark.skipif(not HAS_WARP, reason="Warp is not available here")
+def test_fps_backends_agree_on_many_buckets(kind):
+    # thousands of points: the kernel skips the buckets a pick cannot change
+    p = torch.stack([_clouds(kind, 3000, 3, s) for s in range(2)]) * torch.tensor([1e3, 1, 1e-3])
+    L = torch.tensor([3000, 2000])
+    a = farthest_point_sampling(p, 700, L, start=5, backend="torch")
+    b = farthest_point_sampling(p, 700, L, start=5, backend="warp")
+    assert torch.equal(a.indices, b.indices)
+    p2 = p[0, :, 1:].float().contiguous()
+    assert torch.equal(farthest_point_sampling(p2, 400, backend="torch").indices,
+                       farthest_point_sampling(p2, 400, backend="warp").indices)
+
+
 def test_fps_equals_open3d():
     o3d = _o3d()
     p = _clouds("random", 2000, 3, 11)
