@@ -2,9 +2,9 @@
 
 The grid is the torch search's (:func:`~torchgeo_cg.points._search_grid.build_grid`: the
 references binned by cell, sorted by cell key, a dense or sparse table of cell starts);
-one thread per query scans Chebyshev rings of cells around the query's cell, skips cells
-whose box lies farther than its current k-th distance, and keeps a sorted top-k by
-(squared distance, index). It stops once the k-th distance is below the distance to any
+one thread per query scans Chebyshev rings of cells around the query's cell (in each
+ring the cells nearer the query first), skips cells whose box lies farther than its
+current k-th distance, and keeps a sorted top-k by (squared distance, index). It stops once the k-th distance is below the distance to any
 unvisited cell (shrunk by the grid's rounding margin), or once the rings cover the grid.
 Squared distances are summed coordinate by coordinate in the input dtype without fused
 multiply-adds, as the torch search does, so both rank (and tie) identically.
@@ -26,7 +26,6 @@ from torchgeo_cg.points._search_grid import (
     GridIndex,
     build_grid,
     grid_knn_indices,
-    grid_per_cell,
 )
 
 __all__: list[str] = []
@@ -41,11 +40,14 @@ KERNEL_PER_CELL = 8.0
 def kernel_per_cell(k: int) -> float:
     """Target references per occupied cell of the kernel's grid for ``k`` neighbours.
 
+    About ``0.6 (k + 1)``, at least :data:`KERNEL_PER_CELL`: finer cells than the torch
+    search's for larger k (a thread inserts fewer candidates into its top-k).
+
     Example:
-        >>> kernel_per_cell(1), kernel_per_cell(16)
-        (8.0, 17.0)
+        >>> kernel_per_cell(1), kernel_per_cell(20)
+        (8.0, 12.6)
     """
-    return max(KERNEL_PER_CELL, grid_per_cell(k))
+    return max(KERNEL_PER_CELL, 0.6 * (k + 1))
 
 
 def _ring_funcs(wp):
@@ -59,6 +61,7 @@ def _ring_funcs(wp):
         """Merge the references ``start .. start + count`` into row ``row``'s top-k;
         returns the new number found."""
         n = found
+        kth = best[row, k - 1]  # read only once n == k
         for t in range(int(start), int(start + count)):
             dx = pts[0, t] - qx
             d2 = dx * dx
@@ -67,9 +70,11 @@ def _ring_funcs(wp):
             if dim == 3:
                 dz = pts[2, t] - qz
                 d2 = d2 + dz * dz
+            if n == k and d2 > kth:
+                continue
             j = index[t]
             if n == k:
-                if d2 > best[row, k - 1] or (d2 == best[row, k - 1] and j > best_i[row, k - 1]):
+                if d2 == kth and j > best_i[row, k - 1]:
                     continue
                 n = k - 1
             s = n  # insertion from the end: sorted by (distance, index)
@@ -81,6 +86,8 @@ def _ring_funcs(wp):
             best[row, s] = d2
             best_i[row, s] = j
             n = n + 1
+            if n == k:
+                kth = best[row, k - 1]
         return n
 
     return scan_cell
@@ -102,6 +109,38 @@ def _build(wp):
         a = lo + type(q)(c) * h
         g = wp.max(wp.max(a - q, q - (a + h)), type(q)(0.0))
         return wp.max(g - slack, type(q)(0.0))
+
+    @wp.func
+    def side(q: Any, a: Any, h: Any) -> int:
+        """+1 when ``q`` lies in the upper half of its cell ``[a, a + h]``, else -1."""
+        if q - a >= a + h - q:
+            return 1
+        return -1
+
+    @wp.func
+    def near(c: int, i: int, s: int) -> int:
+        """The ``i``-th cell of the sequence ``c, c + s, c - s, c + 2s, c - 2s, ...``."""
+        m = (i + 1) // 2
+        if i % 2 == 1:
+            return c + m * s
+        return c - m * s
+
+    @wp.func
+    def lookup(keys: wp.array(dtype=wp.int64), sparse: int, key: wp.int64) -> wp.int64:
+        """Row of cell ``key`` in the cell tables, ``-1`` for an empty sparse cell."""
+        if sparse == 0:
+            return key
+        lo_k = int(0)  # noqa: UP018  a dynamic variable for Warp
+        hi_k = keys.shape[0]
+        while lo_k < hi_k:
+            mid = (lo_k + hi_k) // 2
+            if keys[mid] < key:
+                lo_k = mid + 1
+            else:
+                hi_k = mid
+        if lo_k < keys.shape[0] and keys[lo_k] == key:
+            return wp.int64(lo_k)
+        return wp.int64(-1)
 
     @wp.kernel
     def knn_grid(query: wp.array2d(dtype=Any), q_batch: wp.array(dtype=wp.int64),
@@ -140,31 +179,33 @@ def _build(wp):
         ax = lo[b, 0] + type(h)(cx) * h
         ay = lo[b, 1] + type(h)(cy) * h
         wall = wp.min(wp.min(qx - ax, ax + h - qx), wp.min(qy - ay, ay + h - qy))
+        sz = int(1)  # noqa: UP018  a dynamic variable for Warp
         if dim == 3:
             az = lo[b, 2] + type(h)(cz) * h
             wall = wp.min(wall, wp.min(qz - az, az + h - qz))
+            sz = side(qz, az, h)
         wall = wp.max(wall, type(h)(0.0))
         found = int(0)  # noqa: UP018  a dynamic variable for Warp
         done = int(0)  # noqa: UP018  a dynamic variable for Warp
+        sx = side(qx, ax, h)
+        sy = side(qy, ay, h)
         r = r0
         while r <= r1 and r - r0 <= max_ring:
-            for x in range(wp.max(cx - r, 0), wp.min(cx + r, dx - 1) + 1):
+            for ix in range(2 * r + 1):  # cells nearer the query first: tighter bounds sooner
+                x = near(cx, ix, sx)
                 gx = gap(qx, lo[b, 0], h, x, slack)
-                if found == k and gx * gx > best[row, k - 1]:
-                    continue  # the whole slab is farther than the k-th found
-                for y in range(wp.max(cy - r, 0), wp.min(cy + r, dy - 1) + 1):
+                if x < 0 or x >= dx or (found == k and gx * gx > best[row, k - 1]):
+                    continue  # off the grid, or the whole slab is farther than the k-th
+                for iy in range(2 * r + 1):
+                    y = near(cy, iy, sy)
                     gy = gap(qy, lo[b, 1], h, y, slack)
-                    if found == k and gx * gx + gy * gy > best[row, k - 1]:
+                    if y < 0 or y >= dy or (found == k and gx * gx + gy * gy > best[row, k - 1]):
                         continue
-                    edge = wp.abs(x - cx) == r or wp.abs(y - cy) == r
-                    z0 = wp.max(cz - r, 0)
-                    z1 = wp.min(cz + r, dz - 1)
-                    step = int(1)  # noqa: UP018  a dynamic variable for Warp
-                    if not edge:  # inside the shell's x-y outline: its two z faces only
-                        z0 = cz - r
-                        z1 = cz + r
-                        step = 2 * r
-                    for z in range(z0, z1 + 1, step):
+                    iz = int(0)  # noqa: UP018  a dynamic variable for Warp
+                    if wp.abs(x - cx) < r and wp.abs(y - cy) < r:
+                        iz = 2 * r - 1  # inside the shell's x-y outline: its two z faces only
+                    for i in range(iz, 2 * r + 1):
+                        z = near(cz, i, sz)
                         if z < 0 or z >= dz:
                             continue
                         g2 = gx * gx + gy * gy
@@ -175,26 +216,10 @@ def _build(wp):
                             continue
                         key = base[b] + wp.int64(x + pad) * stride[b, 0] + wp.int64(
                             y + pad) * stride[b, 1] + wp.int64(z + pad) * stride[b, 2]
-                        s = wp.int64(0)
-                        c = wp.int64(0)
-                        if sparse == 0:
-                            s = start[key]
-                            c = count[key]
-                        else:
-                            lo_k = int(0)  # noqa: UP018  a dynamic variable for Warp
-                            hi_k = keys.shape[0]
-                            while lo_k < hi_k:
-                                mid = (lo_k + hi_k) // 2
-                                if keys[mid] < key:
-                                    lo_k = mid + 1
-                                else:
-                                    hi_k = mid
-                            if lo_k < keys.shape[0] and keys[lo_k] == key:
-                                s = start[lo_k]
-                                c = count[lo_k]
-                        if c > wp.int64(0):
-                            found = scan_cell(pts, index, s, c, qx, qy, qz, dim, row, k,
-                                              found, best, best_i)
+                        c = lookup(keys, sparse, key)
+                        if c >= wp.int64(0) and count[c] > wp.int64(0):
+                            found = scan_cell(pts, index, start[c], count[c], qx, qy, qz, dim,
+                                              row, k, found, best, best_i)
             if r >= r1:
                 done = 1
                 break
