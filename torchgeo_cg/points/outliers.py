@@ -88,7 +88,7 @@ def remove_statistical_outliers(
         return torch.zeros(*batch, 0, dtype=torch.bool, device=points.device)
     idx, ok = self_knn(p, len_b, k, backend)
     found = idx >= 0
-    dist = gather_d2(p, p, idx).sqrt().masked_fill(~found, 0.0)
+    dist = gather_d2(p, p, idx).sqrt_().masked_fill_(~found, 0.0)
     mean = dist.sum(-1) / found.sum(-1).clamp_min(1)  # m_i, Open3D's order: sorted
     counted = ok  # every point with a neighbour (itself): Open3D's valid_distances
     n = counted.sum(-1, keepdim=True).to(torch.float64)
