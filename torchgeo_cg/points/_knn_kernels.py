@@ -4,10 +4,12 @@ The grid is the torch search's (:func:`~torchgeo_cg.points._search_grid.build_gr
 references binned by cell, sorted by cell key, a dense or sparse table of cell starts);
 one thread per query scans Chebyshev rings of cells around the query's cell (in each
 ring the cells nearer the query first), skips cells whose box lies farther than its
-current k-th distance, and keeps a sorted top-k by (squared distance, index). It stops once the k-th distance is below the distance to any
-unvisited cell (shrunk by the grid's rounding margin), or once the rings cover the grid.
-Squared distances are summed coordinate by coordinate in the input dtype without fused
-multiply-adds, as the torch search does, so both rank (and tie) identically.
+current k-th distance, and keeps a sorted top-k by (squared distance, index). It stops
+once the k-th distance is below the distance to any unvisited cell (shrunk by the grid's
+rounding margin), or once the rings cover the grid. For ``k > 1`` the queries run in the
+order of their cells. Squared distances are summed coordinate by coordinate in the input
+dtype without fused multiply-adds, as the torch search does, so both rank (and tie)
+identically.
 
 Queries that need more than ``max_ring`` rings (far from every reference) are left to the
 caller (flag ``-2``); the torch search finishes them.
@@ -245,6 +247,23 @@ def _build(wp):
 _kernels = register_kernels(_build)
 
 
+def _cell_order(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor) -> torch.Tensor:
+    """The queries ``(Q,)`` sorted by their grid cell (clamped to the grid).
+
+    Example:
+        >>> from torchgeo_cg.points._search_grid import build_grid
+        >>> g = build_grid(torch.tensor([[[0.0], [3.0]]]), torch.tensor([2]), 1.0,
+        ...                torch.tensor([1.0]))  # cells of size 1
+        >>> _cell_order(g, torch.tensor([[2.9], [0.1], [1.5]]), torch.zeros(3, dtype=torch.long))
+        tensor([1, 2, 0])
+    """
+    h_q = grid.h_b.index_select(0, b_q)[:, None]
+    cell = ((q_qd - grid.lo_bd.index_select(0, b_q)) / h_q).floor_().clamp_(-1, 2.0**40)
+    cell = torch.minimum(cell.long().clamp_min_(0), grid.dims_bd.index_select(0, b_q) - 1)
+    key = grid.base_b.index_select(0, b_q) + (cell * grid.stride_bd.index_select(0, b_q)).sum(-1)
+    return torch.sort(key, stable=True).indices
+
+
 def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
                   ) -> torch.Tensor:
     """Indices ``(Q, k)`` of the ``k`` nearest references of queries ``q_qd`` (rows of batch
@@ -274,14 +293,17 @@ def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
     dims = torch.ones_like(stride)
     dims[:, :D] = grid.dims_bd
     keys = grid.keys_c if grid.keys_c is not None else stride.new_zeros(1)
-    args = [to_warp(q_qd), to_warp(b_q.long()), to_warp(grid.points_dt),
+    # k > 1: neighbouring queries in turn (their cells stay in cache; for k = 1 the sort
+    # costs more than it saves)
+    order = _cell_order(grid, q_qd, b_q) if k > 1 else torch.arange(Q, device=device)
+    args = [to_warp(q_qd[order]), to_warp(b_q[order].long()), to_warp(grid.points_dt),
             to_warp(grid.index_t.long()), to_warp(grid.start_c.long()),
             to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
             to_warp(grid.lo_bd), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
             to_warp(grid.base_b.long()), to_warp(stride), D, k, KERNEL_RINGS, MAX_RING,
             to_warp(best), to_warp(best_i)]
     launch(_kernels(), Q, args, device)
-    return best_i
+    return torch.empty_like(best_i).index_copy_(0, order, best_i)
 
 
 def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: int,
