@@ -152,9 +152,9 @@ def _build(wp):
                  lo: wp.array2d(dtype=Any), h_b: wp.array(dtype=Any),
                  slack_b: wp.array(dtype=Any), dims: wp.array2d(dtype=wp.int64),
                  base: wp.array(dtype=wp.int64), stride: wp.array2d(dtype=wp.int64),
-                 dim: int, k: int, max_ring: int, pad: int,
+                 dim: int, k: int, max_ring: int, pad: int, order: wp.array(dtype=wp.int64),
                  best: wp.array2d(dtype=Any), best_i: wp.array2d(dtype=wp.int64)):
-        row = wp.tid()
+        row = int(order[wp.tid()])  # the query (and output row) this thread answers
         b = int(q_batch[row])
         h = h_b[b]
         slack = slack_b[b]
@@ -296,14 +296,14 @@ def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
     # k > 1: neighbouring queries in turn (their cells stay in cache; for k = 1 the sort
     # costs more than it saves)
     order = _cell_order(grid, q_qd, b_q) if k > 1 else torch.arange(Q, device=device)
-    args = [to_warp(q_qd[order]), to_warp(b_q[order].long()), to_warp(grid.points_dt),
+    args = [to_warp(q_qd), to_warp(b_q.long()), to_warp(grid.points_dt),
             to_warp(grid.index_t.long()), to_warp(grid.start_c.long()),
             to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
             to_warp(grid.lo_bd), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
             to_warp(grid.base_b.long()), to_warp(stride), D, k, KERNEL_RINGS, MAX_RING,
-            to_warp(best), to_warp(best_i)]
+            to_warp(order), to_warp(best), to_warp(best_i)]
     launch(_kernels(), Q, args, device)
-    return torch.empty_like(best_i).index_copy_(0, order, best_i)
+    return best_i
 
 
 def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: int,
@@ -331,18 +331,23 @@ def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: in
     """
     B, N, D = query_bnd.shape
     M = reference_bmd.shape[1]
-    out_bnk = query_bnd.new_full((B, N, k), -1, dtype=torch.long)
     kk = min(k, M)
     valid_bn = torch.arange(N, device=query_bnd.device) < query_lengths_b[:, None]
     valid_bn &= (reference_lengths_b > 0)[:, None]
     qb, qn = valid_bn.nonzero(as_tuple=True)
     if qb.numel() == 0:
-        return out_bnk
+        return query_bnd.new_full((B, N, k), -1, dtype=torch.long)
     if grid is None:
         grid = build_grid(reference_bmd, reference_lengths_b, kernel_per_cell(kk))
     rows = qb * N + qn
-    found = warp_grid_knn(grid, query_bnd.reshape(B * N, D).index_select(0, rows), qb, kk)
-    out_bnk.view(B * N, k)[rows, :kk] = found
+    q_rows = query_bnd.reshape(B * N, D)
+    whole = rows.numel() == B * N and kk == k  # every row a query: the result is the output
+    found = warp_grid_knn(grid, q_rows if whole else q_rows.index_select(0, rows), qb, kk)
+    if whole:
+        out_bnk = found.view(B, N, k)
+    else:
+        out_bnk = query_bnd.new_full((B, N, k), -1, dtype=torch.long)
+        out_bnk.view(B * N, k)[rows, :kk] = found
     left = found[:, 0] == -2
     if bool(left.any()):  # far from every reference: the torch search's coarser grids
         lb, ln = qb[left], qn[left]

@@ -130,17 +130,18 @@ def gather_d2(q_bnd: torch.Tensor, r_bmd: torch.Tensor, idx_bnk: torch.Tensor) -
     D = q_bnd.shape[-1]
     if r_bmd.shape[1] == 0:
         return q_bnd.new_zeros(B, N, k)
-    flat = idx_bnk.clamp_min(0).reshape(B, N * k)
-    d2 = diff = None
+    flat = idx_bnk.reshape(B, N * k)
+    if N * k and int(flat.min()) < 0:
+        flat = flat.clamp_min(0)
     with torch.no_grad():  # in place: two buffers of (B, N, k), not one per operation
-        for a in range(D):  # loop over coordinates
-            diff = torch.gather(r_bmd[..., a], 1, flat, out=diff).view(B, N, k)
-            diff.sub_(q_bnd[..., a, None])
-            if d2 is None:
-                d2 = diff.mul(diff)
-            else:
-                d2.add_(diff.mul_(diff))
-            diff = diff.view(B, N * k)
+        d2 = torch.gather(r_bmd[..., 0], 1, flat).view(B, N, k)
+        d2.sub_(q_bnd[..., 0, None])
+        d2.mul_(d2)
+        diff = torch.empty_like(flat, dtype=d2.dtype) if D > 1 else None
+        for a in range(1, D):  # loop over coordinates
+            torch.gather(r_bmd[..., a], 1, flat, out=diff)
+            step = diff.view(B, N, k).sub_(q_bnd[..., a, None])
+            d2.add_(step.mul_(step))
     return d2
 
 
