@@ -32,8 +32,8 @@ __all__: list[str] = []
 BUCKET = 128.0
 
 
-def _build(wp):
-    """The sampling kernel, with overloads for float32 and float64."""
+def _bucket_funcs(wp):
+    """Warp functions: a squared distance, a box gap, the update of one bucket."""
 
     @wp.func
     def dist2(pts: wp.array2d(dtype=Any), t: int, qx: Any, qy: Any, qz: Any, dim: int):
@@ -68,6 +68,13 @@ def _build(wp):
                 arg = t
         bmax[c] = top
         barg[c] = wp.int64(arg)
+
+    return gap, update
+
+
+def _build(wp):
+    """The sampling kernel, with overloads for float32 and float64."""
+    gap, update = _bucket_funcs(wp)
 
     @wp.kernel
     def fps(pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),

@@ -95,9 +95,8 @@ def _ring_funcs(wp):
     return scan_cell
 
 
-def _build(wp):
-    """The kNN kernel, with overloads for float32 and float64."""
-    scan_cell = _ring_funcs(wp)
+def _cell_funcs(wp):
+    """Warp functions: cells of a query, their gaps, the near-first order, the lookup."""
 
     @wp.func
     def cell_of(q: Any, lo: Any, h: Any) -> int:
@@ -113,8 +112,15 @@ def _build(wp):
         return wp.max(g - slack, type(q)(0.0))
 
     @wp.func
-    def side(q: Any, a: Any, h: Any) -> int:
-        """+1 when ``q`` lies in the upper half of its cell ``[a, a + h]``, else -1."""
+    def wall_of(q: Any, lo: Any, h: Any, c: int):
+        """Distance from ``q`` to the nearer wall of cell ``c`` along one axis."""
+        a = lo + type(h)(c) * h
+        return wp.min(q - a, a + h - q)
+
+    @wp.func
+    def side(q: Any, lo: Any, h: Any, c: int) -> int:
+        """+1 when ``q`` lies in the upper half of cell ``c`` along one axis, else -1."""
+        a = lo + type(h)(c) * h
         if q - a >= a + h - q:
             return 1
         return -1
@@ -144,6 +150,14 @@ def _build(wp):
             return wp.int64(lo_k)
         return wp.int64(-1)
 
+    return cell_of, gap, wall_of, side, near, lookup
+
+
+def _build(wp):
+    """The kNN kernel, with overloads for float32 and float64."""
+    scan_cell = _ring_funcs(wp)
+    cell_of, gap, wall_of, side, near, lookup = _cell_funcs(wp)
+
     @wp.kernel
     def knn_grid(query: wp.array2d(dtype=Any), q_batch: wp.array(dtype=wp.int64),
                  pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),
@@ -167,30 +181,26 @@ def _build(wp):
         cy = cell_of(qy, lo[b, 1], h)
         dx = int(dims[b, 0])
         dy = int(dims[b, 1])
+        # distance to the walls of the query's own (unclamped) cell, the nearer side
+        wall = wp.min(wall_of(qx, lo[b, 0], h, cx), wall_of(qy, lo[b, 1], h, cy))
+        sx = side(qx, lo[b, 0], h, cx)
+        sy = side(qy, lo[b, 1], h, cy)
         cz = int(0)  # noqa: UP018  a dynamic variable for Warp
         dz = int(1)  # noqa: UP018  a dynamic variable for Warp
+        sz = int(1)  # noqa: UP018  a dynamic variable for Warp
         if dim == 3:
             cz = cell_of(qz, lo[b, 2], h)
             dz = int(dims[b, 2])
+            wall = wp.min(wall, wall_of(qz, lo[b, 2], h, cz))
+            sz = side(qz, lo[b, 2], h, cz)
+        wall = wp.max(wall, type(h)(0.0))
         # the first ring holding a cell of the grid, and the last one needed
         r0 = wp.max(wp.max(wp.max(-cx, cx - (dx - 1)), wp.max(-cy, cy - (dy - 1))),
                     wp.max(wp.max(-cz, cz - (dz - 1)), 0))
         r1 = wp.max(wp.max(wp.max(cx, dx - 1 - cx), wp.max(cy, dy - 1 - cy)),
                     wp.max(cz, dz - 1 - cz))
-        # distance to the walls of the query's own (unclamped) cell
-        ax = lo[b, 0] + type(h)(cx) * h
-        ay = lo[b, 1] + type(h)(cy) * h
-        wall = wp.min(wp.min(qx - ax, ax + h - qx), wp.min(qy - ay, ay + h - qy))
-        sz = int(1)  # noqa: UP018  a dynamic variable for Warp
-        if dim == 3:
-            az = lo[b, 2] + type(h)(cz) * h
-            wall = wp.min(wall, wp.min(qz - az, az + h - qz))
-            sz = side(qz, az, h)
-        wall = wp.max(wall, type(h)(0.0))
         found = int(0)  # noqa: UP018  a dynamic variable for Warp
         done = int(0)  # noqa: UP018  a dynamic variable for Warp
-        sx = side(qx, ax, h)
-        sy = side(qy, ay, h)
         r = r0
         while r <= r1 and r - r0 <= max_ring:
             for ix in range(2 * r + 1):  # cells nearer the query first: tighter bounds sooner
@@ -210,10 +220,8 @@ def _build(wp):
                         z = near(cz, i, sz)
                         if z < 0 or z >= dz:
                             continue
-                        g2 = gx * gx + gy * gy
-                        if dim == 3:
-                            gz = gap(qz, lo[b, 2], h, z, slack)
-                            g2 = g2 + gz * gz
+                        gz = gap(qz, lo[b, 2], h, z, slack)  # 2D: qz = lo = z = 0, gz = 0
+                        g2 = gx * gx + gy * gy + gz * gz
                         if found == k and g2 > best[row, k - 1]:
                             continue
                         key = base[b] + wp.int64(x + pad) * stride[b, 0] + wp.int64(
@@ -222,14 +230,10 @@ def _build(wp):
                         if c >= wp.int64(0) and count[c] > wp.int64(0):
                             found = scan_cell(pts, index, start[c], count[c], qx, qy, qz, dim,
                                               row, k, found, best, best_i)
-            if r >= r1:
-                done = 1
+            reach = wp.max(type(h)(r) * h + wall - slack, type(h)(0.0))
+            if r >= r1 or (found == k and best[row, k - 1] < reach * reach):
+                done = 1  # the rings cover the grid, or no unvisited cell is nearer
                 break
-            if found == k:
-                reach = wp.max(type(h)(r) * h + wall - slack, type(h)(0.0))
-                if best[row, k - 1] < reach * reach:
-                    done = 1
-                    break
             r = r + 1
         for t in range(found, k):
             best_i[row, t] = wp.int64(-1)
@@ -293,13 +297,15 @@ def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
     dims = torch.ones_like(stride)
     dims[:, :D] = grid.dims_bd
     keys = grid.keys_c if grid.keys_c is not None else stride.new_zeros(1)
+    lo = q_qd.new_zeros(grid.lo_bd.shape[0], 3)
+    lo[:, :D] = grid.lo_bd
     # k > 1: neighbouring queries in turn (their cells stay in cache; for k = 1 the sort
     # costs more than it saves)
     order = _cell_order(grid, q_qd, b_q) if k > 1 else torch.arange(Q, device=device)
     args = [to_warp(q_qd), to_warp(b_q.long()), to_warp(grid.points_dt),
             to_warp(grid.index_t.long()), to_warp(grid.start_c.long()),
             to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
-            to_warp(grid.lo_bd), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
+            to_warp(lo), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
             to_warp(grid.base_b.long()), to_warp(stride), D, k, KERNEL_RINGS, MAX_RING,
             to_warp(order), to_warp(best), to_warp(best_i)]
     launch(_kernels(), Q, args, device)

@@ -27,8 +27,8 @@ __all__: list[str] = []
 CELL = 1.4
 
 
-def _build(wp):
-    """The counting kernel, with overloads for float32 and float64."""
+def _cell_funcs(wp):
+    """Warp functions: the cells a point's box meets, the count of one cell."""
 
     @wp.func
     def cell_of(q: Any, lo: Any, h: Any, n: int) -> int:
@@ -77,6 +77,13 @@ def _build(wp):
     def span(q: Any, w: Any, lo: Any, h: Any, n: int) -> wp.vec3i:
         """The point's cell and the first and last cells meeting ``[q - w, q + w]``."""
         return wp.vec3i(cell_of(q, lo, h, n), cell_of(q - w, lo, h, n), cell_of(q + w, lo, h, n))
+
+    return count_cell, span
+
+
+def _build(wp):
+    """The counting kernel, with overloads for float32 and float64."""
+    count_cell, span = _cell_funcs(wp)
 
     @wp.kernel
     def radius_inliers(query: wp.array2d(dtype=Any), q_batch: wp.array(dtype=wp.int64),
