@@ -13,8 +13,9 @@ target normals (PCA over 10 neighbours, computed outside the timed code), the sa
 tests (ours ``tol=1e-6``: relative motion, or a small motion with no relative RMSE gain;
 Open3D ``relative_fitness = relative_rmse = 1e-6``, changes of fitness and RMSE in
 absolute units). Open3D builds its KD-tree inside each call; ours builds its grids once
-per call too. The targets hold at 1 thread; the 2-thread rows are reported (Open3D's ICP
-here runs on one thread whatever the setting: its process time equals its wall time).
+per call too. The targets hold at 1 thread; the 2-thread rows are reported (Open3D's TBB
+pool gets the same count through the harness; our Warp search runs on one thread on
+the CPU).
 The notes give, for both, the share of pairs registered to a rotation error below 0.5
 degrees, the mean inlier RMSE (in units
 of the rabbit's size), the largest rotation error and our mean number of iterations.

@@ -1,8 +1,7 @@
 """Nearest neighbours, radius search, Chamfer, voxels, outliers and sampling against scipy's
-cKDTree and Open3D. The targets hold at 1 thread; the 2-thread rows are reported (cKDTree
-gets ``workers`` = the thread count; these Open3D calls run on one thread whatever the
-setting: their process time equals their wall time; our Warp kernels run on one thread
-on the CPU, the torch steps around them on two).
+cKDTree and Open3D. The targets hold at 1 thread; the 2-thread rows are reported (the
+peers get the same count: cKDTree ``workers``, Open3D's TBB pool through the harness; our
+Warp kernels run on one thread on the CPU, the torch steps around them on two).
 
 Targets (ratio ours / peer):
 - ``knn`` k=1 and k=8, float32, on the rabbit scans (8,000 -> 10,000 points) and on

@@ -5,7 +5,9 @@ returning a list of :class:`Case`. Inputs are built *before* the case is
 returned, so the timed closures only run the operation. Each case is timed with
 :class:`torch.utils.benchmark.Timer` (``blocked_autorange``, median and IQR) at
 each thread count, ours and the peer in alternating blocks, and the median
-ratio ours / peer is reported. NumPy/BLAS threads are limited with threadpoolctl when it is present.
+ratio ours / peer is reported. NumPy/BLAS threads are limited with threadpoolctl when it
+is present, Open3D's (a TBB pool threadpoolctl does not see) with
+``open3d.utility.set_max_threads`` when Open3D is loaded.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import json
 import platform
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -78,8 +81,14 @@ class Measurement:
 
 @contextlib.contextmanager
 def _limit_threads(n: int):
+    """torch, the BLAS/OpenMP pools (threadpoolctl) and Open3D (its own TBB pool, which
+    threadpoolctl does not see) at ``n`` threads."""
     previous = torch.get_num_threads()
     torch.set_num_threads(n)
+    o3d = sys.modules.get("open3d")
+    o3d_limit = getattr(getattr(o3d, "utility", None), "set_max_threads", None)
+    if o3d_limit is not None:
+        o3d_limit(n)
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # pragma: no cover - optional
@@ -92,6 +101,8 @@ def _limit_threads(n: int):
                 yield
     finally:
         torch.set_num_threads(previous)
+        if o3d_limit is not None:
+            o3d_limit(0)  # 0: Open3D's default (no limit)
 
 
 def time_fn(fn: Callable[[], object], threads: int, min_run_time: float, sync: bool = False):

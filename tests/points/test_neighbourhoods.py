@@ -246,6 +246,24 @@ def test_radius_outliers_equal_open3d(backend):
             assert torch.equal(got, want), (radius, m)
 
 
+@pytest.mark.skipif(not HAS_WARP, reason="Warp is not available here")
+@pytest.mark.parametrize("kind", ["clustered", "duplicates", "lattice"])
+@pytest.mark.parametrize("D", [2, 3])
+def test_radius_outliers_backends_agree(kind, D):
+    # the kernel counts to min_neighbors + 1 and stops; the torch path takes that k-th
+    # neighbour's distance: equal on ties at exactly the radius, NaN rows and lengths
+    p = torch.stack([_clouds(kind, 1500, D, s) for s in range(2)])
+    p[0, :40] = math.nan
+    p[1, 1000:] = p[1, 1000:] * 5
+    L = torch.tensor([1500, 1200])
+    for radius in (0.05, 0.25, 1e-9):
+        for m in (0, 3, 12, 60):
+            a = remove_radius_outliers(p, radius, m, lengths=L, backend="torch")
+            b = remove_radius_outliers(p, radius, m, lengths=L, backend="warp")
+            assert torch.equal(a, b), (radius, m)
+            assert not b[1, 1200:].any() and not b[0, :40].any()
+
+
 def test_outliers_batches_nan_empty_and_errors():
     p = _noisy_scan(400, seed=2)
     q = _noisy_scan(400, seed=3)
@@ -293,6 +311,20 @@ def test_fps_backends_agree(kind, dtype):
     p2 = p[..., :2].contiguous()
     assert torch.equal(farthest_point_sampling(p2, 50, backend="torch").indices,
                        farthest_point_sampling(p2, 50, backend="warp").indices)
+
+
+@pytest.mark.parametrize("kind", ["clustered", "duplicates", "lattice"])
+@pytest.mark.skipif(not HAS_WARP, reason="Warp is not available here")
+def test_fps_backends_agree_on_many_buckets(kind):
+    # thousands of points: the kernel skips the buckets a pick cannot change
+    p = torch.stack([_clouds(kind, 3000, 3, s) for s in range(2)]) * torch.tensor([1e3, 1, 1e-3])
+    L = torch.tensor([3000, 2000])
+    a = farthest_point_sampling(p, 700, L, start=5, backend="torch")
+    b = farthest_point_sampling(p, 700, L, start=5, backend="warp")
+    assert torch.equal(a.indices, b.indices)
+    p2 = p[0, :, 1:].float().contiguous()
+    assert torch.equal(farthest_point_sampling(p2, 400, backend="torch").indices,
+                       farthest_point_sampling(p2, 400, backend="warp").indices)
 
 
 def test_fps_equals_open3d():

@@ -2,12 +2,14 @@
 
 The grid is the torch search's (:func:`~torchgeo_cg.points._search_grid.build_grid`: the
 references binned by cell, sorted by cell key, a dense or sparse table of cell starts);
-one thread per query scans Chebyshev rings of cells around the query's cell, skips cells
-whose box lies farther than its current k-th distance, and keeps a sorted top-k by
-(squared distance, index). It stops once the k-th distance is below the distance to any
-unvisited cell (shrunk by the grid's rounding margin), or once the rings cover the grid.
-Squared distances are summed coordinate by coordinate in the input dtype without fused
-multiply-adds, as the torch search does, so both rank (and tie) identically.
+one thread per query scans Chebyshev rings of cells around the query's cell (in each
+ring the cells nearer the query first), skips cells whose box lies farther than its
+current k-th distance, and keeps a sorted top-k by (squared distance, index). It stops
+once the k-th distance is below the distance to any unvisited cell (shrunk by the grid's
+rounding margin), or once the rings cover the grid. For ``k > 1`` the queries run in the
+order of their cells. Squared distances are summed coordinate by coordinate in the input
+dtype without fused multiply-adds, as the torch search does, so both rank (and tie)
+identically.
 
 Queries that need more than ``max_ring`` rings (far from every reference) are left to the
 caller (flag ``-2``); the torch search finishes them.
@@ -26,7 +28,6 @@ from torchgeo_cg.points._search_grid import (
     GridIndex,
     build_grid,
     grid_knn_indices,
-    grid_per_cell,
 )
 
 __all__: list[str] = []
@@ -61,11 +62,14 @@ def kernel_grids(reference_bmd: torch.Tensor, reference_lengths_b: torch.Tensor,
 def kernel_per_cell(k: int) -> float:
     """Target references per occupied cell of the kernel's grid for ``k`` neighbours.
 
+    About ``0.6 (k + 1)``, at least :data:`KERNEL_PER_CELL`: finer cells than the torch
+    search's for larger k (a thread inserts fewer candidates into its top-k).
+
     Example:
-        >>> kernel_per_cell(1), kernel_per_cell(16)
-        (8.0, 17.0)
+        >>> kernel_per_cell(1), kernel_per_cell(20)
+        (8.0, 12.6)
     """
-    return max(KERNEL_PER_CELL, grid_per_cell(k))
+    return max(KERNEL_PER_CELL, 0.6 * (k + 1))
 
 
 def _ring_funcs(wp):
@@ -79,6 +83,7 @@ def _ring_funcs(wp):
         """Merge the references ``start .. start + count`` into row ``row``'s top-k;
         returns the new number found."""
         n = found
+        kth = best[row, k - 1]  # read only once n == k
         for t in range(int(start), int(start + count)):
             dx = pts[0, t] - qx
             d2 = dx * dx
@@ -87,9 +92,11 @@ def _ring_funcs(wp):
             if dim == 3:
                 dz = pts[2, t] - qz
                 d2 = d2 + dz * dz
+            if n == k and d2 > kth:
+                continue
             j = index[t]
             if n == k:
-                if d2 > best[row, k - 1] or (d2 == best[row, k - 1] and j > best_i[row, k - 1]):
+                if d2 == kth and j > best_i[row, k - 1]:
                     continue
                 n = k - 1
             s = n  # insertion from the end: sorted by (distance, index)
@@ -101,14 +108,15 @@ def _ring_funcs(wp):
             best[row, s] = d2
             best_i[row, s] = j
             n = n + 1
+            if n == k:
+                kth = best[row, k - 1]
         return n
 
     return scan_cell
 
 
-def _build(wp):
-    """The kNN kernel, with overloads for float32 and float64."""
-    scan_cell = _ring_funcs(wp)
+def _cell_funcs(wp):
+    """Warp functions: cells of a query, their gaps, the near-first order, the lookup."""
 
     @wp.func
     def cell_of(q: Any, lo: Any, h: Any) -> int:
@@ -123,6 +131,53 @@ def _build(wp):
         g = wp.max(wp.max(a - q, q - (a + h)), type(q)(0.0))
         return wp.max(g - slack, type(q)(0.0))
 
+    @wp.func
+    def wall_of(q: Any, lo: Any, h: Any, c: int):
+        """Distance from ``q`` to the nearer wall of cell ``c`` along one axis."""
+        a = lo + type(h)(c) * h
+        return wp.min(q - a, a + h - q)
+
+    @wp.func
+    def side(q: Any, lo: Any, h: Any, c: int) -> int:
+        """+1 when ``q`` lies in the upper half of cell ``c`` along one axis, else -1."""
+        a = lo + type(h)(c) * h
+        if q - a >= a + h - q:
+            return 1
+        return -1
+
+    @wp.func
+    def near(c: int, i: int, s: int) -> int:
+        """The ``i``-th cell of the sequence ``c, c + s, c - s, c + 2s, c - 2s, ...``."""
+        m = (i + 1) // 2
+        if i % 2 == 1:
+            return c + m * s
+        return c - m * s
+
+    @wp.func
+    def lookup(keys: wp.array(dtype=wp.int64), sparse: int, key: wp.int64) -> wp.int64:
+        """Row of cell ``key`` in the cell tables, ``-1`` for an empty sparse cell."""
+        if sparse == 0:
+            return key
+        lo_k = int(0)  # noqa: UP018  a dynamic variable for Warp
+        hi_k = keys.shape[0]
+        while lo_k < hi_k:
+            mid = (lo_k + hi_k) // 2
+            if keys[mid] < key:
+                lo_k = mid + 1
+            else:
+                hi_k = mid
+        if lo_k < keys.shape[0] and keys[lo_k] == key:
+            return wp.int64(lo_k)
+        return wp.int64(-1)
+
+    return cell_of, gap, wall_of, side, near, lookup
+
+
+def _build(wp):
+    """The kNN kernel, with overloads for float32 and float64."""
+    scan_cell = _ring_funcs(wp)
+    cell_of, gap, wall_of, side, near, lookup = _cell_funcs(wp)
+
     @wp.kernel
     def knn_grid(query: wp.array2d(dtype=Any), q_batch: wp.array(dtype=wp.int64),
                  pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),
@@ -132,8 +187,9 @@ def _build(wp):
                  slack_b: wp.array(dtype=Any), dims: wp.array2d(dtype=wp.int64),
                  base: wp.array(dtype=wp.int64), stride: wp.array2d(dtype=wp.int64),
                  dim: int, k: int, max_ring: int, pad: int, prev: wp.array(dtype=wp.int64),
+                 order: wp.array(dtype=wp.int64),
                  best: wp.array2d(dtype=Any), best_i: wp.array2d(dtype=wp.int64)):
-        row = wp.tid()
+        row = int(order[wp.tid()])  # the query (and output row) this thread answers
         b = int(q_batch[row])
         h = h_b[b]
         slack = slack_b[b]
@@ -146,24 +202,24 @@ def _build(wp):
         cy = cell_of(qy, lo[b, 1], h)
         dx = int(dims[b, 0])
         dy = int(dims[b, 1])
+        # distance to the walls of the query's own (unclamped) cell, the nearer side
+        wall = wp.min(wall_of(qx, lo[b, 0], h, cx), wall_of(qy, lo[b, 1], h, cy))
+        sx = side(qx, lo[b, 0], h, cx)
+        sy = side(qy, lo[b, 1], h, cy)
         cz = int(0)  # noqa: UP018  a dynamic variable for Warp
         dz = int(1)  # noqa: UP018  a dynamic variable for Warp
+        sz = int(1)  # noqa: UP018  a dynamic variable for Warp
         if dim == 3:
             cz = cell_of(qz, lo[b, 2], h)
             dz = int(dims[b, 2])
+            wall = wp.min(wall, wall_of(qz, lo[b, 2], h, cz))
+            sz = side(qz, lo[b, 2], h, cz)
+        wall = wp.max(wall, type(h)(0.0))
         # the first ring holding a cell of the grid, and the last one needed
         r0 = wp.max(wp.max(wp.max(-cx, cx - (dx - 1)), wp.max(-cy, cy - (dy - 1))),
                     wp.max(wp.max(-cz, cz - (dz - 1)), 0))
         r1 = wp.max(wp.max(wp.max(cx, dx - 1 - cx), wp.max(cy, dy - 1 - cy)),
                     wp.max(cz, dz - 1 - cz))
-        # distance to the walls of the query's own (unclamped) cell
-        ax = lo[b, 0] + type(h)(cx) * h
-        ay = lo[b, 1] + type(h)(cy) * h
-        wall = wp.min(wp.min(qx - ax, ax + h - qx), wp.min(qy - ay, ay + h - qy))
-        if dim == 3:
-            az = lo[b, 2] + type(h)(cz) * h
-            wall = wp.min(wall, wp.min(qz - az, az + h - qz))
-        wall = wp.max(wall, type(h)(0.0))
         found = int(0)  # noqa: UP018  a dynamic variable for Warp
         if k == 1 and prev.shape[0] > 0:  # a known reference bounds the search (exact)
             found = scan_cell(pts, index, prev[row], wp.int64(1), qx, qy, qz, dim, row, k,
@@ -171,61 +227,37 @@ def _build(wp):
         done = int(0)  # noqa: UP018  a dynamic variable for Warp
         r = r0
         while r <= r1 and r - r0 <= max_ring:
-            for x in range(wp.max(cx - r, 0), wp.min(cx + r, dx - 1) + 1):
+            for ix in range(2 * r + 1):  # cells nearer the query first: tighter bounds sooner
+                x = near(cx, ix, sx)
                 gx = gap(qx, lo[b, 0], h, x, slack)
-                if found == k and gx * gx > best[row, k - 1]:
-                    continue  # the whole slab is farther than the k-th found
-                for y in range(wp.max(cy - r, 0), wp.min(cy + r, dy - 1) + 1):
+                if x < 0 or x >= dx or (found == k and gx * gx > best[row, k - 1]):
+                    continue  # off the grid, or the whole slab is farther than the k-th
+                for iy in range(2 * r + 1):
+                    y = near(cy, iy, sy)
                     gy = gap(qy, lo[b, 1], h, y, slack)
-                    if found == k and gx * gx + gy * gy > best[row, k - 1]:
+                    if y < 0 or y >= dy or (found == k and gx * gx + gy * gy > best[row, k - 1]):
                         continue
-                    edge = wp.abs(x - cx) == r or wp.abs(y - cy) == r
-                    z0 = wp.max(cz - r, 0)
-                    z1 = wp.min(cz + r, dz - 1)
-                    step = int(1)  # noqa: UP018  a dynamic variable for Warp
-                    if not edge:  # inside the shell's x-y outline: its two z faces only
-                        z0 = cz - r
-                        z1 = cz + r
-                        step = 2 * r
-                    for z in range(z0, z1 + 1, step):
+                    iz = int(0)  # noqa: UP018  a dynamic variable for Warp
+                    if wp.abs(x - cx) < r and wp.abs(y - cy) < r:
+                        iz = 2 * r - 1  # inside the shell's x-y outline: its two z faces only
+                    for i in range(iz, 2 * r + 1):
+                        z = near(cz, i, sz)
                         if z < 0 or z >= dz:
                             continue
-                        g2 = gx * gx + gy * gy
-                        if dim == 3:
-                            gz = gap(qz, lo[b, 2], h, z, slack)
-                            g2 = g2 + gz * gz
+                        gz = gap(qz, lo[b, 2], h, z, slack)  # 2D: qz = lo = z = 0, gz = 0
+                        g2 = gx * gx + gy * gy + gz * gz
                         if found == k and g2 > best[row, k - 1]:
                             continue
                         key = base[b] + wp.int64(x + pad) * stride[b, 0] + wp.int64(
                             y + pad) * stride[b, 1] + wp.int64(z + pad) * stride[b, 2]
-                        s = wp.int64(0)
-                        c = wp.int64(0)
-                        if sparse == 0:
-                            s = start[key]
-                            c = count[key]
-                        else:
-                            lo_k = int(0)  # noqa: UP018  a dynamic variable for Warp
-                            hi_k = keys.shape[0]
-                            while lo_k < hi_k:
-                                mid = (lo_k + hi_k) // 2
-                                if keys[mid] < key:
-                                    lo_k = mid + 1
-                                else:
-                                    hi_k = mid
-                            if lo_k < keys.shape[0] and keys[lo_k] == key:
-                                s = start[lo_k]
-                                c = count[lo_k]
-                        if c > wp.int64(0):
-                            found = scan_cell(pts, index, s, c, qx, qy, qz, dim, row, k,
-                                              found, best, best_i)
-            if r >= r1:
-                done = 1
+                        c = lookup(keys, sparse, key)
+                        if c >= wp.int64(0) and count[c] > wp.int64(0):
+                            found = scan_cell(pts, index, start[c], count[c], qx, qy, qz, dim,
+                                              row, k, found, best, best_i)
+            reach = wp.max(type(h)(r) * h + wall - slack, type(h)(0.0))
+            if r >= r1 or (found == k and best[row, k - 1] < reach * reach):
+                done = 1  # the rings cover the grid, or no unvisited cell is nearer
                 break
-            if found == k:
-                reach = wp.max(type(h)(r) * h + wall - slack, type(h)(0.0))
-                if best[row, k - 1] < reach * reach:
-                    done = 1
-                    break
             r = r + 1
         for t in range(found, k):
             best_i[row, t] = wp.int64(-1)
@@ -241,6 +273,23 @@ def _build(wp):
 
 
 _kernels = register_kernels(_build)
+
+
+def _cell_order(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor) -> torch.Tensor:
+    """The queries ``(Q,)`` sorted by their grid cell (clamped to the grid).
+
+    Example:
+        >>> from torchgeo_cg.points._search_grid import build_grid
+        >>> g = build_grid(torch.tensor([[[0.0], [3.0]]]), torch.tensor([2]), 1.0,
+        ...                torch.tensor([1.0]))  # cells of size 1
+        >>> _cell_order(g, torch.tensor([[2.9], [0.1], [1.5]]), torch.zeros(3, dtype=torch.long))
+        tensor([1, 2, 0])
+    """
+    h_q = grid.h_b.index_select(0, b_q)[:, None]
+    cell = ((q_qd - grid.lo_bd.index_select(0, b_q)) / h_q).floor_().clamp_(-1, 2.0**40)
+    cell = torch.minimum(cell.long().clamp_min_(0), grid.dims_bd.index_select(0, b_q) - 1)
+    key = grid.base_b.index_select(0, b_q) + (cell * grid.stride_bd.index_select(0, b_q)).sum(-1)
+    return torch.sort(key, stable=True).indices
 
 
 def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int,
@@ -275,13 +324,18 @@ def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
     dims = torch.ones_like(stride)
     dims[:, :D] = grid.dims_bd
     keys = grid.keys_c if grid.keys_c is not None else stride.new_zeros(1)
+    lo = q_qd.new_zeros(grid.lo_bd.shape[0], 3)
+    lo[:, :D] = grid.lo_bd
+    # k > 1: neighbouring queries in turn (their cells stay in cache; for k = 1 the sort
+    # costs more than it saves)
+    order = _cell_order(grid, q_qd, b_q) if k > 1 else torch.arange(Q, device=device)
     args = [to_warp(q_qd), to_warp(b_q.long()), to_warp(grid.points_dt),
             to_warp(grid.index_t.long()), to_warp(grid.start_c.long()),
             to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
-            to_warp(grid.lo_bd), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
+            to_warp(lo), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
             to_warp(grid.base_b.long()), to_warp(stride), D, k, rings, MAX_RING,
             to_warp(stride.new_zeros(0) if slot_q is None else slot_q.long()),
-            to_warp(best), to_warp(best_i)]
+            to_warp(order), to_warp(best), to_warp(best_i)]
     launch(_kernels(), Q, args, device)
     return best_i
 
@@ -351,22 +405,28 @@ def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: in
     """
     B, N, D = query_bnd.shape
     M = reference_bmd.shape[1]
-    out_bnk = query_bnd.new_full((B, N, k), -1, dtype=torch.long)
     kk = min(k, M)
     valid_bn = torch.arange(N, device=query_bnd.device) < query_lengths_b[:, None]
     valid_bn &= (reference_lengths_b > 0)[:, None]
     qb, qn = valid_bn.nonzero(as_tuple=True)
     if qb.numel() == 0:
-        return out_bnk
+        return query_bnd.new_full((B, N, k), -1, dtype=torch.long)
     if grids is None:
         grids = kernel_grids(reference_bmd, reference_lengths_b, kk)
     rows = qb * N + qn
+    whole = rows.numel() == B * N  # every row a query: no gather, no scatter
+    q_rows = query_bnd.reshape(B * N, D)
     previous_q = None
     if previous_bn is not None and kk == 1:
-        previous_q = previous_bn.reshape(B * N).index_select(0, rows)
-    found = _warp_levels(grids, query_bnd.reshape(B * N, D).index_select(0, rows), qb, kk,
+        previous_q = previous_bn.reshape(B * N)
+        previous_q = previous_q if whole else previous_q.index_select(0, rows)
+    found = _warp_levels(grids, q_rows if whole else q_rows.index_select(0, rows), qb, kk,
                          previous_q, reference_lengths_b, M)
-    out_bnk.view(B * N, k)[rows, :kk] = found
+    if whole and kk == k:
+        out_bnk = found.view(B, N, k)
+    else:
+        out_bnk = query_bnd.new_full((B, N, k), -1, dtype=torch.long)
+        out_bnk.view(B * N, k)[rows, :kk] = found
     left = found[:, 0] == -2
     if bool(left.any()):  # far from every reference: the torch search's coarser grids
         lb, ln = qb[left], qn[left]

@@ -118,7 +118,7 @@ def check_positive(value, name: str, integer: bool = False) -> float:
 def gather_d2(q_bnd: torch.Tensor, r_bmd: torch.Tensor, idx_bnk: torch.Tensor) -> torch.Tensor:
     """Squared distances ``(B, N, k)`` from each query to its references ``idx`` (any value
     where ``idx < 0``), summed coordinate by coordinate as the searches (and the kernels)
-    sum them, so the decisions made on them agree.
+    sum them, so the decisions made on them agree. No gradient (values that decide).
 
     Example:
         >>> q = torch.tensor([[[0.0, 0.0]]])
@@ -130,12 +130,18 @@ def gather_d2(q_bnd: torch.Tensor, r_bmd: torch.Tensor, idx_bnk: torch.Tensor) -
     D = q_bnd.shape[-1]
     if r_bmd.shape[1] == 0:
         return q_bnd.new_zeros(B, N, k)
-    flat = idx_bnk.clamp_min(0).reshape(B, N * k)
-    d2 = None
-    for a in range(D):  # loop over coordinates
-        p = torch.gather(r_bmd[..., a], 1, flat).reshape(B, N, k)
-        diff = p - q_bnd[..., a, None]
-        d2 = diff * diff if d2 is None else d2 + diff * diff
+    flat = idx_bnk.reshape(B, N * k)
+    if N * k and int(flat.min()) < 0:
+        flat = flat.clamp_min(0)
+    with torch.no_grad():  # in place: two buffers of (B, N, k), not one per operation
+        d2 = torch.gather(r_bmd[..., 0], 1, flat).view(B, N, k)
+        d2.sub_(q_bnd[..., 0, None])
+        d2.mul_(d2)
+        diff = torch.empty_like(flat, dtype=d2.dtype) if D > 1 else None
+        for a in range(1, D):  # loop over coordinates
+            torch.gather(r_bmd[..., a], 1, flat, out=diff)
+            step = diff.view(B, N, k).sub_(q_bnd[..., a, None])
+            d2.add_(step.mul_(step))
     return d2
 
 
@@ -171,5 +177,7 @@ def self_knn(p_bnd: torch.Tensor, len_b: torch.Tensor, k: int, backend: str):
                                           < len_b[:, None])
     q = torch.where(ok[..., None], p_bnd, 0.0) / scale
     idx = find_neighbours(q, packed / scale, k, len_b, count, backend)
+    if bool((count == len_b).all()):  # every valid row finite: the packing is the identity
+        return idx, ok  # (and rows past the lengths are -1 already)
     idx = torch.where(idx >= 0, order.gather(1, idx.clamp_min(0).flatten(1)).view_as(idx), -1)
     return idx.masked_fill(~ok[..., None], -1), ok

@@ -25,8 +25,15 @@ import math
 import torch
 
 from torchgeo_cg.core.check import check_float, check_shape
-from torchgeo_cg.engine import resolve_backend
-from torchgeo_cg.points._search import check_lengths, check_positive, gather_d2, self_knn
+from torchgeo_cg.engine import kernel_ready, resolve_backend
+from torchgeo_cg.points._outlier_kernels import warp_radius_inliers
+from torchgeo_cg.points._search import (
+    check_lengths,
+    check_positive,
+    compact_finite,
+    gather_d2,
+    self_knn,
+)
 
 __all__ = ["remove_radius_outliers", "remove_statistical_outliers"]
 
@@ -81,7 +88,7 @@ def remove_statistical_outliers(
         return torch.zeros(*batch, 0, dtype=torch.bool, device=points.device)
     idx, ok = self_knn(p, len_b, k, backend)
     found = idx >= 0
-    dist = gather_d2(p, p, idx).sqrt().masked_fill(~found, 0.0)
+    dist = gather_d2(p, p, idx).sqrt_().masked_fill_(~found, 0.0)
     mean = dist.sum(-1) / found.sum(-1).clamp_min(1)  # m_i, Open3D's order: sorted
     counted = ok  # every point with a neighbour (itself): Open3D's valid_distances
     n = counted.sum(-1, keepdim=True).to(torch.float64)
@@ -132,6 +139,10 @@ def remove_radius_outliers(
     k = min_neighbors + 1
     if N == 0:
         return torch.zeros(*batch, 0, dtype=torch.bool, device=points.device)
+    if backend == "warp" and p.shape[-1] in (2, 3) and kernel_ready(p):
+        packed, count, _ = compact_finite(p, len_b)
+        ok = torch.isfinite(p).all(-1) & (torch.arange(N, device=p.device) < len_b[:, None])
+        return warp_radius_inliers(p, ok, packed, count, radius, k).reshape(*batch, N)
     idx, ok = self_knn(p, len_b, k, backend)
     kth = idx[..., -1:]
     d2 = gather_d2(p, p, kth)[..., 0]
