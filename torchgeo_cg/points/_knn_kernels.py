@@ -76,6 +76,18 @@ def _ring_funcs(wp):
     """Warp functions: the cell scan of one grid cell into a running top-k."""
 
     @wp.func
+    def sq_dist(x: Any, y: Any, z: Any, qx: Any, qy: Any, qz: Any, dim: int):
+        """Squared distance, summed coordinate by coordinate (the torch search's order)."""
+        dx = x - qx
+        d2 = dx * dx
+        dy = y - qy
+        d2 = d2 + dy * dy
+        if dim == 3:
+            dz = z - qz
+            d2 = d2 + dz * dz
+        return d2
+
+    @wp.func
     def scan_cell(pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),
                   start: wp.int64, count: wp.int64, qx: Any, qy: Any, qz: Any, dim: int,
                   row: int, k: int, found: int, best: wp.array2d(dtype=Any),
@@ -85,13 +97,7 @@ def _ring_funcs(wp):
         n = found
         kth = best[row, k - 1]  # read only once n == k
         for t in range(int(start), int(start + count)):
-            dx = pts[0, t] - qx
-            d2 = dx * dx
-            dy = pts[1, t] - qy
-            d2 = d2 + dy * dy
-            if dim == 3:
-                dz = pts[2, t] - qz
-                d2 = d2 + dz * dz
+            d2 = sq_dist(pts[0, t], pts[1, t], pts[dim - 1, t], qx, qy, qz, dim)
             if n == k and d2 > kth:
                 continue
             j = index[t]
@@ -112,7 +118,7 @@ def _ring_funcs(wp):
                 kth = best[row, k - 1]
         return n
 
-    return scan_cell
+    return sq_dist, scan_cell
 
 
 def _cell_funcs(wp):
@@ -175,7 +181,7 @@ def _cell_funcs(wp):
 
 def _build(wp):
     """The kNN kernel, with overloads for float32 and float64."""
-    scan_cell = _ring_funcs(wp)
+    sq_dist, scan_cell = _ring_funcs(wp)
     cell_of, gap, wall_of, side, near, lookup = _cell_funcs(wp)
 
     @wp.kernel
@@ -187,7 +193,7 @@ def _build(wp):
                  slack_b: wp.array(dtype=Any), dims: wp.array2d(dtype=wp.int64),
                  base: wp.array(dtype=wp.int64), stride: wp.array2d(dtype=wp.int64),
                  dim: int, k: int, max_ring: int, pad: int, prev: wp.array(dtype=wp.int64),
-                 order: wp.array(dtype=wp.int64),
+                 ref: wp.array2d(dtype=Any), m_ref: int, order: wp.array(dtype=wp.int64),
                  best: wp.array2d(dtype=Any), best_i: wp.array2d(dtype=wp.int64)):
         row = int(order[wp.tid()])  # the query (and output row) this thread answers
         b = int(q_batch[row])
@@ -222,8 +228,10 @@ def _build(wp):
                     wp.max(cz, dz - 1 - cz))
         found = int(0)  # noqa: UP018  a dynamic variable for Warp
         if k == 1 and prev.shape[0] > 0:  # a known reference bounds the search (exact)
-            found = scan_cell(pts, index, prev[row], wp.int64(1), qx, qy, qz, dim, row, k,
-                              found, best, best_i)
+            p = prev[row]  # row b * m_ref + j of ref: reference j of item b
+            best[row, 0] = sq_dist(ref[p, 0], ref[p, 1], ref[p, dim - 1], qx, qy, qz, dim)
+            best_i[row, 0] = p - wp.int64(b) * wp.int64(m_ref)
+            found = 1
         done = int(0)  # noqa: UP018  a dynamic variable for Warp
         r = r0
         while r <= r1 and r - r0 <= max_ring:
@@ -268,6 +276,7 @@ def _build(wp):
         wp.overload(knn_grid, {"query": wp.array2d(dtype=scalar), "pts": wp.array2d(dtype=scalar),
                                "lo": wp.array2d(dtype=scalar), "h_b": wp.array(dtype=scalar),
                                "slack_b": wp.array(dtype=scalar),
+                               "ref": wp.array2d(dtype=scalar),
                                "best": wp.array2d(dtype=scalar)})
     return knn_grid
 
@@ -293,13 +302,13 @@ def _cell_order(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor) -> torch
 
 
 def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int,
-                  slot_q: torch.Tensor | None = None, rings: int = KERNEL_RINGS
-                  ) -> torch.Tensor:
+                  bound: tuple[torch.Tensor, torch.Tensor] | None = None,
+                  rings: int = KERNEL_RINGS) -> torch.Tensor:
     """Indices ``(Q, k)`` of the ``k`` nearest references of queries ``q_qd`` (rows of batch
     item ``b_q``) in ``grid``; ``-1`` where there are fewer, and row ``[-2, ...]`` for a
-    query left to a coarser search (more than ``rings`` rings). For ``k = 1``,
-    ``slot_q`` ``(Q,)`` may name a reference of each query's item (its position in the
-    grid's sorted order): its distance bounds the search from the start (same answer).
+    query left to a coarser search (more than ``rings`` rings). For ``k = 1``, ``bound``
+    ``(reference (B * M, D), rows (Q,))`` names a reference of each query's item (row
+    ``b * M + j``): its distance bounds the search from the start (same answer).
 
     Example:
         >>> from torchgeo_cg.points._search_grid import build_grid
@@ -334,38 +343,34 @@ def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
             to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
             to_warp(lo), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
             to_warp(grid.base_b.long()), to_warp(stride), D, k, rings, MAX_RING,
-            to_warp(stride.new_zeros(0) if slot_q is None else slot_q.long()),
-            to_warp(order), to_warp(best), to_warp(best_i)]
+            *_bound_args(bound, q_qd, grid), to_warp(order), to_warp(best), to_warp(best_i)]
     launch(_kernels(), Q, args, device)
     return best_i
 
 
-def _sorted_slots(grid: GridIndex, reference_lengths_b: torch.Tensor, M: int) -> torch.Tensor:
-    """``(B * M,)`` position in the grid's sorted order of reference ``b * M + j`` (the
-    grid lists the items in turn, each item's valid references sorted by cell)."""
-    B = reference_lengths_b.shape[0]
-    batch_t = torch.repeat_interleave(torch.arange(B, device=grid.index_t.device),
-                                      reference_lengths_b)
-    slots = torch.zeros(B * M, dtype=torch.long, device=grid.index_t.device)
-    slots[batch_t * M + grid.index_t] = torch.arange(batch_t.numel(), device=slots.device)
-    return slots
+def _bound_args(bound, q_qd: torch.Tensor, grid: GridIndex) -> list:
+    """The kernel's ``prev, ref, m_ref`` arguments (empty without a bound)."""
+    if bound is None:
+        return [to_warp(q_qd.new_zeros(0, dtype=torch.long)), to_warp(q_qd.new_zeros(1, 3)), 1]
+    reference, rows = bound
+    m_ref = reference.shape[0] // grid.h_b.shape[0]
+    return [to_warp(rows.long()), to_warp(reference), m_ref]
 
 
 def _warp_levels(grids: list[GridIndex], q_qd: torch.Tensor, b_q: torch.Tensor, k: int,
-                 previous_q: torch.Tensor | None, reference_lengths_b: torch.Tensor, M: int
-                 ) -> torch.Tensor:
+                 previous_q: torch.Tensor | None, reference_bmd: torch.Tensor) -> torch.Tensor:
     """``(Q, k)`` as :func:`warp_grid_knn`: each level answers the queries it resolves
     within its rings (exact answers, whatever the level) and passes the rest on."""
+    B, M, D = reference_bmd.shape
+    reference = reference_bmd.reshape(B * M, D)
     found = None
     todo = None  # every query
     for level, grid in enumerate(grids):  # loop over levels
         rings = KERNEL_RINGS if level == len(grids) - 1 else LEVEL_RINGS
         q, b, prev = (q_qd, b_q, previous_q) if todo is None else (
             q_qd[todo], b_q[todo], None if previous_q is None else previous_q[todo])
-        slot = None
-        if prev is not None:
-            slot = _sorted_slots(grid, reference_lengths_b, M).index_select(0, b * M + prev)
-        got = warp_grid_knn(grid, q, b, k, slot, rings)
+        bound = None if prev is None else (reference, b * M + prev)
+        got = warp_grid_knn(grid, q, b, k, bound, rings)
         if todo is None:
             found = got
         else:
@@ -421,7 +426,7 @@ def warp_knn_indices(query_bnd: torch.Tensor, reference_bmd: torch.Tensor, k: in
         previous_q = previous_bn.reshape(B * N)
         previous_q = previous_q if whole else previous_q.index_select(0, rows)
     found = _warp_levels(grids, q_rows if whole else q_rows.index_select(0, rows), qb, kk,
-                         previous_q, reference_lengths_b, M)
+                         previous_q, reference_bmd)
     if whole and kk == k:
         out_bnk = found.view(B, N, k)
     else:
