@@ -17,7 +17,7 @@ import torch
 
 from torchgeo_cg.transforms.rotations import axis_angle_to_matrix
 
-__all__ = ["point_to_plane_step", "apply_transform", "dot3", "cross3", "weighted_sum"]
+__all__ = ["point_to_plane_step", "apply_transform", "dot3", "weighted_sum"]
 
 
 def apply_transform(matrix_b44: torch.Tensor, points_bn3: torch.Tensor) -> torch.Tensor:
@@ -45,18 +45,6 @@ def dot3(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return a0 * b0 + a1 * b1 + a2 * b2
 
 
-def cross3(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """``a x b`` of ``(..., 3)`` vectors, by components.
-
-    Example:
-        >>> cross3(torch.tensor([1.0, 0.0, 0.0]), torch.tensor([0.0, 1.0, 0.0]))
-        tensor([0., 0., 1.])
-    """
-    a0, a1, a2 = a.unbind(-1)
-    b0, b1, b2 = b.unbind(-1)
-    return torch.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], -1)
-
-
 def weighted_sum(w_bn: torch.Tensor, x_bnk: torch.Tensor) -> torch.Tensor:
     """``sum_n w[b, n] x[b, n]`` ``(B, K)`` as one batched product.
 
@@ -68,7 +56,8 @@ def weighted_sum(w_bn: torch.Tensor, x_bnk: torch.Tensor) -> torch.Tensor:
 
 
 def point_to_plane_step(p: torch.Tensor, q: torch.Tensor, n: torch.Tensor, w: torch.Tensor,
-                        similarity: bool = False) -> torch.Tensor:
+                        similarity: bool = False, residual: torch.Tensor | None = None
+                        ) -> torch.Tensor:
     """One Gauss-Newton step ``(B, 4, 4)`` of ``sum_i w_i ((M p_i - q_i) . n_i)^2``.
 
     The increment is linearised about the weighted centroid ``c`` of ``p``:
@@ -76,6 +65,7 @@ def point_to_plane_step(p: torch.Tensor, q: torch.Tensor, n: torch.Tensor, w: to
     with the rotation columns divided by the RMS radius so the normal equations are
     unitless. They are damped by ``1e-12 x trace`` (relative), so a pair with an
     unconstrained direction (a planar target) gets the minimum-norm-like step there.
+    ``residual`` ``(B, N)``, when known, is ``(p - q) . n``.
 
     Example:
         >>> g = torch.Generator().manual_seed(0)
@@ -92,14 +82,17 @@ def point_to_plane_step(p: torch.Tensor, q: torch.Tensor, n: torch.Tensor, w: to
     pc = p - c_b3[:, None]
     radius2 = (w * dot3(pc, pc)).sum(-1) / total_b
     rho_b = torch.where(radius2 > 0, radius2, torch.ones_like(radius2)).sqrt()
-    unit = pc / rho_b[:, None, None]
-    cols = [cross3(unit, n), n]
+    u0, u1, u2 = (pc / rho_b[:, None, None]).unbind(-1)
+    n0, n1, n2 = n.unbind(-1)
+    cols = [u1 * n2 - u2 * n1, u2 * n0 - u0 * n2, u0 * n1 - u1 * n0, n0, n1, n2]  # u x n, n
     if similarity:
-        cols.append(dot3(unit, n)[..., None])
-    jac_bnk = torch.cat(cols, -1)
+        cols.append(u0 * n0 + u1 * n1 + u2 * n2)
+    jac_bnk = torch.stack(cols, -1)
     wjac_bkn = (jac_bnk * w[..., None]).transpose(1, 2)
     a_bkk = wjac_bkn @ jac_bnk
-    rhs_bk = -(wjac_bkn @ dot3(p - q, n)[..., None])[..., 0]
+    if residual is None:
+        residual = dot3(p - q, n)
+    rhs_bk = -(wjac_bkn @ residual[..., None])[..., 0]
     trace_b = a_bkk.diagonal(dim1=-2, dim2=-1).sum(-1)
     ok_b = trace_b > 0
     eye_k = torch.eye(a_bkk.shape[-1], dtype=p.dtype, device=p.device)

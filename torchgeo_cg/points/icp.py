@@ -257,11 +257,13 @@ class _Match(NamedTuple):
 
 class _Geometry(NamedTuple):
     """The moved source points and their matches' target points and normals ``(A, N, 3)``
-    of the pairs a step works on (``normals`` None for point-to-point)."""
+    of the pairs a step works on, and the point-to-plane residuals ``(A, N)`` (``n`` and
+    ``residual`` None for point-to-point; ``residual`` None: not computed yet)."""
 
     moved: torch.Tensor
     q: torch.Tensor
     n: torch.Tensor | None
+    residual: torch.Tensor | None = None
 
 
 def _search(pairs: _Pairs, grid, moved: torch.Tensor, ids, search, previous) -> torch.Tensor:
@@ -308,11 +310,12 @@ def _match(pairs: _Pairs, grid, matrix, max_d2_b, search, ids=None, previous=Non
     diff = moved - q
     d2 = dot3(diff, diff)
     inlier = found & _rows(pairs.src_valid, ids) & (d2 <= max_d2_b[:, None])
-    r2, n = d2, None
+    r2, n, residual = d2, None, None
     if pairs.normals is not None:
         n = _gather(pairs.normals, idx, ids)
-        r2 = dot3(diff, n).square()
-    return _Match(idx, inlier, d2, r2), _Geometry(moved, q, n)
+        residual = dot3(diff, n)
+        r2 = residual.square()
+    return _Match(idx, inlier, d2, r2), _Geometry(moved, q, n, residual)
 
 
 def _weights(match: _Match, loss: str, scale_b) -> torch.Tensor:
@@ -346,7 +349,8 @@ def _step(method, model, src, geometry: _Geometry, matrix, w):
         closed = find_similarity if similarity else find_euclidean
         fit = closed(src, geometry.q, w).matrix  # Kabsch / Umeyama, no reflection
         return torch.where((w.sum(-1) > 0)[:, None, None], fit, matrix)
-    step = point_to_plane_step(geometry.moved, geometry.q, geometry.n, w, similarity)
+    step = point_to_plane_step(geometry.moved, geometry.q, geometry.n, w, similarity,
+                               geometry.residual)
     return step @ matrix
 
 
