@@ -13,6 +13,7 @@ import torch
 from torchgeo_cg.mesh.marching_cubes._args import world_map
 from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
 from torchgeo_cg.mesh.marching_cubes._steps import (
+    any_centre,
     find_centres,
     idiv,
     interpolate,
@@ -22,7 +23,6 @@ from torchgeo_cg.mesh.marching_cubes._steps import (
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh.marching_cubes._tables import CENTRE
 
 __all__ = ["SLAB_ACTIVE", "wants_slabs", "extract_slabbed"]
 
@@ -194,12 +194,12 @@ def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_worl
     own_id, own_case = cell_id[:n_own], cases[:n_own]
     welded = weld(cell_id, cases, (X, Y, Z), backend)
     rows, n_tri, tri_table, centre = cell_rows(vol, iso, None, own_id, own_case, ambiguity)
-    faces, cell_of_face, tri_row = triangulate(own_id, rows, n_tri, tri_table, welded.key,
-                                               (X, Y, Z), B, layers=layers, backend=backend)
-    centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
-    faces[centre_slot] = 0
+    has_centre = any_centre(rows, centre)
+    faces, cell_of_face, centre_slot = triangulate(own_id, rows, n_tri, tri_table, welded.key,
+                                                   (X, Y, Z), B, layers=layers, backend=backend,
+                                                   centres=has_centre)
     centres = None
-    if centre is not None:
+    if has_centre:
         centres = find_centres(own_id, rows, *centre, welded.key, cell_of_face, centre_slot,
                                faces, (X, Y, Z))
     b_sub = idiv(take(cell_id, welded.cell), X * Y * Z) if B > 1 else None
