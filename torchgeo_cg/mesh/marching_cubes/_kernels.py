@@ -250,8 +250,8 @@ def _build(wp):
     @wp.kernel
     def stencils(lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
                  ijk: wp.array2d(dtype=wp.int64), G: int, X: wp.int64, Y: wp.int64,
-                 Z: wp.int64, index: wp.array2d(dtype=wp.int64),
-                 axes: wp.array2d(dtype=wp.int64), steps: wp.array2d(dtype=wp.int64)):
+                 Z: wp.int64, index: wp.array2d(dtype=wp.int32),
+                 steps: wp.array2d(dtype=wp.int32)):
         # the ten samples each vertex reads: its edge's ends, and for the two axes across
         # the edge the differences at both ends (central, one-sided on the border)
         t = wp.tid()
@@ -260,8 +260,8 @@ def _build(wp):
             dv = d[v]
             up_end = lo + wp.where(dv == wp.int64(0), Y * Z, wp.where(dv == wp.int64(1), Z,
                                                                         wp.int64(1)))
-            index[0, v] = lo
-            index[1, v] = up_end
+            index[0, v] = wp.int32(lo)
+            index[1, v] = wp.int32(up_end)
             for s in range(2):
                 a = (dv + wp.int64(1 + s)) % wp.int64(3)
                 c = ijk[v, int(a)]
@@ -270,12 +270,11 @@ def _build(wp):
                                                                      wp.int64(1)))
                 up = wp.where(c < last - wp.int64(1), wp.int64(1), wp.int64(0))
                 down = wp.where(c > wp.int64(0), wp.int64(1), wp.int64(0))
-                index[2 + 4 * s, v] = lo + up * stride
-                index[3 + 4 * s, v] = lo - down * stride
-                index[4 + 4 * s, v] = up_end + up * stride
-                index[5 + 4 * s, v] = up_end - down * stride
-                axes[s, v] = a
-                steps[s, v] = up + down
+                index[2 + 4 * s, v] = wp.int32(lo + up * stride)
+                index[3 + 4 * s, v] = wp.int32(lo - down * stride)
+                index[4 + 4 * s, v] = wp.int32(up_end + up * stride)
+                index[5 + 4 * s, v] = wp.int32(up_end - down * stride)
+                steps[s, v] = wp.int32(up + down)
 
     return SimpleNamespace(classify_rows=classify_rows,
                            weld_rows=weld_rows,
@@ -429,17 +428,17 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers, centres
 
 
 def vertex_stencils(lower, d, corner_ijk, sizes):
-    """``(index (10, V), axes [2 x (V,)], steps (2, V))`` long, as
-    ``_steps.sample_stencil``."""
+    """``(index (10, V), None, steps (2, V))`` int32 (the samples' flat indices fit: the
+    kernels take volumes of fewer than ``2**31`` samples), as ``_steps.sample_stencil``
+    (without its ``axes``, which placing the vertices does not read)."""
     k = _kernels()
     X, Y, Z = sizes
     device = lower.device
     V = lower.shape[0]
-    index = torch.empty(10, V, dtype=torch.long, device=device)
-    axes = torch.empty(2, V, dtype=torch.long, device=device)
-    steps = torch.empty(2, V, dtype=torch.long, device=device)
+    index = torch.empty(10, V, dtype=torch.int32, device=device)
+    steps = torch.empty(2, V, dtype=torch.int32, device=device)
     G = 1 if device.type == "cuda" else 64
     launch(k.stencils, (V + G - 1) // G,
            [to_warp(lower), to_warp(d), to_warp(corner_ijk), G, X, Y, Z, to_warp(index),
-            to_warp(axes), to_warp(steps)], device)
-    return index, list(axes.unbind(0)), steps
+            to_warp(steps)], device)
+    return index, None, steps

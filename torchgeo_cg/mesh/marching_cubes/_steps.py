@@ -394,9 +394,31 @@ def _unit_normals(samples, t, d_v, steps, spacing_v):
     (one-sided on the border) at both edge ends, blended with ``t``; both across axes at
     once, then one gather puts the three components on their world axes. The gradient
     is divided by its largest component before normalising, so neither tiny nor huge
-    gradients under- or overflow.
+    gradients under- or overflow. Without a graph to record the steps run in place
+    (fewer fresh buffers), with the same operations on the same operands, so the same bits.
     """
+    if torch.is_grad_enabled() and (samples.requires_grad or t.requires_grad):
+        return _unit_normals_graph(samples, t, d_v, steps, spacing_v)
     across = samples[2:].view(2, 4, -1)  # (axis, [lower +- step, upper +- step], V)
+    parts = samples.new_empty(3, samples.shape[1])  # d, d + 1, d + 2
+    torch.sub(samples[1], samples[0], out=parts[0])
+    g = torch.sub(across[:, 2], across[:, 3], out=parts[1:])  # g_upper
+    g_lower = across[:, 0] - across[:, 1]
+    g.sub_(g_lower).mul_(t).add_(g_lower).div_(steps)  # g_lower + t (g_upper - g_lower)
+    rotate = torch.tensor(_ROTATE, device=d_v.device)
+    grad = parts.T.gather(1, take(rotate, d_v))
+    if not bool((spacing_v == 1).all()):  # relative spacings: often all one
+        grad.div_(spacing_v)
+    big = grad.abs().amax(dim=1, keepdim=True)
+    nonzero = big > 0
+    grad.div_(torch.where(nonzero, big, 1.0))  # components in [-1, 1]
+    length = torch.linalg.vector_norm(grad, dim=1, keepdim=True)  # >= 1 where nonzero
+    return grad.div_(torch.where(nonzero, length, 1.0))
+
+
+def _unit_normals_graph(samples, t, d_v, steps, spacing_v):
+    """:func:`_unit_normals` out of place, for autograd to record."""
+    across = samples[2:].view(2, 4, -1)
     g_lower = across[:, 0] - across[:, 1]
     g_upper = across[:, 2] - across[:, 3]
     g = (g_lower + t * (g_upper - g_lower)) / steps.to(samples.dtype)  # (2, V)
@@ -471,7 +493,8 @@ def place_vertices(samples, iso_v, welded: Welded, axes, steps, spacing_v, to_wo
 
     Args:
         samples: ``(10, V)`` stencil samples in the working dtype; iso_v: ``(V,)``.
-        welded, axes, steps: the vertices and their stencil.
+        welded, axes, steps: the vertices and their stencil (``axes`` is not read: the
+            kernel's stencil gives None).
         spacing_v: ``(V, 3)`` or ``(1, 3)`` grid spacing.
         to_world: ``index_pos (V, 3) -> (V, 3)`` world positions.
 
