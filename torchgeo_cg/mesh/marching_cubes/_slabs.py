@@ -38,7 +38,9 @@ def wants_slabs(n_active: int, args, grad: bool) -> bool:
 
 
 def _slab_plan(cell_id, cases_a, shape):
-    """Where the slabs of about :data:`SLAB_ACTIVE` active cells start and end.
+    """Where the slabs of about :data:`SLAB_ACTIVE` active cells start and end (as many
+    slabs as the nearest whole number of :data:`SLAB_ACTIVE` in the active cells, cut at
+    even shares).
 
     Returns ``(bounds, a_lo, a_next, v_at, w_per)``: the slabs' first cell layers (and the
     end), the first active cell of each slab and of the layer after each slab, the welded
@@ -49,8 +51,10 @@ def _slab_plan(cell_id, cases_a, shape):
     nv = take(lower_crossings(device).sum(1), cases_a)  # (A,) vertices each cell owns
     v_start = torch.cat([nv.new_zeros(1), nv.cumsum(0)])  # (A + 1,)
     layer = idiv(cell_id, YZ)
-    cuts = torch.unique(take(layer, torch.arange(SLAB_ACTIVE, cell_id.shape[0], SLAB_ACTIVE,
-                                                 device=device)))
+    n_active = cell_id.shape[0]
+    n_slabs = max(1, round(n_active / SLAB_ACTIVE))  # slabs of 0.75 to 1.25 SLAB_ACTIVE cells
+    at = torch.arange(1, n_slabs, device=device) * n_active // n_slabs
+    cuts = torch.unique(take(layer, at))
     bounds = [0, *(c for c in cuts.tolist() if c > 0), B * X]
     edges = torch.tensor(bounds + [min(b + 1, B * X) for b in bounds[1:]], device=device)
     cell_at = torch.searchsorted(cell_id, edges * YZ).tolist()
