@@ -320,8 +320,10 @@ def _packed_inside(stacked: torch.Tensor, iso_b: torch.Tensor, X: int, W: int) -
         inside = flag_buf[:l1 - l0]
         torch.lt(stacked[l0:l1], iso_layer[l0:l1], out=inside[..., :Z])
         flags = inside.view(torch.uint8).view(-1, 8).view(torch.int64)  # 8 flags a value
-        packed = (flags * _PACK8).bitwise_right_shift_(56).bitwise_and_(0xFF)
-        bytes_out[l0 * Y:l1 * Y] = packed.view(-1, W * 8)  # cast to bytes in the copy
+        # packed in place (the next slab's comparison rewrites the flags; the padding,
+        # all zero, stays zero); the copy keeps the low byte of each value
+        packed = flags.mul_(_PACK8).bitwise_right_shift_(56)
+        bytes_out[l0 * Y:l1 * Y] = packed.view(-1, W * 8)
     return bits.view(-1)
 
 
