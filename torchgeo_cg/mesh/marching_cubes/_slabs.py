@@ -160,6 +160,8 @@ def _packed_ids(faces, b_f, V_sub: int, v_lo: int, W: int, n_centres: int, c_per
     faces' volumes, ``c_per (B,)`` the centres per volume so far, ``w_incl (B,)`` the
     welded vertices in volumes ``<= b``), volume ``b``'s welded vertices follow the
     centres of the volumes before it, and its centres follow its welded vertices."""
+    if b_f is not None and n_centres == 0 and not has_centres:
+        b_f = None  # no centre so far: every volume's welded ids shift by v_lo alone
     c_excl = None if b_f is None else c_per.cumsum(0) - c_per  # centres in volumes < b
     is_c = faces >= V_sub if has_centres else None
     if b_f is None:
