@@ -409,11 +409,10 @@ def _unit_normals(samples, t, d_v, steps, spacing_v):
     grad = parts.T.gather(1, take(rotate, d_v))
     if not bool((spacing_v == 1).all()):  # relative spacings: often all one
         grad.div_(spacing_v)
-    big = grad.abs().amax(dim=1, keepdim=True)
-    nonzero = big > 0
-    grad.div_(torch.where(nonzero, big, 1.0))  # components in [-1, 1]
+    big = torch.linalg.vector_norm(grad, math.inf, dim=1, keepdim=True)  # largest |component|
+    grad.div_(big.masked_fill_(big == 0, 1.0))  # components in [-1, 1]
     length = torch.linalg.vector_norm(grad, dim=1, keepdim=True)  # >= 1 where nonzero
-    return grad.div_(torch.where(nonzero, length, 1.0))
+    return grad.div_(length.clamp_min_(1.0))  # zero gradients: 0 / 1
 
 
 def _unit_normals_graph(samples, t, d_v, steps, spacing_v):
