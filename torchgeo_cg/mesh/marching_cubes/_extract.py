@@ -35,7 +35,6 @@ from torchgeo_cg.mesh.marching_cubes._steps import (
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh.marching_cubes._tables import CENTRE
 
 __all__ = ["GroupMesh", "extract_group", "global_welded", "vertex_samples", "assemble"]
 
@@ -127,10 +126,8 @@ def extract_group(evaluate: FieldEvaluator, grid: Grid, blocks: torch.Tensor, bl
     welded = weld(cell_id, cases, (S, S, S), backend)
     rows, n_tri, tri_table, centre = cell_rows(vols, iso_b, inside_grid, cell_id, cases,
                                                ambiguity)
-    faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
-                                               (S, S, S), G, backend=backend)
-    centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
-    faces[centre_slot] = 0
+    faces, cell_of_face, centre_slot = triangulate(cell_id, rows, n_tri, tri_table,
+                                                   welded.key, (S, S, S), G, backend=backend)
     centres = None
     if centre is not None:
         centres = find_centres(cell_id, rows, *centre, welded.key, cell_of_face, centre_slot,

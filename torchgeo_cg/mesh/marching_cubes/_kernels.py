@@ -179,22 +179,18 @@ def _build(wp):
             q = q + wp.int64(1)
         return q
 
-    @wp.kernel
-    def faces_of_rows(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
-                      n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
-                      row_cell: wp.array(dtype=wp.int64), tri_table: wp.array2d(dtype=wp.int64),
-                      T: wp.int64, edge_code: wp.array2d(dtype=wp.int64), Y: wp.int64,
-                      Z: wp.int64, row_lo: wp.int64, row_vert: wp.array(dtype=wp.int64),
-                      vert_key: wp.array(dtype=wp.int64), faces: wp.array2d(dtype=wp.int64),
-                      cell_of_face: wp.array(dtype=wp.int64),
-                      tri_row: wp.array(dtype=wp.int64)):
-        # the triangles of the active cells of one row (l, j) of cells, in order: local
-        # edge e is a vertex of row (l + dx, j + dy) (edge_code[e, 0] = 2 dx + dy) with the
-        # key 3 (that row's first sample + k) + edge_code[e, 1]; one cursor per such row
-        # moves forward with the cells (keys grow along a row), so each vertex is found in
-        # a few steps
-        rr = wp.tid()
-        r = row_lo + wp.int64(rr)
+    @wp.func
+    def faces_of_row(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
+                     n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
+                     row_cell: wp.array(dtype=wp.int64), code: wp.array(dtype=wp.int32),
+                     T: wp.int64, Y: wp.int64, Z: wp.int64, row_vert: wp.array(dtype=wp.int64),
+                     vert_key: wp.array(dtype=wp.int64), faces: wp.array(dtype=wp.int64),
+                     cell_of_face: wp.array(dtype=wp.int64), centre: wp.array(dtype=wp.uint8),
+                     rr: int):
+        # the triangles of the active cells of row rr (cell row (l, j)), in order: the
+        # code of local edge e is 8 q + off, its vertex in row q = 2 dx + dy (4: the cell
+        # centre, written 0 and flagged) with the key 3 (that row's first sample + k) + off;
+        # one cursor per such row moves forward with the cells (keys grow along a row)
         p00 = row_vert[rr]
         p01 = row_vert[rr + 1]
         p10 = row_vert[rr + int(Y)]
@@ -203,10 +199,9 @@ def _build(wp):
         e01 = row_vert[rr + 2]
         e10 = row_vert[rr + int(Y) + 1]
         e11 = row_vert[rr + int(Y) + 2]
+        flag = centre.shape[0] > 0
         for a in range(int(row_cell[rr]), int(row_cell[rr + 1])):
-            c = cell_id[a]
-            k = c - r * Z
-            b00 = (r * Z + k) * wp.int64(3)
+            b00 = cell_id[a] * wp.int64(3)
             b01 = b00 + wp.int64(3) * Z
             b10 = b00 + wp.int64(3) * Y * Z
             b11 = b10 + wp.int64(3) * Z
@@ -214,31 +209,49 @@ def _build(wp):
             p01 = advance(vert_key, p01, e01, b01)
             p10 = advance(vert_key, p10, e10, b10)
             p11 = advance(vert_key, p11, e11, b11)
+            f0 = first[a]
+            c0 = int(rows[a] * T * wp.int64(3))
             for s in range(int(n_tri[a])):
-                f = first[a] + wp.int64(s)
-                row = rows[a] * T + wp.int64(s)
+                f = f0 + wp.int64(s)
                 for m in range(3):
-                    e = int(tri_table[int(row), m])
-                    q = edge_code[e, 0]
-                    off = edge_code[e, 1]
-                    found = wp.int64(0)  # a centre (e = 12, q = 4): filled by the caller
-                    if q == wp.int64(0):
+                    e = code[c0 + 3 * s + int(m)]
+                    q = e >> 3
+                    off = wp.int64(e & 7)
+                    found = wp.int64(0)  # a centre (q = 4): filled by the caller
+                    if q == 0:
                         found = advance(vert_key, p00, e00, b00 + off)
-                    elif q == wp.int64(1):
+                    elif q == 1:
                         found = advance(vert_key, p01, e01, b01 + off)
-                    elif q == wp.int64(2):
+                    elif q == 2:
                         found = advance(vert_key, p10, e10, b10 + off)
-                    elif q == wp.int64(3):
+                    elif q == 3:
                         found = advance(vert_key, p11, e11, b11 + off)
-                    faces[f, m] = found
+                    faces[f * wp.int64(3) + wp.int64(m)] = found
+                    if flag:
+                        centre[f * wp.int64(3) + wp.int64(m)] = wp.where(q == 4, wp.uint8(1),
+                                                                         wp.uint8(0))
                 cell_of_face[f] = wp.int64(a)
-                tri_row[f] = row
+        return 0
+
+    @wp.kernel
+    def faces_of_rows(cell_id: wp.array(dtype=wp.int64), rows: wp.array(dtype=wp.int64),
+                      n_tri: wp.array(dtype=wp.int64), first: wp.array(dtype=wp.int64),
+                      row_cell: wp.array(dtype=wp.int64), code: wp.array(dtype=wp.int32),
+                      T: wp.int64, Y: wp.int64, Z: wp.int64,
+                      row_vert: wp.array(dtype=wp.int64), vert_key: wp.array(dtype=wp.int64),
+                      faces: wp.array(dtype=wp.int64), cell_of_face: wp.array(dtype=wp.int64),
+                      centre: wp.array(dtype=wp.uint8), G: int, n_rows: int):
+        # rows t G .. t G + G - 1 (a few rows a thread on the CPU)
+        t = wp.tid()
+        for rr in range(t * G, wp.min(t * G + G, n_rows)):
+            faces_of_row(cell_id, rows, n_tri, first, row_cell, code, T, Y, Z, row_vert, vert_key,
+                         faces, cell_of_face, centre, rr)
 
     @wp.kernel
     def stencils(lower: wp.array(dtype=wp.int64), d: wp.array(dtype=wp.int64),
                  ijk: wp.array2d(dtype=wp.int64), G: int, X: wp.int64, Y: wp.int64,
-                 Z: wp.int64, index: wp.array2d(dtype=wp.int64),
-                 axes: wp.array2d(dtype=wp.int64), steps: wp.array2d(dtype=wp.int64)):
+                 Z: wp.int64, index: wp.array2d(dtype=wp.int32),
+                 steps: wp.array2d(dtype=wp.int32)):
         # the ten samples each vertex reads: its edge's ends, and for the two axes across
         # the edge the differences at both ends (central, one-sided on the border)
         t = wp.tid()
@@ -247,8 +260,8 @@ def _build(wp):
             dv = d[v]
             up_end = lo + wp.where(dv == wp.int64(0), Y * Z, wp.where(dv == wp.int64(1), Z,
                                                                         wp.int64(1)))
-            index[0, v] = lo
-            index[1, v] = up_end
+            index[0, v] = wp.int32(lo)
+            index[1, v] = wp.int32(up_end)
             for s in range(2):
                 a = (dv + wp.int64(1 + s)) % wp.int64(3)
                 c = ijk[v, int(a)]
@@ -257,12 +270,11 @@ def _build(wp):
                                                                      wp.int64(1)))
                 up = wp.where(c < last - wp.int64(1), wp.int64(1), wp.int64(0))
                 down = wp.where(c > wp.int64(0), wp.int64(1), wp.int64(0))
-                index[2 + 4 * s, v] = lo + up * stride
-                index[3 + 4 * s, v] = lo - down * stride
-                index[4 + 4 * s, v] = up_end + up * stride
-                index[5 + 4 * s, v] = up_end - down * stride
-                axes[s, v] = a
-                steps[s, v] = up + down
+                index[2 + 4 * s, v] = wp.int32(lo + up * stride)
+                index[3 + 4 * s, v] = wp.int32(lo - down * stride)
+                index[4 + 4 * s, v] = wp.int32(up_end + up * stride)
+                index[5 + 4 * s, v] = wp.int32(up_end - down * stride)
+                steps[s, v] = wp.int32(up + down)
 
     return SimpleNamespace(classify_rows=classify_rows,
                            weld_rows=weld_rows,
@@ -308,8 +320,10 @@ def _packed_inside(stacked: torch.Tensor, iso_b: torch.Tensor, X: int, W: int) -
         inside = flag_buf[:l1 - l0]
         torch.lt(stacked[l0:l1], iso_layer[l0:l1], out=inside[..., :Z])
         flags = inside.view(torch.uint8).view(-1, 8).view(torch.int64)  # 8 flags a value
-        packed = (flags * _PACK8).bitwise_right_shift_(56).bitwise_and_(0xFF)
-        bytes_out[l0 * Y:l1 * Y] = packed.view(-1, W * 8)  # cast to bytes in the copy
+        # packed in place (the next slab's comparison rewrites the flags; the padding,
+        # all zero, stays zero); the copy keeps the low byte of each value
+        packed = flags.mul_(_PACK8).bitwise_right_shift_(56)
+        bytes_out[l0 * Y:l1 * Y] = packed.view(-1, W * 8)
     return bits.view(-1)
 
 
@@ -369,8 +383,26 @@ def weld_edges(cell_id: torch.Tensor, cases: torch.Tensor, sizes):
     return (*out, ijk)
 
 
-def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
-    """``(faces (F, 3), cell_of_face (F,), tri_row (F,))`` long, as ``_steps.triangulate``
+#: Edge codes of the triangle tables, by table (see :func:`_edge_codes`).
+_CODES: dict[tuple, torch.Tensor] = {}
+
+
+def _edge_codes(tri_table: torch.Tensor) -> torch.Tensor:
+    """``(R * T * 3,)`` int32: for each local edge of the table, ``8 q + off``: the row
+    ``q = 2 dx + dy`` holding its vertex (4 for the centre, edge 12) and its key within
+    that row's cell ``k``, ``off = 3 dz + d`` (cached per table)."""
+    key = (tri_table.data_ptr(), tuple(tri_table.shape), tri_table.device)
+    if key not in _CODES:
+        edge_dir, edge_off = corner_tables(tri_table.device)[:2]
+        per_edge = (edge_off[:, 0] * 2 + edge_off[:, 1]) * 8 + edge_off[:, 2] * 3 + edge_dir
+        per_edge = torch.cat([per_edge, per_edge.new_tensor([4 * 8])])  # (13,)
+        _CODES[key] = per_edge[tri_table.clamp_min(0)].to(torch.int32).reshape(-1)
+    return _CODES[key]
+
+
+def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers, centres: bool = True):
+    """``(faces (F, 3), cell_of_face (F,))`` long and ``centre_slot (F, 3)`` bool (or None
+    when ``centres`` is False: no cell has a centre vertex), as ``_steps.triangulate``
     (the entries of centre vertices are 0: the caller fills them). ``layers``: the
     stacked cell layers ``(first, stop)`` of the cells; ``vert_key`` holds the vertices
     of those layers and of layer ``stop``."""
@@ -379,12 +411,6 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     device = cell_id.device
     rows, n_tri = rows.long(), n_tri.long()
     first, total = _exclusive(n_tri)
-    edge_dir, edge_off = corner_tables(device)[:2]
-    # local edge e: the row (2 dx + dy) holding its vertex and its key within that row's
-    # cell k (3 dz + d); the centre (e = 12) gets row 4 (none)
-    edge_code = torch.stack([edge_off[:, 0] * 2 + edge_off[:, 1], edge_off[:, 2] * 3 + edge_dir],
-                            dim=1)
-    edge_code = torch.cat([edge_code, edge_code.new_tensor([[4, 0]])])  # (13, 2)
     row_lo, n_rows = layers[0] * Y, (layers[1] - layers[0]) * Y
     # first vertex of each row of the layers and of two more rows of layer ``stop``
     # (its vertices end at its last row's start plus its own)
@@ -392,27 +418,29 @@ def face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes, layers):
     row_cell = _row_ranges(cell_id, Z, row_lo, n_rows)
     faces = torch.empty(total, 3, dtype=torch.long, device=device)
     cell_of_face = torch.empty(total, dtype=torch.long, device=device)
-    tri_row = torch.empty(total, dtype=torch.long, device=device)
-    launch(k.faces_of_rows, n_rows,
+    centre = torch.empty(total if centres else 0, 3, dtype=torch.bool, device=device)
+    G = _rows_per_thread(device)
+    launch(k.faces_of_rows, (n_rows + G - 1) // G,
            [to_warp(cell_id), to_warp(rows), to_warp(n_tri), to_warp(first), to_warp(row_cell),
-            to_warp(tri_table.reshape(-1, 3)), tri_table.shape[1], to_warp(edge_code), Y, Z,
-            row_lo, to_warp(row_vert), to_warp(vert_key),
-            to_warp(faces), to_warp(cell_of_face), to_warp(tri_row)], device)
-    return faces, cell_of_face, tri_row
+            to_warp(_edge_codes(tri_table)), tri_table.shape[1], Y, Z, to_warp(row_vert),
+            to_warp(vert_key), to_warp(faces.view(-1)), to_warp(cell_of_face),
+            to_warp(centre.view(-1).view(torch.uint8)), G, n_rows],
+           device)
+    return faces, cell_of_face, centre if centres else None
 
 
 def vertex_stencils(lower, d, corner_ijk, sizes):
-    """``(index (10, V), axes [2 x (V,)], steps (2, V))`` long, as
-    ``_steps.sample_stencil``."""
+    """``(index (10, V), None, steps (2, V))`` int32 (the samples' flat indices fit: the
+    kernels take volumes of fewer than ``2**31`` samples), as ``_steps.sample_stencil``
+    (without its ``axes``, which placing the vertices does not read)."""
     k = _kernels()
     X, Y, Z = sizes
     device = lower.device
     V = lower.shape[0]
-    index = torch.empty(10, V, dtype=torch.long, device=device)
-    axes = torch.empty(2, V, dtype=torch.long, device=device)
-    steps = torch.empty(2, V, dtype=torch.long, device=device)
+    index = torch.empty(10, V, dtype=torch.int32, device=device)
+    steps = torch.empty(2, V, dtype=torch.int32, device=device)
     G = 1 if device.type == "cuda" else 64
     launch(k.stencils, (V + G - 1) // G,
            [to_warp(lower), to_warp(d), to_warp(corner_ijk), G, X, Y, Z, to_warp(index),
-            to_warp(axes), to_warp(steps)], device)
-    return index, list(axes.unbind(0)), steps
+            to_warp(steps)], device)
+    return index, None, steps

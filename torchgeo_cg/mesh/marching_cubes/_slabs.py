@@ -13,6 +13,7 @@ import torch
 from torchgeo_cg.mesh.marching_cubes._args import world_map
 from torchgeo_cg.mesh.marching_cubes._decider import cell_rows
 from torchgeo_cg.mesh.marching_cubes._steps import (
+    any_centre,
     find_centres,
     idiv,
     interpolate,
@@ -22,7 +23,6 @@ from torchgeo_cg.mesh.marching_cubes._steps import (
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh.marching_cubes._tables import CENTRE
 
 __all__ = ["SLAB_ACTIVE", "wants_slabs", "extract_slabbed"]
 
@@ -38,7 +38,9 @@ def wants_slabs(n_active: int, args, grad: bool) -> bool:
 
 
 def _slab_plan(cell_id, cases_a, shape):
-    """Where the slabs of about :data:`SLAB_ACTIVE` active cells start and end.
+    """Where the slabs of about :data:`SLAB_ACTIVE` active cells start and end (as many
+    slabs as the nearest whole number of :data:`SLAB_ACTIVE` in the active cells, cut at
+    even shares).
 
     Returns ``(bounds, a_lo, a_next, v_at, w_per)``: the slabs' first cell layers (and the
     end), the first active cell of each slab and of the layer after each slab, the welded
@@ -49,8 +51,10 @@ def _slab_plan(cell_id, cases_a, shape):
     nv = take(lower_crossings(device).sum(1), cases_a)  # (A,) vertices each cell owns
     v_start = torch.cat([nv.new_zeros(1), nv.cumsum(0)])  # (A + 1,)
     layer = idiv(cell_id, YZ)
-    cuts = torch.unique(take(layer, torch.arange(SLAB_ACTIVE, cell_id.shape[0], SLAB_ACTIVE,
-                                                 device=device)))
+    n_active = cell_id.shape[0]
+    n_slabs = max(1, round(n_active / SLAB_ACTIVE))  # slabs of 0.75 to 1.25 SLAB_ACTIVE cells
+    at = torch.arange(1, n_slabs, device=device) * n_active // n_slabs
+    cuts = torch.unique(take(layer, at))
     bounds = [0, *(c for c in cuts.tolist() if c > 0), B * X]
     edges = torch.tensor(bounds + [min(b + 1, B * X) for b in bounds[1:]], device=device)
     cell_at = torch.searchsorted(cell_id, edges * YZ).tolist()
@@ -156,6 +160,8 @@ def _packed_ids(faces, b_f, V_sub: int, v_lo: int, W: int, n_centres: int, c_per
     faces' volumes, ``c_per (B,)`` the centres per volume so far, ``w_incl (B,)`` the
     welded vertices in volumes ``<= b``), volume ``b``'s welded vertices follow the
     centres of the volumes before it, and its centres follow its welded vertices."""
+    if b_f is not None and n_centres == 0 and not has_centres:
+        b_f = None  # no centre so far: every volume's welded ids shift by v_lo alone
     c_excl = None if b_f is None else c_per.cumsum(0) - c_per  # centres in volumes < b
     is_c = faces >= V_sub if has_centres else None
     if b_f is None:
@@ -194,12 +200,12 @@ def _slab_mesh(vol, iso, cell_id, cases, n_own, layers, ambiguity, args, to_worl
     own_id, own_case = cell_id[:n_own], cases[:n_own]
     welded = weld(cell_id, cases, (X, Y, Z), backend)
     rows, n_tri, tri_table, centre = cell_rows(vol, iso, None, own_id, own_case, ambiguity)
-    faces, cell_of_face, tri_row = triangulate(own_id, rows, n_tri, tri_table, welded.key,
-                                               (X, Y, Z), B, layers=layers, backend=backend)
-    centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE
-    faces[centre_slot] = 0
+    has_centre = any_centre(rows, centre)
+    faces, cell_of_face, centre_slot = triangulate(own_id, rows, n_tri, tri_table, welded.key,
+                                                   (X, Y, Z), B, layers=layers, backend=backend,
+                                                   centres=has_centre)
     centres = None
-    if centre is not None:
+    if has_centre:
         centres = find_centres(own_id, rows, *centre, welded.key, cell_of_face, centre_slot,
                                faces, (X, Y, Z))
     b_sub = idiv(take(cell_id, welded.cell), X * Y * Z) if B > 1 else None

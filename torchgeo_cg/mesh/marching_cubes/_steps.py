@@ -31,7 +31,7 @@ from torchgeo_cg.mesh.marching_cubes._kernels import (
     vertex_stencils,
     weld_edges,
 )
-from torchgeo_cg.mesh.marching_cubes._tables import corner_tables
+from torchgeo_cg.mesh.marching_cubes._tables import CENTRE, corner_tables
 
 __all__ = [
     "SLAB_CELLS",
@@ -44,6 +44,7 @@ __all__ = [
     "lower_crossings",
     "weld",
     "triangulate",
+    "any_centre",
     "Centres",
     "find_centres",
     "place_centres",
@@ -194,7 +195,8 @@ def weld(cell_id: torch.Tensor, cases: torch.Tensor, sizes, backend: str = "torc
 
 
 def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
-                layers: tuple[int, int] | None = None, backend: str = "torch"):
+                layers: tuple[int, int] | None = None, backend: str = "torch",
+                centres: bool = True):
     """Faces of the active cells: table rows -> local edges -> welded vertex ids.
 
     Local edge ``e`` of cell ``c`` is the lower edge (direction ``edge_dir[e]``) of the
@@ -210,18 +212,20 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
         layers: ``(first, stop)`` stacked cell layers holding every cell of ``cell_id``
             (default: all ``B * X``); ``vert_key`` then holds the vertices of those
             layers and of layer ``stop``, and the ids are indices into it.
-        backend: ``"torch"`` or ``"warp"`` (the kernel: each face's vertex ids found by
-            binary search in ``vert_key``; the same result).
+        backend: ``"torch"`` or ``"warp"`` (the kernel: each face's vertex ids found
+            from cursors moving along the vertex rows; the same result).
+        centres: whether a cell may have a centre vertex (:func:`any_centre`); False
+            skips finding the centre entries.
 
     Returns:
-        ``(faces (F, 3) long, cell_of_face (F,), tri_row (F,))``: ``tri_row`` indexes
-        ``tri_table.view(-1, 3)``; entries of the centre vertex (edge 12) are left for
-        :func:`add_centres` to fill.
+        ``(faces (F, 3) long, cell_of_face (F,), centre_slot (F, 3) bool or None)``:
+        ``centre_slot`` flags the entries of the centre vertex (edge 12), which are 0,
+        left for :func:`find_centres` to fill (None when ``centres`` is False).
     """
     X, Y, Z = sizes
     if backend == "warp":
         return face_lists(cell_id, rows, n_tri, tri_table, vert_key, sizes,
-                          (0, batch * X) if layers is None else layers)
+                          (0, batch * X) if layers is None else layers, centres)
     YZ = Y * Z
     device = cell_id.device
     edge_dir, edge_off = corner_tables(device)[:2]
@@ -255,7 +259,20 @@ def triangulate(cell_id, rows, n_tri, tri_table, vert_key, sizes, batch: int,
         id_map[vert_key[v0:v1] - base] = torch.arange(v0, v1, dtype=id_dtype, device=device)
         face_key = take(tri_delta, tri_row[f0:f1]).add_((face_cell3[f0:f1] - base)[:, None])
         faces[f0:f1] = take(id_map, face_key.view(-1)).view(-1, 3)
-    return faces, cell_of_face, tri_row
+    if not centres:
+        return faces, cell_of_face, None
+    centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
+    faces[centre_slot] = 0  # filled by find_centres
+    return faces, cell_of_face, centre_slot
+
+
+def any_centre(rows: torch.Tensor, centre) -> bool:
+    """Whether a decided cell's table row has a centre vertex (``centre``: the
+    ``(centre_mask, decided)`` of :func:`~._decider.cell_rows`, None for none)."""
+    if centre is None:
+        return False
+    centre_mask, decided = centre
+    return bool((take(centre_mask, take(rows, decided)) != 0).any())
 
 
 class Centres(NamedTuple):
@@ -377,9 +394,30 @@ def _unit_normals(samples, t, d_v, steps, spacing_v):
     (one-sided on the border) at both edge ends, blended with ``t``; both across axes at
     once, then one gather puts the three components on their world axes. The gradient
     is divided by its largest component before normalising, so neither tiny nor huge
-    gradients under- or overflow.
+    gradients under- or overflow. Without a graph to record the steps run in place
+    (fewer fresh buffers), with the same operations on the same operands, so the same bits.
     """
+    if torch.is_grad_enabled() and (samples.requires_grad or t.requires_grad):
+        return _unit_normals_graph(samples, t, d_v, steps, spacing_v)
     across = samples[2:].view(2, 4, -1)  # (axis, [lower +- step, upper +- step], V)
+    parts = samples.new_empty(3, samples.shape[1])  # d, d + 1, d + 2
+    torch.sub(samples[1], samples[0], out=parts[0])
+    g = torch.sub(across[:, 2], across[:, 3], out=parts[1:])  # g_upper
+    g_lower = across[:, 0] - across[:, 1]
+    g.sub_(g_lower).mul_(t).add_(g_lower).div_(steps)  # g_lower + t (g_upper - g_lower)
+    rotate = torch.tensor(_ROTATE, device=d_v.device)
+    grad = parts.T.gather(1, take(rotate, d_v))
+    if not bool((spacing_v == 1).all()):  # relative spacings: often all one
+        grad.div_(spacing_v)
+    big = grad.abs().amax(dim=1, keepdim=True)  # (an inf-norm is many times slower)
+    grad.div_(big.masked_fill_(big == 0, 1.0))  # components in [-1, 1]
+    length = torch.linalg.vector_norm(grad, dim=1, keepdim=True)  # >= 1 where nonzero
+    return grad.div_(length.clamp_min_(1.0))  # zero gradients: 0 / 1
+
+
+def _unit_normals_graph(samples, t, d_v, steps, spacing_v):
+    """:func:`_unit_normals` out of place, for autograd to record."""
+    across = samples[2:].view(2, 4, -1)
     g_lower = across[:, 0] - across[:, 1]
     g_upper = across[:, 2] - across[:, 3]
     g = (g_lower + t * (g_upper - g_lower)) / steps.to(samples.dtype)  # (2, V)
@@ -454,7 +492,8 @@ def place_vertices(samples, iso_v, welded: Welded, axes, steps, spacing_v, to_wo
 
     Args:
         samples: ``(10, V)`` stencil samples in the working dtype; iso_v: ``(V,)``.
-        welded, axes, steps: the vertices and their stencil.
+        welded, axes, steps: the vertices and their stencil (``axes`` is not read: the
+            kernel's stencil gives None).
         spacing_v: ``(V, 3)`` or ``(1, 3)`` grid spacing.
         to_world: ``index_pos (V, 3) -> (V, 3)`` world positions.
 

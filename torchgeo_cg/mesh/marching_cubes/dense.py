@@ -89,6 +89,7 @@ from torchgeo_cg.mesh.marching_cubes._kernels import kernel_backend
 from torchgeo_cg.mesh.marching_cubes._slabs import extract_slabbed, wants_slabs
 from torchgeo_cg.mesh.marching_cubes._steps import (
     Welded,
+    any_centre,
     classify,
     find_centres,
     idiv,
@@ -99,7 +100,7 @@ from torchgeo_cg.mesh.marching_cubes._steps import (
     triangulate,
     weld,
 )
-from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS, CENTRE
+from torchgeo_cg.mesh.marching_cubes._tables import AMBIGUOUS
 
 __all__ = ["MarchingCubesResult", "marching_cubes", "MarchingCubes", "AMBIGUITY_RULES",
            "AMBIGUOUS_CASES"]
@@ -272,16 +273,16 @@ def marching_cubes(
         welded = weld(cell_id, cases_a, (X, Y, Z), backend)
         rows, n_tri, tri_table, centre = cell_rows(vol.detach(), args.iso.detach(), args.mask,
                                                    cell_id, cases_a, ambiguity)
-        faces, cell_of_face, tri_row = triangulate(cell_id, rows, n_tri, tri_table, welded.key,
-                                                   (X, Y, Z), B, backend=backend)
-        centre_slot = take(tri_table.view(-1, 3), tri_row) == CENTRE  # (F, 3)
-        faces[centre_slot] = 0  # filled by find_centres
+        has_centre = any_centre(rows, centre)
+        faces, cell_of_face, centre_slot = triangulate(
+            cell_id, rows, n_tri, tri_table, welded.key, (X, Y, Z), B, backend=backend,
+            centres=has_centre)  # centre entries 0, filled by find_centres
         b_a = idiv(cell_id, X * Y * Z) if B > 1 else None  # (A,) volume of each active cell
         b_v = take(b_a, welded.cell) if B > 1 else None
         if args.mask is not None:  # drop the vertices only unmasked cells used
             welded, b_v, faces = _drop_unused(welded, b_v, faces, centre_slot)
         centres = None
-        if centre is not None:
+        if has_centre:
             centres = find_centres(cell_id, rows, *centre, welded.key, cell_of_face,
                                    centre_slot, faces, (X, Y, Z))
     verts, normals = interpolate(vol, welded, b_v, args, world_map(args), backend)
@@ -323,7 +324,7 @@ def _drop_unused(welded: Welded, b_v, faces, centre_slot):
     """Keep only the vertices some face uses (after masking), re-indexing ``faces``
     (centre entries are filled later)."""
     used = torch.zeros(welded.key.shape[0], dtype=torch.bool, device=faces.device)
-    used[faces[~centre_slot]] = True
+    used[faces.view(-1) if centre_slot is None else faces[~centre_slot]] = True
     new_id = used.long().cumsum(0) - 1
     keep = used.nonzero().squeeze(1)
     welded = Welded(*(take(x, keep) for x in welded))
