@@ -22,6 +22,7 @@ from typing import NamedTuple
 
 import torch
 
+from torchgeo_cg.core.autograd import records_graph
 from torchgeo_cg.core.grid import edge_fraction
 from torchgeo_cg.core.numerics import power_of_two_scale
 from torchgeo_cg.mesh.marching_cubes._kernels import (
@@ -397,7 +398,7 @@ def _unit_normals(samples, t, d_v, steps, spacing_v):
     gradients under- or overflow. Without a graph to record the steps run in place
     (fewer fresh buffers), with the same operations on the same operands, so the same bits.
     """
-    if torch.is_grad_enabled() and (samples.requires_grad or t.requires_grad):
+    if records_graph(samples, t):
         return _unit_normals_graph(samples, t, d_v, steps, spacing_v)
     across = samples[2:].view(2, 4, -1)  # (axis, [lower +- step, upper +- step], V)
     parts = samples.new_empty(3, samples.shape[1])  # d, d + 1, d + 2
