@@ -306,6 +306,7 @@ INVENTORY: dict[str, list[str]] = {
         "DISABLE_ENV",
         "kernel_ready",
         "launch",
+        "launch_rows",
         "load_warp",
         "register_kernels",
         "registered_kernels",
@@ -324,6 +325,7 @@ INVENTORY: dict[str, list[str]] = {
     "torchgeo_cg.engine.kernels": [
         "kernel_ready",
         "launch",
+        "launch_rows",
         "register_kernels",
         "registered_kernels",
         "to_warp",

@@ -9,7 +9,8 @@ accelerated function keeps its torch path and takes ``backend="auto" | "torch" |
   :func:`warp_status` (lazy, quiet loading; the kernel cache; the environment variable
   ``TORCHGEO_CG_DISABLE_WARP``);
 - :mod:`~torchgeo_cg.engine.kernels`: :func:`register_kernels` (kernel sets defined at
-  first use), :func:`warm` (compile them all), :func:`to_warp`, :func:`launch` and
+  first use), :func:`warm` (compile them all), :func:`to_warp`, :func:`launch`,
+  :func:`launch_rows` (a launch split across torch's CPU threads) and
   :func:`kernel_ready` (plain tensors: not under ``torch.func`` or tracing).
 
 ``import torchgeo_cg`` does not import Warp.
@@ -25,6 +26,7 @@ from torchgeo_cg.engine.backend import (
 from torchgeo_cg.engine.kernels import (
     kernel_ready,
     launch,
+    launch_rows,
     register_kernels,
     registered_kernels,
     to_warp,
@@ -36,6 +38,7 @@ __all__ = [
     "DISABLE_ENV",
     "kernel_ready",
     "launch",
+    "launch_rows",
     "load_warp",
     "register_kernels",
     "registered_kernels",

@@ -47,8 +47,11 @@ import torch
 from torchgeo_cg.core.autograd import is_transform_wrapped
 from torchgeo_cg.engine.backend import load_warp
 
-__all__ = ["kernel_ready", "launch", "register_kernels", "registered_kernels", "to_warp",
-           "warm"]
+__all__ = ["kernel_ready", "launch", "launch_rows", "register_kernels", "registered_kernels",
+           "to_warp", "warm"]
+
+#: The fewest rows a CPU thread takes when :func:`launch_rows` splits a launch.
+_ROWS_PER_THREAD = 4096
 
 _T = TypeVar("_T")
 
@@ -217,3 +220,58 @@ def launch(kernel: object, dim: int | Sequence[int], inputs: Sequence,
     target = wp.device_from_torch(device)
     stream = wp.stream_from_torch(device) if target.is_cuda else None
     wp.launch(kernel, dim=dim, inputs=list(inputs), device=target, stream=stream)
+
+
+def launch_rows(kernel: object, rows: torch.Tensor, inputs: Sequence, rows_at: int,
+                device: torch.device) -> None:
+    """Launch ``kernel`` with one thread per entry of ``rows``, on all of torch's CPU threads.
+
+    The kernel reads its work item from ``rows`` (argument ``rows_at``: thread ``i``
+    answers item ``rows[i]``), so the rows can be cut into chunks and each chunk launched
+    on its own. On the CPU, Warp runs a launch on one thread; this splits it into
+    ``torch.get_num_threads()`` chunks of at least 4096 rows, launched from as many
+    Python threads (Warp's compiled CPU code runs without the GIL; the module is loaded
+    before they start). On CUDA, one launch. The kernel's threads must be independent
+    (each writes only its own items' outputs); then the result does not depend on the
+    split.
+
+    Args:
+        kernel: a kernel from a registered builder.
+        rows: ``(R,)`` long, the work items.
+        inputs: the kernel's arguments; the one at ``rows_at`` is replaced by ``rows``.
+        rows_at: the position of the rows argument.
+        device: the torch device of the arrays.
+
+    Example:
+        >>> launch_rows(None, torch.zeros(0, dtype=torch.long), [None], 0,
+        ...             torch.device("cpu"))  # no rows: nothing happens
+    """
+    count = rows.numel()
+    if count == 0:
+        return
+    parts = 1
+    if device.type == "cpu":
+        parts = max(1, min(torch.get_num_threads(), count // _ROWS_PER_THREAD))
+    chunks = torch.tensor_split(rows, parts)
+    calls = [[*inputs[:rows_at], to_warp(chunk), *inputs[rows_at + 1:]] for chunk in chunks]
+    if parts == 1:
+        launch(kernel, count, calls[0], device)
+        return
+    wp = load_warp()
+    wp.load_module(kernel.module, device=wp.device_from_torch(device))  # once, not racing
+    errors: list[BaseException] = []
+
+    def run(chunk, args):
+        try:
+            launch(kernel, chunk.numel(), args, device)
+        except BaseException as error:  # re-raised in the caller's thread
+            errors.append(error)
+
+    workers = [threading.Thread(target=run, args=pair) for pair in zip(chunks[1:], calls[1:])]
+    for worker in workers:
+        worker.start()
+    run(chunks[0], calls[0])
+    for worker in workers:
+        worker.join()
+    if errors:
+        raise errors[0]

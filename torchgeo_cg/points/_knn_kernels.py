@@ -22,7 +22,7 @@ from typing import Any
 
 import torch
 
-from torchgeo_cg.engine import launch, register_kernels, to_warp
+from torchgeo_cg.engine import launch_rows, register_kernels, to_warp
 from torchgeo_cg.points._search_grid import (
     MAX_RING,
     GridIndex,
@@ -343,8 +343,8 @@ def warp_grid_knn(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor, k: int
             to_warp(grid.count_c.long()), to_warp(keys), int(grid.keys_c is not None),
             to_warp(lo), to_warp(grid.h_b), to_warp(grid.slack_b), to_warp(dims),
             to_warp(grid.base_b.long()), to_warp(stride), D, k, rings, MAX_RING,
-            *_bound_args(bound, q_qd, grid), to_warp(order), to_warp(best), to_warp(best_i)]
-    launch(_kernels(), Q, args, device)
+            *_bound_args(bound, q_qd, grid), None, to_warp(best), to_warp(best_i)]
+    launch_rows(_kernels(), order, args, len(args) - 3, device)  # on torch's CPU threads
     return best_i
 
 

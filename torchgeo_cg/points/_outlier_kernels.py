@@ -17,7 +17,7 @@ from typing import Any
 
 import torch
 
-from torchgeo_cg.engine import launch, register_kernels, to_warp
+from torchgeo_cg.engine import launch_rows, register_kernels, to_warp
 from torchgeo_cg.points._search_grid import MAX_RING, build_grid
 
 __all__: list[str] = []
@@ -93,8 +93,8 @@ def _build(wp):
                        sparse: int, lo: wp.array2d(dtype=Any), h_b: wp.array(dtype=Any),
                        dims: wp.array2d(dtype=wp.int64), base: wp.array(dtype=wp.int64),
                        stride: wp.array2d(dtype=wp.int64), dim: int, need: int, pad: int,
-                       out: wp.array(dtype=wp.int8)):
-        row = wp.tid()
+                       rows: wp.array(dtype=wp.int64), out: wp.array(dtype=wp.int8)):
+        row = int(rows[wp.tid()])  # the point (and output row) this thread answers
         b = int(q_batch[row])
         h = h_b[b]
         w = reach[b]
@@ -163,8 +163,9 @@ def warp_radius_inliers(p_bnd: torch.Tensor, ok_bn: torch.Tensor, packed_bmd: to
             to_warp(grid.points_dt), to_warp(grid.start_c), to_warp(grid.count_c),
             to_warp(keys), int(grid.keys_c is not None), to_warp(grid.lo_bd), to_warp(grid.h_b),
             to_warp(dims), to_warp(grid.base_b), to_warp(stride), D, need, MAX_RING,
-            to_warp(out)]
-    launch(_kernels(), qb.numel(), args, device)
+            None, to_warp(out)]
+    rows = torch.arange(qb.numel(), device=device)
+    launch_rows(_kernels(), rows, args, len(args) - 2, device)  # on torch's CPU threads
     mask = torch.zeros(B, N, dtype=torch.bool, device=device)
     mask[qb, qn] = out.bool()
     return mask

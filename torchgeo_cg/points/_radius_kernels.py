@@ -14,7 +14,7 @@ from typing import Any
 
 import torch
 
-from torchgeo_cg.engine import launch, register_kernels, to_warp
+from torchgeo_cg.engine import launch_rows, register_kernels, to_warp
 from torchgeo_cg.points._search_grid import MAX_RING, GridIndex
 
 __all__: list[str] = []
@@ -38,9 +38,10 @@ def _build(wp):
                     lo: wp.array2d(dtype=Any), h_b: wp.array(dtype=Any),
                     slack_b: wp.array(dtype=Any), dims: wp.array2d(dtype=wp.int64),
                     base: wp.array(dtype=wp.int64), stride: wp.array2d(dtype=wp.int64),
-                    dim: int, slots: int, pad: int, counts: wp.array(dtype=wp.int64),
-                    best: wp.array2d(dtype=Any), best_i: wp.array2d(dtype=wp.int64)):
-        row = wp.tid()
+                    dim: int, slots: int, pad: int, rows: wp.array(dtype=wp.int64),
+                    counts: wp.array(dtype=wp.int64), best: wp.array2d(dtype=Any),
+                    best_i: wp.array2d(dtype=wp.int64)):
+        row = int(rows[wp.tid()])  # the query (and output row) this thread answers
         b = int(q_batch[row])
         h = h_b[b]
         reach = radius[b] + slack_b[b]
@@ -163,7 +164,8 @@ def warp_radius(grid: GridIndex, q_qd: torch.Tensor, b_q: torch.Tensor,
             to_warp(grid.start_c.long()), to_warp(grid.count_c.long()), to_warp(keys),
             int(grid.keys_c is not None), to_warp(grid.lo_bd), to_warp(grid.h_b),
             to_warp(grid.slack_b), to_warp(dims), to_warp(grid.base_b.long()),
-            to_warp(stride), D, slots, MAX_RING, to_warp(counts), to_warp(best),
+            to_warp(stride), D, slots, MAX_RING, None, to_warp(counts), to_warp(best),
             to_warp(best_i)]
-    launch(_kernels(), Q, args, device)
+    rows = torch.arange(Q, device=device)
+    launch_rows(_kernels(), rows, args, len(args) - 4, device)  # on torch's CPU threads
     return counts, best_i

@@ -15,7 +15,7 @@ Convention:
 
 import torch
 
-from torchgeo_cg.engine import launch, load_warp, register_kernels, to_warp
+from torchgeo_cg.engine import launch_rows, load_warp, register_kernels, to_warp
 from torchgeo_cg.rays._grid import RayGrid, enter_grid
 from torchgeo_cg.rays._watertight import ray_shear
 
@@ -144,8 +144,9 @@ def _build(wp):
                     t1: wp.array(dtype=f64), cell0: wp.array(dtype=wp.int64, ndim=2),
                     lo: wp.vec3d, h: f64, dims: wp.vec3i, cells: wp.int64,
                     start: wp.array(dtype=wp.int64), count: wp.array(dtype=wp.int64),
-                    faces: wp.array(dtype=wp.int64), out_face: wp.array(dtype=wp.int64)):
-        i = wp.tid()
+                    faces: wp.array(dtype=wp.int64), sel: wp.array(dtype=wp.int64),
+                    out_face: wp.array(dtype=wp.int64)):
+        i = int(sel[wp.tid()])  # the ray (and output row) this thread answers
         oi, di = o[i], d[i]
         kx, ky, kz = int(perm[i, 0]), int(perm[i, 1]), int(perm[i, 2])
         cx, cy, cz = int(cell0[i, 0]), int(cell0[i, 1]), int(cell0[i, 2])
@@ -195,7 +196,8 @@ _kernels = register_kernels(_build)
 def warp_first_faces(grid: RayGrid, o: torch.Tensor, d: torch.Tensor, item: torch.Tensor,
                      t_lo: torch.Tensor, t_hi: torch.Tensor) -> torch.Tensor:
     """Global face id of the first hit of every ray (``-1`` none), as
-    :func:`~torchgeo_cg.rays._grid.walk` finds it, in one launch.
+    :func:`~torchgeo_cg.rays._grid.walk` finds it, in one launch (split across torch's CPU
+    threads).
 
     Example:
         >>> from torchgeo_cg.engine import warp_status
@@ -222,12 +224,12 @@ def warp_first_faces(grid: RayGrid, o: torch.Tensor, d: torch.Tensor, item: torc
     cell = cell.clamp(min=torch.zeros_like(dims), max=dims - 1)
     found = torch.empty(rows.numel(), dtype=torch.long, device=o.device)
     dims_i = [int(x) for x in dims]
-    launch(kernel, rows.numel(), [
+    launch_rows(kernel, torch.arange(rows.numel(), device=o.device), [
         to_warp(grid.tri), to_warp(o, wp.vec3d), to_warp(d, wp.vec3d), to_warp(item[rows]),
         to_warp(perm[rows]), to_warp(shear[rows], wp.vec3d), to_warp(t_lo[rows]),
         to_warp(t_hi[rows]), to_warp(t1[rows]), to_warp(cell),
         wp.vec3d(*[float(x) for x in lo]), float(h), wp.vec3i(*dims_i), int(grid.cells),
-        to_warp(grid.start), to_warp(grid.count), to_warp(grid.faces), to_warp(found)],
-        o.device)
+        to_warp(grid.start), to_warp(grid.count), to_warp(grid.faces), None, to_warp(found)],
+        17, o.device)  # on torch's CPU threads
     out[rows] = found
     return out
