@@ -57,7 +57,7 @@ def test_the_chunks_give_the_result_of_one_launch(threads, monkeypatch):
     with _Threads(threads):
         launch_rows(_kernels(), rows, [None, to_warp(x), to_warp(y)], 0, x.device)
     assert torch.equal(y, x * x + torch.arange(n, dtype=torch.float64))
-    assert len(sizes) == min(threads, n // 2048) and sum(sizes) == n
+    assert len(sizes) == min(threads, n // 4096) and sum(sizes) == n
 
 
 @needs_warp
