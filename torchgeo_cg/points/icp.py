@@ -13,10 +13,11 @@ Convention:
       (column vectors, homogeneous ``(*, 4, 4)``).
     - Convergence is relative: a pair stops when its update moves the valid source
       points by at most ``tol`` times their RMS radius about their centroid (RMS over
-      the points), or when the update keeps the number of inlier matches and changes
-      their RMSE by at most ``tol`` times itself (the matches of noisy scans can cycle
-      between neighbours with a small motion that never dies out; Open3D stops by the
-      same two quantities, in absolute units). No absolute epsilon.
+      the points), or when it moves them by at most ``sqrt(tol)`` times that radius,
+      keeps the number of inlier matches and lowers their RMSE by at most ``tol`` times
+      itself (or raises it): the matches of noisy scans can cycle between neighbours
+      with a small motion that never dies out. (Open3D stops on the changes of fitness
+      and RMSE, in absolute units.) No absolute epsilon.
     - ``rmse`` is the root mean square point-to-point distance over the inlier
       matches (those within ``max_distance``), ``inlier_fraction`` their share of
       the valid source points, as Open3D's ``inlier_rmse`` and ``fitness``.
@@ -89,8 +90,9 @@ class ICPConvergence:
     Attributes:
         max_iterations: at most this many updates, ``>= 0``.
         tol: a pair has converged when an update moves its valid source points by at most
-            ``tol`` times their RMS radius about their centroid, or keeps the number of
-            inliers and changes their RMSE by at most ``tol`` times itself; ``> 0``.
+            ``tol`` times their RMS radius about their centroid, or by at most
+            ``sqrt(tol)`` times it while keeping the number of inliers and lowering their
+            RMSE by at most ``tol`` times itself; ``> 0``.
 
     Example:
         >>> ICPConvergence(max_iterations=60).tol
