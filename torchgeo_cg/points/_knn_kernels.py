@@ -23,6 +23,7 @@ from typing import Any
 import torch
 
 from torchgeo_cg.engine import launch_rows, register_kernels, to_warp
+from torchgeo_cg.points._grid_funcs import grid_funcs
 from torchgeo_cg.points._search_grid import (
     MAX_RING,
     GridIndex,
@@ -74,18 +75,7 @@ def kernel_per_cell(k: int) -> float:
 
 def _ring_funcs(wp):
     """Warp functions: the cell scan of one grid cell into a running top-k."""
-
-    @wp.func
-    def sq_dist(x: Any, y: Any, z: Any, qx: Any, qy: Any, qz: Any, dim: int):
-        """Squared distance, summed coordinate by coordinate (the torch search's order)."""
-        dx = x - qx
-        d2 = dx * dx
-        dy = y - qy
-        d2 = d2 + dy * dy
-        if dim == 3:
-            dz = z - qz
-            d2 = d2 + dz * dz
-        return d2
+    sq_dist = grid_funcs().sq_dist
 
     @wp.func
     def scan_cell(pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),
@@ -118,11 +108,11 @@ def _ring_funcs(wp):
                 kth = best[row, k - 1]
         return n
 
-    return sq_dist, scan_cell
+    return scan_cell
 
 
 def _cell_funcs(wp):
-    """Warp functions: cells of a query, their gaps, the near-first order, the lookup."""
+    """Warp functions: cells of a query, their gaps, the near-first order."""
 
     @wp.func
     def cell_of(q: Any, lo: Any, h: Any) -> int:
@@ -159,30 +149,15 @@ def _cell_funcs(wp):
             return c + m * s
         return c - m * s
 
-    @wp.func
-    def lookup(keys: wp.array(dtype=wp.int64), sparse: int, key: wp.int64) -> wp.int64:
-        """Row of cell ``key`` in the cell tables, ``-1`` for an empty sparse cell."""
-        if sparse == 0:
-            return key
-        lo_k = int(0)  # noqa: UP018  a dynamic variable for Warp
-        hi_k = keys.shape[0]
-        while lo_k < hi_k:
-            mid = (lo_k + hi_k) // 2
-            if keys[mid] < key:
-                lo_k = mid + 1
-            else:
-                hi_k = mid
-        if lo_k < keys.shape[0] and keys[lo_k] == key:
-            return wp.int64(lo_k)
-        return wp.int64(-1)
-
-    return cell_of, gap, wall_of, side, near, lookup
+    return cell_of, gap, wall_of, side, near
 
 
 def _build(wp):
     """The kNN kernel, with overloads for float32 and float64."""
-    sq_dist, scan_cell = _ring_funcs(wp)
-    cell_of, gap, wall_of, side, near, lookup = _cell_funcs(wp)
+    scan_cell = _ring_funcs(wp)
+    sq_dist = grid_funcs().sq_dist
+    cell_of, gap, wall_of, side, near = _cell_funcs(wp)
+    lookup = grid_funcs().lookup
 
     @wp.kernel
     def knn_grid(query: wp.array2d(dtype=Any), q_batch: wp.array(dtype=wp.int64),

@@ -18,6 +18,7 @@ from typing import Any
 import torch
 
 from torchgeo_cg.engine import launch_rows, register_kernels, to_warp
+from torchgeo_cg.points._grid_funcs import grid_funcs
 from torchgeo_cg.points._search_grid import MAX_RING, build_grid
 
 __all__: list[str] = []
@@ -29,6 +30,8 @@ CELL = 1.4
 
 def _cell_funcs(wp):
     """Warp functions: the cells a point's box meets, the count of one cell."""
+    funcs = grid_funcs()
+    sq_dist, lookup = funcs.sq_dist, funcs.lookup
 
     @wp.func
     def cell_of(q: Any, lo: Any, h: Any, n: int) -> int:
@@ -42,31 +45,12 @@ def _cell_funcs(wp):
                    sparse: int, key: wp.int64, qx: Any, qy: Any, qz: Any, dim: int, r2: Any,
                    n: int, need: int) -> int:
         """``n`` plus the points of cell ``key`` strictly within the radius, up to ``need``."""
-        c = int(-1)  # noqa: UP018  a dynamic variable for Warp
-        if sparse == 0:
-            c = int(key)
-        else:
-            lo_k = int(0)  # noqa: UP018
-            hi_k = keys.shape[0]
-            while lo_k < hi_k:
-                mid = (lo_k + hi_k) // 2
-                if keys[mid] < key:
-                    lo_k = mid + 1
-                else:
-                    hi_k = mid
-            if lo_k < keys.shape[0] and keys[lo_k] == key:
-                c = lo_k
+        c = lookup(keys, sparse, key)
         total = n
-        if c >= 0:
+        if c >= wp.int64(0):
             s = int(start[c])
             for t in range(s, s + int(count[c])):
-                dx = pts[0, t] - qx
-                d2 = dx * dx
-                dy = pts[1, t] - qy
-                d2 = d2 + dy * dy
-                if dim == 3:
-                    dz = pts[2, t] - qz
-                    d2 = d2 + dz * dz
+                d2 = sq_dist(pts[0, t], pts[1, t], pts[dim - 1, t], qx, qy, qz, dim)
                 if d2 < r2:
                     total = total + 1
                     if total >= need:

@@ -15,6 +15,7 @@ from typing import Any
 import torch
 
 from torchgeo_cg.engine import launch_rows, register_kernels, to_warp
+from torchgeo_cg.points._grid_funcs import grid_funcs
 from torchgeo_cg.points._search_grid import MAX_RING, GridIndex
 
 __all__: list[str] = []
@@ -22,6 +23,8 @@ __all__: list[str] = []
 
 def _build(wp):
     """The radius kernel (count or collect), with overloads for float32 and float64."""
+    funcs = grid_funcs()
+    sq_dist, lookup = funcs.sq_dist, funcs.lookup
 
     @wp.func
     def cell_of(q: Any, lo: Any, h: Any, n: int) -> int:
@@ -66,31 +69,12 @@ def _build(wp):
                 for z in range(z0, z1 + 1):
                     key = base[b] + wp.int64(x + pad) * stride[b, 0] + wp.int64(
                         y + pad) * stride[b, 1] + wp.int64(z + pad) * stride[b, 2]
-                    s = wp.int64(0)
-                    c = wp.int64(0)
-                    if sparse == 0:
-                        s = start[key]
-                        c = count[key]
-                    else:
-                        lo_k = int(0)  # noqa: UP018
-                        hi_k = keys.shape[0]
-                        while lo_k < hi_k:
-                            mid = (lo_k + hi_k) // 2
-                            if keys[mid] < key:
-                                lo_k = mid + 1
-                            else:
-                                hi_k = mid
-                        if lo_k < keys.shape[0] and keys[lo_k] == key:
-                            s = start[lo_k]
-                            c = count[lo_k]
-                    for t in range(int(s), int(s + c)):
-                        dx = pts[0, t] - qx
-                        d2 = dx * dx
-                        dy = pts[1, t] - qy
-                        d2 = d2 + dy * dy
-                        if dim == 3:
-                            dz = pts[2, t] - qz
-                            d2 = d2 + dz * dz
+                    c = lookup(keys, sparse, key)
+                    if c < wp.int64(0):
+                        continue
+                    s = start[c]
+                    for t in range(int(s), int(s + count[c])):
+                        d2 = sq_dist(pts[0, t], pts[1, t], pts[dim - 1, t], qx, qy, qz, dim)
                         if d2 > r2:
                             continue
                         total = total + wp.int64(1)
