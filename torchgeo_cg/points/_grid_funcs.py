@@ -1,6 +1,7 @@
 """Warp functions shared by the grid kernels of the points area (kNN, radius search,
 radius outliers): the row of a cell in the grid's tables, and the squared distance in the
-torch search's order, so every kernel ranks and tests distances alike.
+torch search's order, so every kernel ranks and tests distances alike, and the insertion
+into a row sorted by (distance, index).
 
 Convention:
     No ``from __future__ import annotations``: Warp reads the annotations of the builder.
@@ -16,7 +17,7 @@ __all__ = ["grid_funcs"]
 
 
 def _build(wp):
-    """``sq_dist`` and ``lookup``."""
+    """``sq_dist``, ``lookup`` and ``insert``."""
 
     @wp.func
     def sq_dist(x: Any, y: Any, z: Any, qx: Any, qy: Any, qz: Any, dim: int):
@@ -47,7 +48,22 @@ def _build(wp):
             return wp.int64(lo_k)
         return wp.int64(-1)
 
-    return SimpleNamespace(sq_dist=sq_dist, lookup=lookup)
+    @wp.func
+    def insert(best: wp.array2d(dtype=Any), best_i: wp.array2d(dtype=wp.int64), row: int,
+               n: int, d2: Any, j: wp.int64) -> int:
+        """Insert ``(d2, j)`` among the first ``n`` entries of row ``row``, sorted by
+        (distance, index); returns ``n + 1`` (the caller keeps it within the row)."""
+        s = n
+        while s > 0 and (best[row, s - 1] > d2 or (best[row, s - 1] == d2
+                                                     and best_i[row, s - 1] > j)):
+            best[row, s] = best[row, s - 1]
+            best_i[row, s] = best_i[row, s - 1]
+            s = s - 1
+        best[row, s] = d2
+        best_i[row, s] = j
+        return n + 1
+
+    return SimpleNamespace(sq_dist=sq_dist, lookup=lookup, insert=insert)
 
 
 #: The shared functions, built at the first call (loads Warp).

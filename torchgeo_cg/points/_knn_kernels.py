@@ -75,7 +75,8 @@ def kernel_per_cell(k: int) -> float:
 
 def _ring_funcs(wp):
     """Warp functions: the cell scan of one grid cell into a running top-k."""
-    sq_dist = grid_funcs().sq_dist
+    funcs = grid_funcs()
+    sq_dist, insert = funcs.sq_dist, funcs.insert
 
     @wp.func
     def scan_cell(pts: wp.array2d(dtype=Any), index: wp.array(dtype=wp.int64),
@@ -95,15 +96,7 @@ def _ring_funcs(wp):
                 if d2 == kth and j > best_i[row, k - 1]:
                     continue
                 n = k - 1
-            s = n  # insertion from the end: sorted by (distance, index)
-            while s > 0 and (best[row, s - 1] > d2 or (best[row, s - 1] == d2
-                                                         and best_i[row, s - 1] > j)):
-                best[row, s] = best[row, s - 1]
-                best_i[row, s] = best_i[row, s - 1]
-                s = s - 1
-            best[row, s] = d2
-            best_i[row, s] = j
-            n = n + 1
+            n = insert(best, best_i, row, n, d2, j)  # sorted by (distance, index)
             if n == k:
                 kth = best[row, k - 1]
         return n
@@ -155,9 +148,8 @@ def _cell_funcs(wp):
 def _build(wp):
     """The kNN kernel, with overloads for float32 and float64."""
     scan_cell = _ring_funcs(wp)
-    sq_dist = grid_funcs().sq_dist
     cell_of, gap, wall_of, side, near = _cell_funcs(wp)
-    lookup = grid_funcs().lookup
+    sq_dist, lookup = grid_funcs().sq_dist, grid_funcs().lookup
 
     @wp.kernel
     def knn_grid(query: wp.array2d(dtype=Any), q_batch: wp.array(dtype=wp.int64),

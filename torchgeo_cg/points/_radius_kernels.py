@@ -24,7 +24,7 @@ __all__: list[str] = []
 def _build(wp):
     """The radius kernel (count or collect), with overloads for float32 and float64."""
     funcs = grid_funcs()
-    sq_dist, lookup = funcs.sq_dist, funcs.lookup
+    sq_dist, lookup, insert = funcs.sq_dist, funcs.lookup, funcs.insert
 
     @wp.func
     def cell_of(q: Any, lo: Any, h: Any, n: int) -> int:
@@ -86,15 +86,7 @@ def _build(wp):
                             if d2 > last or (d2 == last and j > best_i[row, slots - 1]):
                                 continue
                             n = slots - 1
-                        p = n  # insertion from the end: sorted by (distance, index)
-                        while p > 0 and (best[row, p - 1] > d2 or (
-                                best[row, p - 1] == d2 and best_i[row, p - 1] > j)):
-                            best[row, p] = best[row, p - 1]
-                            best_i[row, p] = best_i[row, p - 1]
-                            p = p - 1
-                        best[row, p] = d2
-                        best_i[row, p] = j
-                        n = n + 1
+                        n = insert(best, best_i, row, n, d2, j)  # by (distance, index)
         counts[row] = total
         for t in range(n, slots):
             best_i[row, t] = wp.int64(-1)
